@@ -1,0 +1,197 @@
+"""Assembly: element kinematics, residual vector and tangent values on a fixed sparsity pattern.
+
+The pattern (which global matrix entries exist, and where each element entry lands) is computed
+once per mesh on the host. Inside ``jit`` the tangent is a flat vector of values on that pattern,
+summed with one scatter-add, so nothing is recompiled when parameter values change.
+
+Element quantities are vectorised over cells; there is no Python loop over elements. The stress
+and the material tangent at each quadrature point are the first and second derivatives of the
+energy (by JAX); the element vectors and matrices are their contraction with the shape-function
+gradients (the chain rule, nothing constitutive is written by hand).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import _config  # noqa: F401
+from .elements import Element, get_element
+from .mesh import Mesh
+
+
+# ====================================================================== host-side pattern
+@dataclass(frozen=True, eq=False)
+class Pattern:
+    """Sparsity pattern of the global tangent and the scatter maps into it (host numpy arrays).
+
+    Attributes:
+        n_dofs: number of unknowns (nodes x dim), dof index = node * dim + component.
+        edofs: global dofs of each cell, ``(n_cells, n_per_cell * dim)``.
+        slots: for every element-matrix entry (cell-major, row-major) its index in ``values``.
+        rows, cols: COO coordinates of the pattern entries, sorted by row then column (CSR order).
+        indptr: CSR row pointer, ``(n_dofs + 1,)``.
+        diag: index in ``values`` of each diagonal entry, ``(n_dofs,)``.
+    """
+
+    n_dofs: int
+    edofs: np.ndarray
+    slots: np.ndarray
+    rows: np.ndarray
+    cols: np.ndarray
+    indptr: np.ndarray
+    diag: np.ndarray
+
+    @property
+    def nnz(self) -> int:
+        return len(self.rows)
+
+
+def make_pattern(mesh: Mesh) -> Pattern:
+    """Compute the tangent's sparsity pattern for ``mesh`` (once per mesh)."""
+    dim = mesh.dim
+    edofs = (mesh.cells[:, :, None] * dim + np.arange(dim)).reshape(mesh.n_cells, -1)
+    k = edofs.shape[1]
+    r = np.repeat(edofs, k, axis=1).ravel()
+    c = np.tile(edofs, (1, k)).ravel()
+    n = mesh.n_dofs
+    key = r.astype(np.int64) * n + c
+    uniq, slots = np.unique(key, return_inverse=True)
+    rows, cols = uniq // n, uniq % n
+    indptr = np.zeros(n + 1, np.int64)
+    np.add.at(indptr, rows + 1, 1)
+    indptr = np.cumsum(indptr)
+    diag_key = np.arange(n, dtype=np.int64) * n + np.arange(n)
+    diag = np.searchsorted(uniq, diag_key)
+    return Pattern(n, edofs.astype(np.int32), slots.astype(np.int32).ravel(), rows.astype(np.int32),
+                   cols.astype(np.int32), indptr, diag.astype(np.int32))
+
+
+# ====================================================================== element kinematics
+def shape_gradients(X, cells, el: Element):
+    """Reference-configuration shape gradients and integration weights.
+
+    Args:
+        X: nodal reference coordinates ``(n_nodes, dim)`` (differentiable).
+        cells: ``(n_cells, n_per_cell)``.
+    Returns:
+        ``dNdX (n_cells, n_qp, n_per_cell, dim)`` and ``dV (n_cells, n_qp)``: quadrature weight
+        times Jacobian determinant (reference area or volume per point).
+    """
+    Xe = X[cells]
+    J0 = jnp.einsum("cki,qkj->cqij", Xe, el.dN)
+    dNdX = jnp.einsum("qkj,cqji->cqki", el.dN, jnp.linalg.inv(J0))
+    return dNdX, jnp.linalg.det(J0) * el.weights
+
+
+def deformation_gradients(u, cells, dNdX):
+    """F = I + grad u at every quadrature point, ``(n_cells, n_qp, dim, dim)``; ``u`` is ``(n_nodes, dim)``."""
+    dim = u.shape[1]
+    return jnp.eye(dim) + jnp.einsum("cki,cqkj->cqij", u[cells], dNdX)
+
+
+def _per_qp(fn, F, p):
+    """Apply ``fn(F, p)`` at each quadrature point; ``p`` holds per-cell scalars."""
+    return jax.vmap(lambda Fc, pc: jax.vmap(lambda Fq: fn(Fq, pc))(Fc))(F, p)
+
+
+def _stress_and_tangent(W):
+    """(P, A) of an energy: P = dW/dF and A[m] = dP/dF_m for each flattened component m."""
+
+    def fn(F, p):
+        g = lambda G: jax.grad(W)(G, p)  # noqa: E731
+        basis = jnp.eye(F.size, dtype=F.dtype).reshape((F.size,) + F.shape)
+        P, A = jax.vmap(lambda v: jax.jvp(g, (F,), (v,)))(basis)
+        return P[0], A
+
+    return fn
+
+
+# ====================================================================== global quantities
+@dataclass(frozen=True, eq=False)
+class Assembler:
+    """Global energy, residual and tangent of one mesh and one reduced energy ``W(F, p)``.
+
+    All methods are pure JAX functions of ``(u, X, p, t)``: displacements ``(n_nodes, dim)``,
+    reference coordinates ``(n_nodes, dim)``, per-cell parameter dict ``p`` and per-cell
+    thickness ``t`` (ones in 3D). Index arrays come from ``arrays`` (passed in, never closed over,
+    so XLA does not constant-fold them).
+    """
+
+    element: str
+    W: object
+
+    @property
+    def el(self) -> Element:
+        return get_element(self.element)
+
+    def energy(self, u, X, p, t, cells):
+        """Total strain energy (energy units: stress x volume)."""
+        dNdX, dV = shape_gradients(X, cells, self.el)
+        F = deformation_gradients(u, cells, dNdX)
+        return jnp.sum(_per_qp(self.W, F, p) * dV * t[:, None])
+
+    def element_residuals(self, u, X, p, t, cells):
+        """Internal nodal forces of each cell, ``(n_cells, n_per_cell * dim)``."""
+        dNdX, dV = shape_gradients(X, cells, self.el)
+        F = deformation_gradients(u, cells, dNdX)
+        P = _per_qp(jax.grad(self.W), F, p)
+        return jnp.einsum("cqiK,cqaK,cq->cai", P, dNdX, dV * t[:, None]).reshape(len(cells), -1)
+
+    def residual(self, u, X, p, t, arrays):
+        """Internal force vector, ``(n_dofs,)``."""
+        Re = self.element_residuals(u, X, p, t, arrays["cells"])
+        return jnp.zeros(u.size, u.dtype).at[arrays["edofs"].ravel()].add(Re.ravel())
+
+    def residual_and_tangent(self, u, X, p, t, arrays, nnz: int):
+        """Internal force vector ``(n_dofs,)`` and tangent values on the pattern ``(nnz,)``."""
+        cells = arrays["cells"]
+        dNdX, dV = shape_gradients(X, cells, self.el)
+        F = deformation_gradients(u, cells, dNdX)
+        P, A = _per_qp(_stress_and_tangent(self.W), F, p)
+        dim = u.shape[1]
+        w = dV * t[:, None]
+        Re = jnp.einsum("cqiK,cqaK,cq->cai", P, dNdX, w).reshape(len(cells), -1)
+        A = A.reshape(A.shape[:2] + (dim, dim, dim, dim))  # (c, q, j, L, i, K) = dP_iK / dF_jL
+        Ke = jnp.einsum("cqaK,cqjLiK,cqbL,cq->caibj", dNdX, A, dNdX, w)
+        R = jnp.zeros(u.size, u.dtype).at[arrays["edofs"].ravel()].add(Re.ravel())
+        vals = jnp.zeros(nnz, u.dtype).at[arrays["slots"]].add(Ke.ravel())
+        return R, vals
+
+    def min_jacobian(self, u, X, cells):
+        """Smallest det F over all quadrature points (<= 0 means an inverted element)."""
+        dNdX, _ = shape_gradients(X, cells, self.el)
+        return jnp.min(jnp.linalg.det(deformation_gradients(u, cells, dNdX)))
+
+
+def matvec(vals, rows, cols, x):
+    """Sparse product ``K @ x`` with the pattern's COO coordinates."""
+    return jnp.zeros_like(x).at[rows].add(vals * x[cols])
+
+
+def facet_forces(X, facets, line_load, facet_element: str, n_dofs: int):
+    """Nodal forces of dead loads on facets.
+
+    Args:
+        X: reference coordinates ``(n_nodes, dim)``.
+        facets: facet node indices ``(n_facets, k)``.
+        line_load: load per unit reference measure of each facet ``(n_facets, dim)``: in 2D force
+            per unit length (traction x thickness), in 3D traction (force per area).
+    Returns:
+        ``(n_dofs,)`` nodal force vector.
+    """
+    fe = get_element(facet_element)
+    Xf = X[facets]  # (f, k, dim)
+    T = jnp.einsum("fki,qkj->fqij", Xf, fe.dN)  # tangents (f, q, dim, dim-1)
+    if T.shape[-1] == 1:
+        ds = jnp.linalg.norm(T[..., 0], axis=-1)
+    else:
+        ds = jnp.linalg.norm(jnp.cross(T[..., 0], T[..., 1]), axis=-1)
+    w = ds * fe.weights  # (f, q)
+    fa = jnp.einsum("qk,fq,fi->fki", fe.N, w, line_load)
+    dim = X.shape[1]
+    dofs = (facets[:, :, None] * dim + jnp.arange(dim)).ravel()
+    return jnp.zeros(n_dofs, X.dtype).at[dofs].add(fa.ravel())

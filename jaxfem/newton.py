@@ -1,0 +1,182 @@
+"""Newton-Raphson with adaptive load stepping, entirely inside ``jax.jit``.
+
+Each load step moves the loads (prescribed displacements, point forces, tractions) from where the
+last converged state left them towards the target. A step starts with a consistent predictor (the
+prescribed increment pushed through the tangent, so boundary elements are not torn), then Newton
+corrections with a back-tracking guard against inverted elements. A step that fails is cut in half
+and retried; a step that converged quickly lets the next one grow. Convergence needs both the free
+residual (relative to the reaction and load scale) and the last increment (relative to the
+displacement) to be small.
+
+The outcome is data (``status``, the failing step, the residual log), because nothing can be raised
+inside ``jit``; :class:`~jaxfem.solver.Solver` turns a failure into a :class:`SolverError`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+
+from .assembly import facet_forces, matvec
+
+OK, NO_CONVERGENCE, INVERTED, SINGULAR, NAN = 0, 1, 2, 3, 4
+REASONS = {OK: "ok", NO_CONVERGENCE: "no-convergence", INVERTED: "inverted-element",
+           SINGULAR: "singular-tangent", NAN: "nan"}
+
+
+@dataclass(frozen=True)
+class NewtonOptions:
+    """Settings of the nonlinear solve (hashable: a change recompiles, a parameter change does not).
+
+    Attributes:
+        rtol: free residual <= rtol x (norm of reactions and external loads).
+        utol: last Newton increment <= utol x norm of the displacement.
+        max_iter: corrections per load step before the step is cut back.
+        initial_step: first load increment (1 = try the full load at once).
+        min_step: smallest load increment before giving up.
+        max_steps: attempted load steps in all (accepted and cut back).
+        grow_below: a step that converged in at most this many corrections doubles the next one.
+        line_search: halvings allowed when a Newton update would invert an element.
+        log_size: residual norms kept for the solver log.
+    """
+
+    rtol: float = 1e-9
+    utol: float = 1e-4
+    max_iter: int = 20
+    initial_step: float = 1.0
+    min_step: float = 1.0 / 1024
+    max_steps: int = 100
+    grow_below: int = 5
+    line_search: int = 8
+    log_size: int = 256
+
+
+def loads_at(theta, loads0, s):
+    """Loads a fraction ``s`` of the way from ``loads0`` to ``theta``'s loads."""
+    return {k: loads0[k] + s * (theta[k] - loads0[k]) for k in loads0}
+
+
+def external_force(theta, loads, arrays, facet_element, n_dofs):
+    f = loads["f"]
+    if arrays["tfacets"].shape[0]:
+        f = f + facet_forces(theta["X"], arrays["tfacets"], loads["traction"], facet_element, n_dofs)
+    return f
+
+
+def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOptions, facet_element, finite):
+    """Solve R(u; theta) = f_ext(theta) from the equilibrium ``u0`` of the loads ``loads0``.
+
+    Args:
+        theta: parameter pytree (see :meth:`Problem.params`).
+        u0: start displacements ``(n_dofs,)``, in equilibrium with ``loads0``.
+        loads0: the loads (``u_D``, ``f``, ``traction``) that ``u0`` satisfies.
+        arrays: device index arrays of the pattern and the constraints.
+    Returns:
+        ``(u, info)``: displacements ``(n_dofs,)`` and a dict of counters and the residual log.
+    """
+    dim = theta["X"].shape[1]
+    n = u0.shape[0]
+    free, fixed = arrays["free"], arrays["fixed"]
+    p = {k: theta[k] for k in theta if k not in ("X", "thickness", "u_D", "f", "traction")}
+    X, t = theta["X"], theta["thickness"]
+
+    def assemble(u, loads):
+        R, vals = asm.residual_and_tangent(u.reshape(-1, dim), X, p, t, arrays, nnz)
+        return R - external_force(theta, loads, arrays, facet_element, n), vals
+
+    def residual(u, loads):
+        R = asm.residual(u.reshape(-1, dim), X, p, t, arrays)
+        return R - external_force(theta, loads, arrays, facet_element, n)
+
+    def constrained(vals):
+        return vals * arrays["keep"] + arrays["diag_fixed"]
+
+    def min_det(u):
+        return asm.min_jacobian(u.reshape(-1, dim), X, arrays["cells"]) if finite else jnp.array(1.0)
+
+    def norms(R, loads):
+        f_ext = external_force(theta, loads, arrays, facet_element, n)
+        scale = jnp.maximum(jnp.linalg.norm(R * (1 - free)), jnp.linalg.norm(f_ext * free))
+        return jnp.linalg.norm(R * free), jnp.maximum(scale, 1e-300)
+
+    def guarded_update(u, du):
+        """Halve the update while it would invert an element."""
+
+        def cond(c):
+            a, k = c
+            return (min_det(u + a * du) <= 0) & (k < opts.line_search)
+
+        a, k = jax.lax.while_loop(cond, lambda c: (0.5 * c[0], c[1] + 1), (jnp.array(1.0), 0))
+        return u + a * du, min_det(u + a * du) > 0
+
+    def log(st, value):
+        i = jnp.minimum(st["n_log"], opts.log_size - 1)
+        return {**st, "log": st["log"].at[i].set(value), "log_step": st["log_step"].at[i].set(st["steps"]),
+                "n_log": st["n_log"] + 1}
+
+    def attempt(st):
+        """One load step from st['s'] by st['ds']: predictor, then corrections."""
+        s_new = jnp.minimum(st["s"] + st["ds"], 1.0)
+        loads = loads_at(theta, loads0, s_new)
+        u = st["u"]
+        # predictor: prescribed increment through the tangent at the last equilibrium
+        R, vals = assemble(u, loads)
+        du_c = jnp.zeros(n).at[fixed].set(loads["u_D"] - u[fixed])
+        rhs = -(R + matvec(vals, arrays["rows"], arrays["cols"], du_c)) * free + du_c
+        du = lin(constrained(vals), rhs, arrays)
+        u1, ok = guarded_update(u, du)
+        u1 = jnp.where(ok, u1, u + du_c)  # no valid predictor: start from the prescribed jump
+
+        def body(c):
+            u1, it, _, _, reason, stl = c
+            R, vals = assemble(u1, loads)
+            du = lin(constrained(vals), -R * free, arrays)
+            bad_solve = ~jnp.all(jnp.isfinite(du))
+            u2, ok = guarded_update(u1, jnp.where(bad_solve, 0.0, du))
+            R2 = residual(u2, loads)
+            res, scale = norms(R2, loads)
+            stl = log(stl, res / scale)
+            dun = jnp.linalg.norm(du)
+            conv = (res <= opts.rtol * scale) & (dun <= opts.utol * jnp.maximum(jnp.linalg.norm(u2), 1e-300))
+            reason = jnp.where(bad_solve, SINGULAR, jnp.where(~ok, INVERTED,
+                               jnp.where(~jnp.isfinite(res), NAN, reason)))
+            return u2, it + 1, conv, (reason != OK) | bad_solve | ~ok, reason, stl
+
+        def cond(c):
+            _, it, conv, failed, _, _ = c
+            return (~conv) & (~failed) & (it < opts.max_iter)
+
+        init = (u1, 0, False, False, jnp.array(OK), st)
+        u1, it, conv, failed, reason, st = jax.lax.while_loop(cond, body, init)
+        reason = jnp.where(conv, OK, jnp.where(reason == OK, NO_CONVERGENCE, reason))
+        return u1, s_new, it, conv, reason, st
+
+    def step_body(st):
+        u1, s_new, it, conv, reason, st = attempt(st)
+        grow = jnp.where(it <= opts.grow_below, 2.0, 1.0)
+        accepted = {**st, "u": u1, "s": s_new, "ds": jnp.minimum(st["ds"] * grow, 1.0),
+                    "accepted": st["accepted"] + 1}
+        cut = {**st, "ds": 0.5 * st["ds"], "cutbacks": st["cutbacks"] + 1, "reason": reason,
+               "fail_s": st["s"], "fail_step": st["accepted"]}
+        new = jax.tree.map(lambda a, b: jnp.where(conv, a, b), accepted, cut)
+        return {**new, "steps": st["steps"] + 1, "iterations": st["iterations"] + it + 1,
+                "iters_log": new["iters_log"].at[jnp.minimum(st["steps"], opts.max_steps - 1)].set(it)}
+
+    def step_cond(st):
+        return (st["s"] < 1.0) & (st["ds"] >= opts.min_step) & (st["steps"] < opts.max_steps)
+
+    st0 = {"u": u0, "s": jnp.array(0.0), "ds": jnp.array(opts.initial_step), "steps": 0, "accepted": 0,
+           "cutbacks": 0, "iterations": 0, "reason": jnp.array(OK), "fail_s": jnp.array(0.0), "fail_step": 0,
+           "log": jnp.full(opts.log_size, jnp.nan), "log_step": jnp.full(opts.log_size, -1), "n_log": 0,
+           "iters_log": jnp.zeros(opts.max_steps, jnp.int32)}
+    st = jax.lax.while_loop(step_cond, step_body, st0)
+    done = st["s"] >= 1.0
+    status = jnp.where(done, OK, jnp.where(st["reason"] == OK, NO_CONVERGENCE, st["reason"]))
+    info = {"status": status, "load_factor": st["s"], "steps": st["accepted"], "attempts": st["steps"],
+            "cutbacks": st["cutbacks"], "iterations": st["iterations"], "fail_step": st["fail_step"],
+            "fail_load_factor": st["fail_s"], "residual_log": st["log"], "log_step": st["log_step"],
+            "step_iterations": st["iters_log"]}
+    u = jnp.where(done, st["u"], jnp.nan)
+    return u, info

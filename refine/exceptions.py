@@ -1,0 +1,41 @@
+"""The exceptions refine raises. Each message says what went wrong, where, and what to do about it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class RefineError(Exception):
+    """Base class of every error raised by refine."""
+
+
+class ObservationError(RefineError, ValueError):
+    """Observations given as arrays are inconsistent: shapes, duplicate ids, unknown roles, inf."""
+
+
+class BundleError(RefineError, ValueError):
+    """A measurement bundle on disk is malformed.
+
+    The message starts with ``file:line:`` (or ``file:`` when no single line is at fault) so that
+    an editor can jump to the problem.
+
+    Attributes:
+        path: the offending file.
+        line: 1-based line number in that file, or None.
+        problem: the message without the location prefix.
+    """
+
+    def __init__(self, path: str | Path, problem: str, line: int | None = None):
+        where = f"{path}:{line}" if line is not None else f"{path}"
+        super().__init__(f"{where}: {problem}")
+        self.path = Path(path)
+        self.line = line
+        self.problem = problem
+
+
+class SearchError(RefineError, ValueError):
+    """A search was set up wrongly: a bracket that is not ordered, a non-positive tolerance."""
+
+
+class ExperimentError(RefineError, ValueError):
+    """An experiment description (model kind, domain, material, noise) is invalid."""

@@ -1,0 +1,130 @@
+"""Loading images and checking the image stack and the region of interest."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from ._errors import ImageError, RoiError
+
+
+def load_images(paths: Sequence[str | Path]) -> np.ndarray:
+    """Read images (TIFF, PNG, ...) into a float64 grey stack, (n_frames, rows, cols).
+
+    Grey values keep the file's scale (0-255 for 8-bit, 0-65535 for 16-bit); colour images are
+    converted with the ITU-R 601 luma weights, an alpha channel is ignored.
+    """
+    import cv2  # imported here: only loading needs it
+
+    frames = []
+    for path in paths:
+        path = Path(path)
+        if not path.is_file():
+            raise ImageError(f"image file not found: {path}")
+        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if image is None:
+            try:
+                import skimage.io
+                image = skimage.io.imread(str(path))
+            except Exception as error:  # noqa: BLE001 - report any reader failure the same way
+                raise ImageError(f"cannot read image {path}: {error}") from error
+            image = _to_grey(np.asarray(image), bgr=False)
+        else:
+            image = _to_grey(np.asarray(image), bgr=True)
+        frames.append(image)
+    return as_stack(frames)
+
+
+def _to_grey(image: np.ndarray, bgr: bool) -> np.ndarray:
+    image = np.asarray(image, dtype=np.float64)
+    if image.ndim == 2:
+        return image
+    if image.ndim == 3 and image.shape[2] in (2, 3, 4):
+        if image.shape[2] == 2:  # grey + alpha
+            return image[..., 0]
+        rgb = image[..., :3][..., ::-1] if bgr else image[..., :3]
+        return rgb @ np.array([0.299, 0.587, 0.114])
+    raise ImageError(f"cannot make a grey image from an array of shape {image.shape}")
+
+
+def as_stack(images) -> np.ndarray:
+    """Check images and return them as one float64 array (n_frames, rows, cols).
+
+    Accepts a sequence of 2D arrays or file paths, or a 3D array. Raises :class:`ImageError` for
+    NaN/inf values, unequal shapes, fewer than one frame or images smaller than 8 x 8 pixels.
+    """
+    if isinstance(images, (str, Path)):
+        raise ImageError("give a sequence of images or paths, not a single path")
+    if isinstance(images, np.ndarray) and images.ndim == 3:
+        frames = list(images)
+    else:
+        frames = list(images)
+    if not frames:
+        raise ImageError("no images given")
+    if all(isinstance(frame, (str, Path)) for frame in frames):
+        return load_images(frames)
+    stack = []
+    for k, frame in enumerate(frames):
+        frame = np.asarray(frame)
+        if frame.ndim != 2:
+            if frame.ndim == 3:
+                frame = _to_grey(frame, bgr=False)
+            else:
+                raise ImageError(f"image {k} has shape {frame.shape}; expected (rows, cols)")
+        if not np.all(np.isfinite(frame)):
+            raise ImageError(f"image {k} contains NaN or infinite values; tracking needs finite grey values")
+        stack.append(np.asarray(frame, dtype=np.float64))
+    shapes = {frame.shape for frame in stack}
+    if len(shapes) != 1:
+        raise ImageError(f"all images must have the same shape, got {sorted(shapes)}")
+    if min(stack[0].shape) < 8:
+        raise ImageError(f"images of shape {stack[0].shape} are too small to track anything")
+    return np.stack(stack)
+
+
+def roi_mask(roi, shape: tuple[int, int]) -> np.ndarray:
+    """Boolean mask (rows, cols) of the region of interest.
+
+    Args:
+        roi: None (whole image), (x0, y0, x1, y1) in pixels of the first image (x = column,
+            y = row, x1/y1 exclusive), or a boolean/0-1 mask of the image's shape.
+        shape: (rows, cols) of the images.
+    """
+    rows, cols = shape
+    if roi is None:
+        return np.ones(shape, dtype=bool)
+    array = np.asarray(roi)
+    if array.ndim == 2:
+        if array.shape != tuple(shape):
+            raise RoiError(f"ROI mask has shape {array.shape} but the images are {tuple(shape)}")
+        mask = array > 0
+        if not mask.any():
+            raise RoiError("ROI mask is empty")
+        return mask
+    if array.shape != (4,):
+        raise RoiError(f"ROI must be (x0, y0, x1, y1) or a mask of the image shape, got {roi!r}")
+    x0, y0, x1, y1 = (float(v) for v in array)
+    if not (x1 > x0 and y1 > y0):
+        raise RoiError(f"ROI (x0, y0, x1, y1) = {tuple(array)} needs x1 > x0 and y1 > y0")
+    if x0 < 0 or y0 < 0 or x1 > cols or y1 > rows:
+        raise RoiError(f"ROI (x0, y0, x1, y1) = {tuple(array)} is outside the image of "
+                       f"{cols} x {rows} pixels (x < {cols}, y < {rows})")
+    mask = np.zeros(shape, dtype=bool)
+    mask[int(np.ceil(y0)):int(np.ceil(y1)), int(np.ceil(x0)):int(np.ceil(x1))] = True
+    if not mask.any():
+        raise RoiError(f"ROI {tuple(array)} contains no pixel centre")
+    return mask
+
+
+def inside_mask(mask: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """(n,) bool: which points (n, 2) fall on a True pixel of ``mask`` (nearest pixel)."""
+    xy = np.asarray(xy, dtype=np.float64)
+    col = np.rint(xy[:, 0])
+    row = np.rint(xy[:, 1])
+    ok = np.isfinite(col) & np.isfinite(row)
+    ok &= (col >= 0) & (row >= 0) & (col < mask.shape[1]) & (row < mask.shape[0])
+    out = np.zeros(len(xy), dtype=bool)
+    out[ok] = mask[row[ok].astype(int), col[ok].astype(int)]
+    return out

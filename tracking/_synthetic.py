@@ -1,0 +1,245 @@
+"""Synthetic images with known motion, for tests and benchmarks (no finite elements here).
+
+A pattern is an analytic "ink" function of reference coordinates X (pixels). A deformed image
+shows the pattern moved by a displacement field u: the material point X is seen at x = X + u(X).
+Rendering inverts that map for every (sub)pixel by fixed-point iterations X <- x - u(X), which
+converge when the displacement gradient stays below 1 (e.g. any stretch under 100 %).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from scipy import ndimage
+from scipy.special import erf
+
+from ._errors import TrackingError
+
+Displacement = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass(frozen=True)
+class GridPattern:
+    """Straight lines of ``line_width`` px every ``pitch`` px in two perpendicular families.
+
+    Line edges are softened by an error function of width ``edge_sigma`` (analytic anti-aliasing);
+    where lines cross the paint does not add up (opaque ink). A crossing sits at ``origin``.
+    """
+
+    pitch: float = 12.0
+    line_width: float = 2.0
+    origin: tuple[float, float] = (0.0, 0.0)
+    angle_deg: float = 0.0
+    edge_sigma: float = 0.3
+
+    def _local(self, x, y):
+        c, s = np.cos(np.radians(self.angle_deg)), np.sin(np.radians(self.angle_deg))
+        dx, dy = x - self.origin[0], y - self.origin[1]
+        return c * dx + s * dy, -s * dx + c * dy
+
+    def _line(self, u):
+        d = np.abs(u - self.pitch * np.round(u / self.pitch))
+        k = 1.0 / (np.sqrt(2.0) * self.edge_sigma)
+        return 0.5 * (erf((d + 0.5 * self.line_width) * k) - erf((d - 0.5 * self.line_width) * k))
+
+    def ink(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Ink coverage in [0, 1] at reference points (x, y) (pixels, any equal shapes)."""
+        u, v = self._local(x, y)
+        return np.maximum(self._line(u), self._line(v))
+
+    def crossings(self, x0: float, y0: float, x1: float, y1: float) -> tuple[np.ndarray, np.ndarray]:
+        """Reference crossings inside [x0, x1] x [y0, y1]: xy (n, 2) and their (row, col) (n, 2)."""
+        corners = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], dtype=np.float64)
+        u, v = self._local(corners[:, 0], corners[:, 1])
+        i = np.arange(np.floor(v.min() / self.pitch) - 1, np.ceil(v.max() / self.pitch) + 2)
+        j = np.arange(np.floor(u.min() / self.pitch) - 1, np.ceil(u.max() / self.pitch) + 2)
+        jj, ii = np.meshgrid(j, i)
+        c, s = np.cos(np.radians(self.angle_deg)), np.sin(np.radians(self.angle_deg))
+        uu, vv = jj.ravel() * self.pitch, ii.ravel() * self.pitch
+        xy = np.stack([self.origin[0] + c * uu - s * vv, self.origin[1] + s * uu + c * vv], axis=1)
+        keep = (xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1)
+        index = np.stack([ii.ravel(), jj.ravel()], axis=1).astype(np.int64)
+        return xy[keep], index[keep]
+
+
+@dataclass(frozen=True)
+class SpecklePattern:
+    """Random speckles: Gaussian dots of ``speckle_sigma`` px, one per cell of a jittered lattice.
+
+    The dots' positions and strengths come from ``seed``, so the same pattern can be rendered in
+    every frame; ink = 1 - exp(-sum of dots) saturates where dots overlap, as paint does.
+    """
+
+    speckle_sigma: float = 1.2
+    cell: float = 3.0
+    seed: int = 0
+    table: int = 256
+
+    def _tables(self):
+        rng = np.random.default_rng(self.seed)
+        jitter = rng.random((2, self.table, self.table))
+        strength = 0.6 + 0.9 * rng.random((self.table, self.table))
+        return jitter, strength
+
+    def ink(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Ink coverage in [0, 1] at reference points (x, y) (pixels, any equal shapes)."""
+        jitter, strength = self._tables()
+        shape = np.shape(x)
+        x, y = np.ravel(x), np.ravel(y)
+        reach = int(np.ceil(4.0 * self.speckle_sigma / self.cell))
+        out = np.empty(x.size)
+        for start in range(0, x.size, 200_000):
+            xs, ys = x[start:start + 200_000], y[start:start + 200_000]
+            ci, cj = np.floor(ys / self.cell).astype(np.int64), np.floor(xs / self.cell).astype(np.int64)
+            total = np.zeros(xs.size)
+            for di in range(-reach, reach + 1):
+                for dj in range(-reach, reach + 1):
+                    ti, tj = (ci + di) % self.table, (cj + dj) % self.table
+                    cx = (cj + dj + jitter[0, ti, tj]) * self.cell
+                    cy = (ci + di + jitter[1, ti, tj]) * self.cell
+                    r2 = (xs - cx) ** 2 + (ys - cy) ** 2
+                    total += strength[ti, tj] * np.exp(-0.5 * r2 / self.speckle_sigma ** 2)
+            out[start:start + xs.size] = 1.0 - np.exp(-total)
+        return out.reshape(shape)
+
+
+def reference_points(x: np.ndarray, y: np.ndarray, displacement: Displacement | None,
+                     tol: float = 1e-9, max_iter: int = 200) -> tuple[np.ndarray, np.ndarray]:
+    """Reference coordinates X with X + u(X) = x, by fixed-point iterations (arrays in pixels)."""
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    if displacement is None:
+        return x, y
+    rx, ry = x.copy(), y.copy()
+    for _ in range(max_iter):
+        ux, uy = displacement(rx, ry)
+        nx, ny = x - np.asarray(ux, dtype=np.float64), y - np.asarray(uy, dtype=np.float64)
+        step = max(np.max(np.abs(nx - rx)), np.max(np.abs(ny - ry)))
+        rx, ry = nx, ny
+        if step < tol:
+            return rx, ry
+    raise TrackingError("the inverse map x = X + u(X) did not converge: keep |grad u| well below 1")
+
+
+def deformed_points(xy: np.ndarray, displacement: Displacement | None) -> np.ndarray:
+    """Where reference points (n, 2) are seen after the displacement: X + u(X), (n, 2) pixels."""
+    xy = np.asarray(xy, dtype=np.float64)
+    if displacement is None:
+        return xy.copy()
+    ux, uy = displacement(xy[:, 0], xy[:, 1])
+    return xy + np.stack([np.asarray(ux, float), np.asarray(uy, float)], axis=1)
+
+
+def render_pattern(pattern, shape: tuple[int, int], displacement: Displacement | None = None, *,
+                   blur_sigma: float = 1.0, noise_sigma: float = 0.0, lighting_gradient: float = 0.0,
+                   levels: tuple[float, float] = (200.0, 50.0), supersample: int = 4,
+                   seed: int = 0, quantize: bool = False) -> np.ndarray:
+    """Image (rows, cols) float64 of ``pattern`` moved by ``displacement``, 0-255 grey levels.
+
+    Each pixel averages ``supersample`` x ``supersample`` inverse-mapped samples of the pattern's
+    ink; the image is ``background + (ink_level - background) * ink`` from ``levels``, times an
+    illumination ramp ``1 + lighting_gradient * ((x - xc) cos 30 deg + (y - yc) sin 30 deg) / cols``,
+    blurred by a Gaussian of ``blur_sigma`` px (the optics), plus Gaussian noise of
+    ``noise_sigma`` grey levels from ``seed``; ``quantize`` rounds to 8-bit integers.
+
+    Args:
+        pattern: anything with ``ink(x, y)`` (e.g. :class:`GridPattern`, :class:`SpecklePattern`).
+        shape: (rows, cols).
+        displacement: callable u(X, Y) -> (ux, uy) in pixels of reference coordinates, or None.
+    """
+    rows, cols = shape
+    s = int(supersample)
+    offsets = (np.arange(s) + 0.5) / s - 0.5
+    image = np.zeros(shape)
+    for oy in offsets:
+        for ox in offsets:
+            yy, xx = np.mgrid[0:rows, 0:cols].astype(np.float64)
+            rx, ry = reference_points(xx + ox, yy + oy, displacement)
+            image += pattern.ink(rx, ry)
+    ink = image / s ** 2
+    background, ink_level = levels
+    image = background + (ink_level - background) * ink
+    if lighting_gradient:
+        yy, xx = np.mgrid[0:rows, 0:cols].astype(np.float64)
+        ramp = ((xx - (cols - 1) / 2) * np.cos(np.pi / 6) + (yy - (rows - 1) / 2) * np.sin(np.pi / 6)) / cols
+        image = image * (1.0 + lighting_gradient * ramp)
+    if blur_sigma > 0:
+        image = ndimage.gaussian_filter(image, blur_sigma, mode="nearest")
+    if noise_sigma > 0:
+        image = image + np.random.default_rng(seed).normal(0.0, noise_sigma, shape)
+    if quantize:
+        image = np.clip(np.rint(image), 0, 255)
+    return image
+
+
+def render_grid(shape: tuple[int, int], pitch_px: float = 12.0, line_width: float = 2.0,
+                displacement: Displacement | None = None, *, blur_sigma: float = 1.0,
+                noise_sigma: float = 0.0, lighting_gradient: float = 0.0, seed: int = 0,
+                origin: tuple[float, float] | None = None, angle_deg: float = 0.0,
+                bright_lines: bool = False, supersample: int = 4, quantize: bool = False) -> np.ndarray:
+    """Image (rows, cols) of a painted grid (dark lines on a light sheet, or bright lines).
+
+    ``origin`` is a line crossing in reference pixels (default: the image centre plus a quarter
+    pixel, so that crossings fall between pixel centres). See :func:`render_pattern` for the
+    other arguments and :func:`grid_truth` for the true crossing positions.
+    """
+    pattern = grid_pattern(shape, pitch_px, line_width, origin, angle_deg)
+    levels = (40.0, 210.0) if bright_lines else (200.0, 50.0)
+    return render_pattern(pattern, shape, displacement, blur_sigma=blur_sigma, noise_sigma=noise_sigma,
+                          lighting_gradient=lighting_gradient, levels=levels, supersample=supersample,
+                          seed=seed, quantize=quantize)
+
+
+def grid_pattern(shape, pitch_px=12.0, line_width=2.0, origin=None, angle_deg=0.0) -> GridPattern:
+    """The :class:`GridPattern` that :func:`render_grid` draws with the same arguments."""
+    if origin is None:
+        origin = ((shape[1] - 1) / 2 + 0.25, (shape[0] - 1) / 2 + 0.25)
+    return GridPattern(pitch=pitch_px, line_width=line_width, origin=tuple(origin), angle_deg=angle_deg)
+
+
+def grid_truth(shape: tuple[int, int], pitch_px: float = 12.0, displacement: Displacement | None = None,
+               *, origin=None, angle_deg: float = 0.0, margin: float = 0.0):
+    """True crossings of :func:`render_grid`'s grid: reference xy (n, 2), deformed xy (n, 2), (row, col) (n, 2).
+
+    Only crossings whose reference position lies at least ``margin`` px inside the image are listed.
+    """
+    pattern = grid_pattern(shape, pitch_px, 1.0, origin, angle_deg)
+    rows, cols = shape
+    xy, index = pattern.crossings(margin, margin, cols - 1 - margin, rows - 1 - margin)
+    return xy, deformed_points(xy, displacement), index
+
+
+def render_speckle(shape: tuple[int, int], displacement: Displacement | None = None, *,
+                   speckle_sigma: float = 1.2, blur_sigma: float = 0.5, noise_sigma: float = 0.0,
+                   lighting_gradient: float = 0.0, seed: int = 0, pattern_seed: int = 0,
+                   supersample: int = 2, quantize: bool = False) -> np.ndarray:
+    """Image (rows, cols) of a random speckle pattern (dark dots on white) moved by ``displacement``.
+
+    The speckles come from ``pattern_seed`` (keep it fixed over a sequence), the noise from ``seed``.
+    See :func:`render_pattern` for the other arguments.
+    """
+    pattern = SpecklePattern(speckle_sigma=speckle_sigma, cell=2.5 * speckle_sigma, seed=pattern_seed)
+    return render_pattern(pattern, shape, displacement, blur_sigma=blur_sigma, noise_sigma=noise_sigma,
+                          lighting_gradient=lighting_gradient, levels=(220.0, 30.0),
+                          supersample=supersample, seed=seed, quantize=quantize)
+
+
+def render_range(surface: Callable[[np.ndarray, np.ndarray], np.ndarray], shape: tuple[int, int], *,
+                 holes=(), noise_sigma: float = 0.0, seed: int = 0) -> np.ndarray:
+    """Range image (rows, cols): z = surface(x, y) at pixel centres, NaN inside the holes.
+
+    Args:
+        surface: callable z(x, y) on pixel coordinates (any length unit for z).
+        holes: sequence of discs (x, y, radius) in pixels where the scanner saw nothing.
+        noise_sigma: Gaussian noise on z, in z's unit.
+    """
+    rows, cols = shape
+    yy, xx = np.mgrid[0:rows, 0:cols].astype(np.float64)
+    z = np.asarray(surface(xx, yy), dtype=np.float64) * np.ones(shape)
+    if noise_sigma > 0:
+        z = z + np.random.default_rng(seed).normal(0.0, noise_sigma, shape)
+    for hx, hy, radius in holes:
+        z[(xx - hx) ** 2 + (yy - hy) ** 2 <= radius ** 2] = np.nan
+    return z
