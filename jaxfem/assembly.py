@@ -19,7 +19,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _config  # noqa: F401
+from .tensor import det, inv
 from .elements import Element, get_element
+from .kinematics import Reduced
 from .mesh import Mesh
 
 
@@ -83,8 +85,8 @@ def shape_gradients(X, cells, el: Element):
     """
     Xe = X[cells]
     J0 = jnp.einsum("cki,qkj->cqij", Xe, el.dN)
-    dNdX = jnp.einsum("qkj,cqji->cqki", el.dN, jnp.linalg.inv(J0))
-    return dNdX, jnp.linalg.det(J0) * el.weights
+    dNdX = jnp.einsum("qkj,cqji->cqki", el.dN, inv(J0))
+    return dNdX, det(J0) * el.weights
 
 
 def deformation_gradients(u, cells, dNdX):
@@ -98,22 +100,11 @@ def _per_qp(fn, F, p):
     return jax.vmap(lambda Fc, pc: jax.vmap(lambda Fq: fn(Fq, pc))(Fc))(F, p)
 
 
-def _stress_and_tangent(W):
-    """(P, A) of an energy: P = dW/dF and A[m] = dP/dF_m for each flattened component m."""
-
-    def fn(F, p):
-        g = lambda G: jax.grad(W)(G, p)  # noqa: E731
-        basis = jnp.eye(F.size, dtype=F.dtype).reshape((F.size,) + F.shape)
-        P, A = jax.vmap(lambda v: jax.jvp(g, (F,), (v,)))(basis)
-        return P[0], A
-
-    return fn
-
-
 # ====================================================================== global quantities
 @dataclass(frozen=True, eq=False)
 class Assembler:
-    """Global energy, residual and tangent of one mesh and one reduced energy ``W(F, p)``.
+    """Global energy, residual and tangent of one mesh and one material law under one kinematics
+    (a :class:`~jaxfem.kinematics.Reduced`).
 
     All methods are pure JAX functions of ``(u, X, p, t)``: displacements ``(n_nodes, dim)``,
     reference coordinates ``(n_nodes, dim)``, per-cell parameter dict ``p`` and per-cell
@@ -122,7 +113,7 @@ class Assembler:
     """
 
     element: str
-    W: object
+    law: Reduced
 
     @property
     def el(self) -> Element:
@@ -132,13 +123,13 @@ class Assembler:
         """Total strain energy (energy units: stress x volume)."""
         dNdX, dV = shape_gradients(X, cells, self.el)
         F = deformation_gradients(u, cells, dNdX)
-        return jnp.sum(_per_qp(self.W, F, p) * dV * t[:, None])
+        return jnp.sum(_per_qp(self.law.energy, F, p) * dV * t[:, None])
 
     def element_residuals(self, u, X, p, t, cells):
         """Internal nodal forces of each cell, ``(n_cells, n_per_cell * dim)``."""
         dNdX, dV = shape_gradients(X, cells, self.el)
         F = deformation_gradients(u, cells, dNdX)
-        P = _per_qp(jax.grad(self.W), F, p)
+        P = _per_qp(self.law.stress, F, p)
         return jnp.einsum("cqiK,cqaK,cq->cai", P, dNdX, dV * t[:, None]).reshape(len(cells), -1)
 
     def residual(self, u, X, p, t, arrays):
@@ -151,7 +142,7 @@ class Assembler:
         cells = arrays["cells"]
         dNdX, dV = shape_gradients(X, cells, self.el)
         F = deformation_gradients(u, cells, dNdX)
-        P, A = _per_qp(_stress_and_tangent(self.W), F, p)
+        P, A = _per_qp(self.law.stress_and_tangent, F, p)
         dim = u.shape[1]
         w = dV * t[:, None]
         Re = jnp.einsum("cqiK,cqaK,cq->cai", P, dNdX, w).reshape(len(cells), -1)
@@ -164,7 +155,7 @@ class Assembler:
     def min_jacobian(self, u, X, cells):
         """Smallest det F over all quadrature points (<= 0 means an inverted element)."""
         dNdX, _ = shape_gradients(X, cells, self.el)
-        return jnp.min(jnp.linalg.det(deformation_gradients(u, cells, dNdX)))
+        return jnp.min(det(deformation_gradients(u, cells, dNdX)))
 
 
 def matvec(vals, rows, cols, x):

@@ -11,6 +11,7 @@ F that a material's energy takes.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable
 
 import jax
@@ -19,7 +20,7 @@ import jax.numpy as jnp
 from . import _config  # noqa: F401
 
 KINDS = ("plane-stress", "plane-strain", "solid")
-_NEWTON_ITERS = 12
+_NEWTON_ITERS = 30
 
 
 def embed(F2, f33):
@@ -36,17 +37,23 @@ def _plane_stress_stretch(energy: Callable) -> Callable:
 
     def newton(F2, p):
         nu = p["nu"]
-        # Start from the small-strain plane-stress estimate eps33 = -nu/(1-nu) (eps11 + eps22).
+        # Start from the small-strain plane-stress estimate eps33 = -nu/(1-nu) (eps11 + eps22);
+        # Newton then converges quadratically (4-5 iterations at 20 % strain).
         l0 = 1.0 - nu / (1.0 - nu) * (F2[0, 0] + F2[1, 1] - 2.0)
         l0 = jnp.clip(l0, 0.2, 5.0)
 
-        def body(_, l):
-            hl = jax.grad(h)(l, F2, p)
-            step = h(l, F2, p) / hl
+        def body(c):
+            l, _, k = c
+            hv, hl = jax.jvp(lambda s: h(s, F2, p), (l,), (jnp.ones_like(l),))
             # keep the stretch positive: never move more than halfway to zero
-            return jnp.maximum(l - step, 0.5 * l)
+            new = jnp.maximum(l - hv / hl, 0.5 * l)
+            return new, jnp.abs(new - l), k + 1
 
-        return jax.lax.fori_loop(0, _NEWTON_ITERS, body, l0)
+        def cond(c):
+            l, step, k = c
+            return (step > 1e-15 * l) & (k < _NEWTON_ITERS)
+
+        return jax.lax.while_loop(cond, body, (l0, jnp.ones_like(l0), 0))[0]
 
     @jax.custom_jvp
     def stretch(F2, p):
@@ -63,20 +70,61 @@ def _plane_stress_stretch(energy: Callable) -> Callable:
     return stretch
 
 
-def reduced_energy(energy: Callable, kind: str) -> tuple[Callable, Callable]:
-    """For a 3D energy psi(F3, p), the energy of the kinematic kind as a function of the element's
-    own F (2x2 in plane, 3x3 solid), and the map to the full 3x3 F (for post-processing).
+@dataclass(frozen=True)
+class Reduced:
+    """A material law under one kinematic assumption, as functions of the element's own F
+    (2x2 in plane, 3x3 solid) and the per-cell parameter dict ``p``.
 
-    Returns:
-        ``(W(F, p) -> scalar, full_F(F, p) -> (3, 3))``.
+    Attributes:
+        energy: ``W(F, p)``, energy per reference volume.
+        stress: ``P(F, p) = dW/dF`` (first Piola-Kirchhoff, in-plane block in 2D).
+        stress_and_tangent: ``(P, A)`` with ``A[m] = dP/dF_m`` for each flattened component m.
+        full_F: the 3x3 deformation gradient (with the out-of-plane stretch in 2D).
     """
-    if kind == "solid":
-        return energy, lambda F, p: F
-    if kind == "plane-strain":
-        full = lambda F, p: embed(F, 1.0)  # noqa: E731
-    elif kind == "plane-stress":
+
+    energy: Callable
+    stress: Callable
+    stress_and_tangent: Callable
+    full_F: Callable
+
+
+def reduce(energy: Callable, kind: str) -> Reduced:
+    """Specialise a 3D energy psi(F3, p) to the kinematic ``kind``.
+
+    For plane stress the in-plane tangent is the Hessian of psi condensed on the out-of-plane
+    stretch (a Schur complement, exact because d psi/d F33 = 0 there); every derivative still
+    comes from JAX, and derivatives through the stretch use its implicit ``custom_jvp``.
+    """
+    if kind not in KINDS:
+        raise ValueError(f"unknown kinematics {kind!r}; known: {', '.join(KINDS)}")
+    d = 3 if kind == "solid" else 2
+    if kind == "plane-stress":
         stretch = _plane_stress_stretch(energy)
         full = lambda F, p: embed(F, stretch(F, p))  # noqa: E731
+    elif kind == "plane-strain":
+        full = lambda F, p: embed(F, 1.0)  # noqa: E731
     else:
-        raise ValueError(f"unknown kinematics {kind!r}; known: {', '.join(KINDS)}")
-    return (lambda F, p: energy(full(F, p), p)), full
+        full = lambda F, p: F  # noqa: E731
+
+    def W(F, p):
+        return energy(full(F, p), p)
+
+    def stress(F, p):
+        return jax.grad(energy)(full(F, p), p)[:d, :d]
+
+    def stress_and_tangent(F, p):
+        F3 = full(F, p)
+        P3 = jax.grad(energy)(F3, p)
+        H = jax.hessian(energy)(F3, p)  # H[i, K, j, L] = d2 psi / dF_iK dF_jL
+        if kind == "plane-stress":  # condense the out-of-plane stretch (static condensation)
+            # Multiplying by the identity through a dot materialises H: on CPU, plain slicing lets
+            # XLA fuse (and recompute) the whole Hessian into every entry of A, ~8x slower.
+            H = jnp.dot(H.reshape(9, 9), jnp.eye(9, dtype=H.dtype),
+                        precision=jax.lax.Precision.HIGHEST).reshape(3, 3, 3, 3)
+            A = H[:d, :d, :d, :d] - H[:d, :d, 2, 2][:, :, None, None] * H[2, 2, :d, :d] / H[2, 2, 2, 2]
+        else:
+            A = H[:d, :d, :d, :d]
+        # A[m] = dP/dF_m with m the flattened (j, L): symmetric, so transpose by reshape
+        return P3[:d, :d], A.reshape(d * d, d, d)
+
+    return Reduced(W, stress, stress_and_tangent, full)

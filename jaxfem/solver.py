@@ -27,7 +27,7 @@ import numpy as np
 from . import _config  # noqa: F401
 from .assembly import Assembler, make_pattern, matvec
 from .errors import SolverError
-from .kinematics import reduced_energy
+from .kinematics import reduce
 from .linsolve import make_linear_solver
 from .newton import REASONS, NewtonOptions, external_force, newton_solve
 from .problem import LOAD_KEYS, Problem
@@ -75,9 +75,8 @@ class Solver:
         self.options = options or NewtonOptions()
         mesh = problem.mesh
         self.pattern = pat = make_pattern(mesh)
-        W, self.full_F = reduced_energy(problem.material.energy, problem.kinematics)
-        self.W = W
-        self.assembler = Assembler(mesh.element, W)
+        self.law = reduce(problem.material.energy, problem.kinematics)
+        self.assembler = Assembler(mesh.element, self.law)
         free = problem.free_mask
         keep = free[pat.rows] & free[pat.cols]
         diag_fixed = np.zeros(pat.nnz)

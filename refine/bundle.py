@@ -71,6 +71,10 @@ def write_bundle(path: str | Path, bundle: Bundle) -> Path:
     exp, obs = bundle.experiment, bundle.observations
     if obs.dim != exp.dim:
         raise ObservationError(f"observations are {obs.dim}D but model.kind {exp.kind!r} is {exp.dim}D")
+    if isinstance(exp.domain, Rectangle) and obs.forces is not None:
+        unknown = sorted(set(obs.forces.edges) - set(RECTANGLE_EDGES))
+        if unknown:
+            raise ObservationError(f"force edges {unknown} are not sides of a rectangle {list(RECTANGLE_EDGES)}")
     (root / "experiment.toml").write_text(tomli_w.dumps(exp.to_toml()), encoding="utf-8")
     axes = _AXES[: obs.dim]
     with open(root / "points.csv", "w", newline="", encoding="utf-8") as f:
@@ -139,8 +143,8 @@ def _read_points(path: Path, dim: int):
     for line, cells in rows:
         pid = _integer(cells[0], "id", path, line)
         if pid in seen:
-            raise BundleError(path, f"point id {pid} is listed twice (lines {seen[pid]} and {line}); ids must be unique",
-                              line)
+            raise BundleError(path, f"point id {pid} is listed twice (lines {seen[pid]} and {line}); ids must be "
+                                    "unique", line)
         seen[pid] = line
         role = cells[-1]
         if role not in ROLES:

@@ -138,11 +138,12 @@ def render_pattern(pattern, shape: tuple[int, int], displacement: Displacement |
                    seed: int = 0, quantize: bool = False) -> np.ndarray:
     """Image (rows, cols) float64 of ``pattern`` moved by ``displacement``, 0-255 grey levels.
 
-    Each pixel averages ``supersample`` x ``supersample`` inverse-mapped samples of the pattern's
-    ink; the image is ``background + (ink_level - background) * ink`` from ``levels``, times an
-    illumination ramp ``1 + lighting_gradient * ((x - xc) cos 30 deg + (y - yc) sin 30 deg) / cols``,
-    blurred by a Gaussian of ``blur_sigma`` px (the optics), plus Gaussian noise of
-    ``noise_sigma`` grey levels from ``seed``; ``quantize`` rounds to 8-bit integers.
+    The scene ``background + (ink_level - background) * ink`` (``levels``) is evaluated on a
+    lattice ``supersample`` times finer than the pixels (inverse-mapped), lit by the ramp
+    ``1 + lighting_gradient * ((x - xc) cos 30 deg + (y - yc) sin 30 deg) / cols``, blurred by a
+    Gaussian of ``blur_sigma`` px (the optics) and averaged over each pixel's square (the sensor);
+    then Gaussian noise of ``noise_sigma`` grey levels from ``seed`` is added and ``quantize``
+    rounds to 8-bit integers.
 
     Args:
         pattern: anything with ``ink(x, y)`` (e.g. :class:`GridPattern`, :class:`SpecklePattern`).
@@ -150,23 +151,20 @@ def render_pattern(pattern, shape: tuple[int, int], displacement: Displacement |
         displacement: callable u(X, Y) -> (ux, uy) in pixels of reference coordinates, or None.
     """
     rows, cols = shape
-    s = int(supersample)
-    offsets = (np.arange(s) + 0.5) / s - 0.5
-    image = np.zeros(shape)
-    for oy in offsets:
-        for ox in offsets:
-            yy, xx = np.mgrid[0:rows, 0:cols].astype(np.float64)
-            rx, ry = reference_points(xx + ox, yy + oy, displacement)
-            image += pattern.ink(rx, ry)
-    ink = image / s ** 2
+    s = max(1, int(supersample))
+    # the camera: optics blur the continuous image (done on an s-times finer lattice), then every
+    # pixel integrates its square; blurring after sampling would alias the pattern's sharp edges
+    fine = (np.arange(s * max(rows, cols)) + 0.5) / s - 0.5
+    yy, xx = np.meshgrid(fine[:s * rows], fine[:s * cols], indexing="ij")
+    rx, ry = reference_points(xx, yy, displacement)
     background, ink_level = levels
-    image = background + (ink_level - background) * ink
+    image = background + (ink_level - background) * pattern.ink(rx, ry)
     if lighting_gradient:
-        yy, xx = np.mgrid[0:rows, 0:cols].astype(np.float64)
         ramp = ((xx - (cols - 1) / 2) * np.cos(np.pi / 6) + (yy - (rows - 1) / 2) * np.sin(np.pi / 6)) / cols
         image = image * (1.0 + lighting_gradient * ramp)
     if blur_sigma > 0:
-        image = ndimage.gaussian_filter(image, blur_sigma, mode="nearest")
+        image = ndimage.gaussian_filter(image, blur_sigma * s, mode="nearest")
+    image = image.reshape(rows, s, cols, s).mean(axis=(1, 3))
     if noise_sigma > 0:
         image = image + np.random.default_rng(seed).normal(0.0, noise_sigma, shape)
     if quantize:
@@ -243,3 +241,42 @@ def render_range(surface: Callable[[np.ndarray, np.ndarray], np.ndarray], shape:
     for hx, hy, radius in holes:
         z[(xx - hx) ** 2 + (yy - hy) ** 2 <= radius ** 2] = np.nan
     return z
+
+
+def smooth_displacement(shape: tuple[int, int], stretch: float = 0.2, seed: int = 0,
+                        waviness: float = 0.5) -> Displacement:
+    """A random smooth displacement field u(X, Y) -> (ux, uy) in pixels, for tests.
+
+    A stretch of ``stretch`` along x about the image centre, a seeded random lateral
+    contraction and shear (up to a third and a tenth of it), plus three seeded random plane
+    waves of ``waviness`` px amplitude with wavelengths of 0.5-1.5 image widths, so strains vary
+    smoothly over the image.
+    """
+    rng = np.random.default_rng(seed)
+    rows, cols = shape
+    centre = np.array([(cols - 1) / 2.0, (rows - 1) / 2.0])
+    gradient = np.array([[stretch, rng.uniform(-0.1, 0.1) * stretch],
+                         [rng.uniform(-0.1, 0.1) * stretch, -rng.uniform(0.1, 0.33) * stretch]])
+    angles = rng.uniform(0, 2 * np.pi, 3)
+    lengths = rng.uniform(0.5, 1.5, 3) * cols
+    waves = np.stack([np.cos(angles), np.sin(angles)], axis=1) * (2 * np.pi / lengths)[:, None]
+    phases = rng.uniform(0, 2 * np.pi, 3)
+    directions = rng.normal(size=(3, 2))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+
+    def displacement(x, y):
+        dx, dy = np.asarray(x) - centre[0], np.asarray(y) - centre[1]
+        ux = gradient[0, 0] * dx + gradient[0, 1] * dy
+        uy = gradient[1, 0] * dx + gradient[1, 1] * dy
+        for k in range(3):
+            wave = waviness * np.sin(waves[k, 0] * dx + waves[k, 1] * dy + phases[k])
+            ux = ux + directions[k, 0] * wave
+            uy = uy + directions[k, 1] * wave
+        return ux, uy
+
+    return displacement
+
+
+def scaled(displacement: Displacement, factor: float) -> Displacement:
+    """The displacement field ``factor`` * u (a frame part-way through a loading sequence)."""
+    return lambda x, y: tuple(factor * np.asarray(c) for c in displacement(x, y))

@@ -53,7 +53,7 @@ def parabola_vertex(a: float, b: float, c: float, fa: float, fb: float, fc: floa
     return b + p / q if q != 0 else math.nan
 
 
-def brent(
+def brent_search(
     f: Callable[[float], float],
     bracket: Sequence[float],
     *,

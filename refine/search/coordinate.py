@@ -18,7 +18,7 @@ from ._objective import Evaluations
 from .brent import as_bracket, brent_core
 
 
-def coordinate_brent(
+def coordinate_brent_search(
     f: Callable[[np.ndarray], float],
     brackets: Sequence[Sequence[float]],
     *,
@@ -50,7 +50,7 @@ def coordinate_brent(
     """
     triples = [as_bracket(t) for t in brackets]
     if not triples:
-        raise SearchError("coordinate_brent needs at least one bracket")
+        raise SearchError("coordinate_brent_search needs at least one bracket")
     names = [f"x{i}" for i in range(len(triples))] if names is None else list(names)
     if len(names) != len(triples) or len(set(names)) != len(names):
         raise SearchError(f"need {len(triples)} distinct names, got {names}")

@@ -1,0 +1,251 @@
+"""Benchmark of the tracking package: accuracy and speed of the grid and speckle trackers.
+
+Sweeps noise and strain on synthetic images (ground truth known analytically), compares the grid
+refiners (symmetric line fitting, Hessian extremum, snake crossings alone) and both trackers with
+OpenCV's pyramidal Lucas-Kanade and scikit-image's upsampled phase correlation on the same 8-bit
+images and points, measures points per second, and runs the DIC Challenge Sample 3 images when
+../shared/ holds them. Writes benchmarks/results/tracking.json and tracking.png.
+
+    python benchmarks/tracking.py            # a few minutes on 2 cores
+    python benchmarks/tracking.py --quick    # fewer sweep points, for a smoke test
+
+The competitors get an oracle start (each point's true motion rounded to whole pixels) and track
+the true reference points, so their numbers measure sub-pixel estimation alone; ours include
+detection and frame-to-frame tracking from no prior knowledge.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import cv2  # noqa: E402
+from scipy.spatial import cKDTree  # noqa: E402
+from skimage.registration import phase_cross_correlation  # noqa: E402
+
+from tracking import (GridTracker, SpeckleTracker, deformed_points, grid_truth, load_images,  # noqa: E402
+                      render_grid, render_speckle, scaled, smooth_displacement)
+
+SHAPE = (256, 256)
+ROI = (16, 16, 240, 240)
+PITCH = 12.0
+FRAMES = 4            # frames from rest to the full deformation (ours track the sequence)
+
+
+def _rms(error):
+    error = error[np.isfinite(error)]
+    return float(np.sqrt(np.mean(error ** 2))) if error.size else float("nan")
+
+
+def _sequence(render, field, noise, seed):
+    steps = np.linspace(0.0, 1.0, FRAMES)
+    return [render(scaled(field, s), noise, seed * 100 + k) for k, s in enumerate(steps)]
+
+
+def _grid_image(displacement, noise, seed):
+    return render_grid(SHAPE, PITCH, 2.0, displacement, noise_sigma=noise, blur_sigma=1.0, seed=seed,
+                       quantize=True, lighting_gradient=0.2)
+
+
+def _speckle_image(displacement, noise, seed):
+    return render_speckle(SHAPE, displacement, noise_sigma=noise, seed=seed, quantize=True)
+
+
+def lucas_kanade(reference, target, points, start, window=21):
+    """OpenCV pyramidal LK from ``points`` (n, 2) with initial positions ``start`` (n, 2)."""
+    p0 = points.astype(np.float32).reshape(-1, 1, 2)
+    p1 = start.astype(np.float32).reshape(-1, 1, 2)
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-4)
+    out, status, _ = cv2.calcOpticalFlowPyrLK(np.clip(reference, 0, 255).astype(np.uint8),
+                                              np.clip(target, 0, 255).astype(np.uint8), p0, p1.copy(),
+                                              winSize=(window, window), maxLevel=2, criteria=criteria,
+                                              flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+    out = out.reshape(-1, 2).astype(np.float64)
+    out[status.ravel() == 0] = np.nan
+    return out
+
+
+def phase_correlation(reference, target, points, start, half=16):
+    """Upsampled phase correlation of Hann-windowed patches around each point."""
+    window = np.outer(np.hanning(2 * half), np.hanning(2 * half))
+    out = np.full(points.shape, np.nan)
+    rows, cols = reference.shape
+    for k, ((x, y), (sx, sy)) in enumerate(zip(np.rint(points).astype(int), np.rint(start).astype(int))):
+        if min(x, y, sx, sy) < half or max(x, sx) + half > cols or max(y, sy) + half > rows:
+            continue
+        a = reference[y - half:y + half, x - half:x + half]
+        b = target[sy - half:sy + half, sx - half:sx + half]
+        a = (a - a.mean()) * window
+        b = (b - b.mean()) * window
+        shift = phase_cross_correlation(a, b, upsample_factor=100)[0]
+        # the patch around (x, y) moved to (sx, sy) minus the residual shift (rows, cols)
+        out[k] = (sx + (x - points[k, 0]) * 0 - shift[1] + (points[k, 0] - x), sy - shift[0] + (points[k, 1] - y))
+    return out
+
+
+def _grid_case(field, noise, seed, refiners=("lines", "hessian", "snake")):
+    images = _sequence(_grid_image, field, noise, seed)
+    truth_ref, _, _ = grid_truth(SHAPE, PITCH, margin=-120)
+    result = {}
+    for refiner in refiners:
+        start = time.perf_counter()
+        tracks = GridTracker(refiner=refiner).track(images, roi=ROI)
+        seconds = time.perf_counter() - start
+        distance, match = cKDTree(truth_ref).query(tracks.reference)
+        reference = truth_ref[match]
+        truth = deformed_points(reference, field)
+        result[refiner] = {
+            "reference_rms_px": _rms(np.linalg.norm(tracks.reference - reference, axis=1)),
+            "deformed_rms_px": _rms(np.linalg.norm(tracks.positions[-1] - truth, axis=1)),
+            "deformed_max_px": float(np.nanmax(np.linalg.norm(tracks.positions[-1] - truth, axis=1))),
+            "lost_last_frame": int(tracks.lost[-1].sum()), "points": tracks.n_points,
+            "points_per_second": tracks.n_points * len(images) / seconds}
+    # competitors: the true reference crossings inside the ROI, oracle integer start
+    x0, y0, x1, y1 = ROI
+    inside = (truth_ref[:, 0] > x0) & (truth_ref[:, 0] < x1) & (truth_ref[:, 1] > y0) & (truth_ref[:, 1] < y1)
+    points = truth_ref[inside]
+    truth = deformed_points(points, field)
+    visible = np.all((truth > 20) & (truth < np.array(SHAPE[::-1]) - 20), axis=1)
+    points, truth = points[visible], truth[visible]
+    start = np.rint(truth)
+    for name, method in (("opencv_lk", lucas_kanade), ("phase_correlation", phase_correlation)):
+        t0 = time.perf_counter()
+        found = method(images[0], images[-1], points, start)
+        seconds = time.perf_counter() - t0
+        error = np.linalg.norm(found - truth, axis=1)
+        result[name] = {"deformed_rms_px": _rms(error), "deformed_max_px": float(np.nanmax(error)),
+                        "lost_last_frame": int(np.isnan(error).sum()), "points": len(points),
+                        "points_per_second": len(points) / seconds}
+    return result
+
+
+def _speckle_case(field, noise, seed):
+    images = _sequence(_speckle_image, field, noise, seed)
+    start_time = time.perf_counter()
+    tracks = SpeckleTracker(spacing=10, subset=21).track(images, roi=ROI)
+    seconds = time.perf_counter() - start_time
+    truth = deformed_points(tracks.reference, field)
+    error = np.linalg.norm(tracks.positions[-1] - truth, axis=1)
+    result = {"dic_icgn": {"deformed_rms_px": _rms(error), "deformed_max_px": float(np.nanmax(error)),
+                           "lost_last_frame": int(tracks.lost[-1].sum()), "points": tracks.n_points,
+                           "points_per_second": tracks.n_points * (len(images) - 1) / seconds}}
+    points = tracks.reference
+    visible = np.all((truth > 20) & (truth < np.array(SHAPE[::-1]) - 20), axis=1)
+    points, truth = points[visible], truth[visible]
+    for name, method in (("opencv_lk", lucas_kanade), ("phase_correlation", phase_correlation)):
+        t0 = time.perf_counter()
+        found = method(images[0], images[-1], points, np.rint(truth))
+        seconds = time.perf_counter() - t0
+        err = np.linalg.norm(found - truth, axis=1)
+        result[name] = {"deformed_rms_px": _rms(err), "deformed_max_px": float(np.nanmax(err)),
+                        "lost_last_frame": int(np.isnan(err).sum()), "points": len(points),
+                        "points_per_second": len(points) / seconds}
+    return result
+
+
+def dic_challenge(folder: Path):
+    """Sample 3 of the DIC Challenge: mean and std of the error per frame, per method."""
+    with open(folder / "truth.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    paths = [folder / "reference.tif"] + [folder / r["file"] for r in rows]
+    shifts = np.array([[0.0, 0.0]] + [[float(r["shift_x_px"]), float(r["shift_y_px"])] for r in rows])
+    images = load_images(paths)
+    roi = load_images([folder / "roi.tif"])[0] > 0
+    t0 = time.perf_counter()
+    tracks = SpeckleTracker(spacing=10, subset=21).track(images, roi=roi)
+    seconds = time.perf_counter() - t0
+    out = {"points": tracks.n_points, "dic_icgn_points_per_second": tracks.n_points * (len(images) - 1) / seconds}
+    methods = {"dic_icgn": lambda k: tracks.positions[k],
+               "opencv_lk": lambda k: lucas_kanade(images[0], images[k], tracks.reference, tracks.reference),
+               "phase_correlation": lambda k: phase_correlation(images[0], images[k], tracks.reference,
+                                                                tracks.reference)}
+    for name, method in methods.items():
+        frames = []
+        for k in range(1, len(images)):
+            error = method(k) - tracks.reference - shifts[k]
+            frames.append({"shift_px": float(shifts[k, 0]),
+                           "mean_error_px": [float(v) for v in np.nanmean(error, axis=0)],
+                           "std_error_px": [float(v) for v in np.nanstd(error, axis=0)],
+                           "lost": int(np.isnan(error[:, 0]).sum())})
+        out[name] = {"frames": frames,
+                     "worst_abs_mean_px": max(max(abs(v) for v in f["mean_error_px"]) for f in frames),
+                     "worst_std_px": max(max(f["std_error_px"]) for f in frames)}
+    return out
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer sweep points")
+    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results")
+    args = parser.parse_args(argv)
+    noises = [0.0, 2.0, 8.0] if args.quick else [0.0, 1.0, 2.0, 4.0, 8.0]
+    strains = [0.0, 0.2] if args.quick else [0.0, 0.05, 0.1, 0.15, 0.2]
+    report = {"shape": SHAPE, "pitch_px": PITCH, "frames_per_sequence": FRAMES, "noise_vs": {}, "strain_vs": {}}
+    t_start = time.perf_counter()
+    for pattern, case in (("grid", _grid_case), ("speckle", _speckle_case)):
+        report["noise_vs"][pattern] = [
+            {"noise_sigma": n, **case(smooth_displacement(SHAPE, 0.1, seed=1), n, seed=7)} for n in noises]
+        report["strain_vs"][pattern] = [
+            {"stretch": s, **case(smooth_displacement(SHAPE, s, seed=2), 2.0, seed=8)} for s in strains]
+        print(f"{pattern}: done at {time.perf_counter() - t_start:.0f} s", flush=True)
+    shared = Path(os.environ.get("NONRIGID_SHARED", ROOT.parent / "shared"))
+    folder = shared / "data" / "dic-challenge-sample3"
+    report["dic_challenge_sample3"] = dic_challenge(folder) if folder.is_dir() else None
+    report["seconds"] = time.perf_counter() - t_start
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "tracking.json").write_text(json.dumps(report, indent=1))
+    _plot(report, args.out / "tracking.png")
+    _summary(report)
+
+
+def _plot(report, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 4, figsize=(20, 4.5))
+    panels = [("noise_vs", "grid", "noise_sigma", "noise sigma (grey levels)"),
+              ("strain_vs", "grid", "stretch", "stretch"),
+              ("noise_vs", "speckle", "noise_sigma", "noise sigma (grey levels)"),
+              ("strain_vs", "speckle", "stretch", "stretch")]
+    for ax, (sweep, pattern, key, label) in zip(axes, panels):
+        rows = report[sweep][pattern]
+        methods = [m for m in rows[0] if isinstance(rows[0][m], dict)]
+        for method in methods:
+            ax.plot([r[key] for r in rows], [r[method]["deformed_rms_px"] for r in rows], "o-", label=method)
+        ax.set_yscale("log")
+        ax.set_xlabel(label)
+        ax.set_ylabel("RMS error in the last frame (px)")
+        ax.set_title(f"{pattern}: error vs {key}")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def _summary(report):
+    for sweep in ("noise_vs", "strain_vs"):
+        for pattern, rows in report[sweep].items():
+            for r in rows:
+                key = "noise_sigma" if sweep == "noise_vs" else "stretch"
+                parts = [f"{m}={v['deformed_rms_px']:.4f}" for m, v in r.items() if isinstance(v, dict)]
+                print(f"{pattern:8s} {key}={r[key]:<5} " + " ".join(parts))
+    dic = report["dic_challenge_sample3"]
+    if dic:
+        for m in ("dic_icgn", "opencv_lk", "phase_correlation"):
+            print(f"DIC challenge {m}: worst |mean| {dic[m]['worst_abs_mean_px']:.4f} px, "
+                  f"worst std {dic[m]['worst_std_px']:.4f} px")
+    print(f"total {report['seconds']:.0f} s")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,145 @@
+"""Meshes and results in and out through meshio: read any mesh meshio reads, write VTU for ParaView.
+
+:func:`read_mesh` keeps the highest-dimensional cells of a file (a gmsh file also holds its boundary
+lines or faces), carries region tags such as ``gmsh:physical`` into ``Mesh.regions`` with their
+names, and drops nodes no cell uses (with a warning). :func:`write_vtu` writes a mesh with nodal and
+cell results, 2D vectors and tensors padded to 3D so that ParaView can warp and display them.
+"""
+
+from __future__ import annotations
+
+import warnings
+from os import PathLike
+
+import meshio
+import numpy as np
+
+from .elements import FROM_MESHIO, get_element
+from .errors import MeshError
+from .mesh import Mesh, check_orientation, fix_orientation
+
+#: cell-data keys read as region tags, first found wins
+REGION_KEYS = ("region", "gmsh:physical", "medit:ref", "CellEntityIds", "cell_tags")
+
+
+def read_mesh(source: str | PathLike | meshio.Mesh, element: str | None = None,
+              region_key: str | None = None) -> Mesh:
+    """Read a mesh from a file (any format meshio reads) or a ``meshio.Mesh``.
+
+    Args:
+        source: a path, or a ``meshio.Mesh``.
+        element: our element name (``"tri6"``...) of the cells to keep; by default the cells of the
+            highest dimension, which must then all be of one type.
+        region_key: the cell-data array holding region tags; by default the first of
+            :data:`REGION_KEYS` present. Tags are kept as they are (a gmsh physical tag of 1 stays 1);
+            gmsh-style ``field_data`` ``{name: [tag, dim]}`` of the cells' dimension names them.
+
+    Returns:
+        A :class:`Mesh` with ``dim``-component nodes (a 2D mesh's z = const is dropped); ``tri3``
+        and ``tet4`` cells are reordered counter-clockwise where needed.
+
+    Raises:
+        MeshError: no cells of a supported type, mixed types without ``element``, a 2D mesh that is
+            not flat, or an unknown ``region_key``.
+        InvertedElementError: a cell of another type has a non-positive Jacobian.
+    """
+    m = source if isinstance(source, meshio.Mesh) else meshio.read(source)
+    dims = {i: get_element(FROM_MESHIO[b.type]).dim for i, b in enumerate(m.cells)
+            if b.type in FROM_MESHIO}  # block index -> dimension of its cells
+    kinds = {FROM_MESHIO[m.cells[i].type] for i, d in dims.items() if d >= 2 and d == max(dims.values())}
+    if element is None and len(kinds) > 1:
+        raise MeshError(f"the mesh mixes {', '.join(sorted(kinds))} cells; choose one with element=...")
+    name = get_element(element).name if element is not None else next(iter(kinds), None)
+    blocks = [i for i in dims if FROM_MESHIO[m.cells[i].type] == name]
+    if not blocks:
+        found = sorted({b.type for b in m.cells})
+        raise MeshError(f"no {element or 'supported'} cells in the mesh (meshio types found: {found}); "
+                        f"supported: {sorted(FROM_MESHIO)}")
+    el = get_element(name)
+    cells = np.concatenate([m.cells[i].data for i in blocks]).astype(np.int64)
+    regions, region_names = _regions(m, blocks, el.dim, region_key)
+
+    points = np.asarray(m.points, dtype=np.float64)
+    if points.shape[1] > el.dim:
+        extra = points[:, el.dim:]
+        if np.ptp(extra, axis=0).max() > 1e-12 * max(np.ptp(points, axis=0).max(), 1.0):
+            raise MeshError(f"{name} cells need a flat mesh in the x-y plane, but the z coordinates vary "
+                            f"by {np.ptp(extra, axis=0).max():.3g}; surface meshes in 3D are not supported")
+        points = points[:, : el.dim]
+    used = np.zeros(len(points), bool)
+    used[cells] = True
+    if not used.all():
+        warnings.warn(f"read_mesh: dropped {int((~used).sum())} of {len(points)} nodes that no {name} cell "
+                      "uses (e.g. nodes of lower-dimensional cells or stray points); nodes are renumbered",
+                      stacklevel=2)
+        points, cells = points[used], (np.cumsum(used) - 1)[cells]
+    mesh = Mesh(points, cells, name, regions, region_names)
+    if name in ("tri3", "tet4"):
+        return fix_orientation(mesh)
+    check_orientation(mesh)
+    return mesh
+
+
+def _regions(m: meshio.Mesh, blocks, dim, key):
+    """Region tags ``(n_cells,)`` of the chosen blocks and their names ``{tag: name}``."""
+    if key is None:
+        key = next((k for k in REGION_KEYS if k in m.cell_data), None)
+        if key is None:
+            return None, {}
+    elif key not in m.cell_data:
+        raise MeshError(f"no cell data {key!r} in the mesh; it has {sorted(m.cell_data)}")
+    tags = np.concatenate([np.asarray(m.cell_data[key][i]).reshape(len(m.cells[i].data), -1)[:, 0]
+                           for i in blocks])
+    if not np.allclose(tags, np.round(tags)):
+        raise MeshError(f"cell data {key!r} is not integer-valued, so it cannot be region tags")
+    tags = np.round(tags).astype(np.int64)
+    names = {int(v[0]): n for n, v in m.field_data.items()  # gmsh style: name -> [tag, dim]
+             if np.size(v) == 2 and int(np.ravel(v)[1]) == dim and int(np.ravel(v)[0]) in tags}
+    return tags, names
+
+
+def to_meshio(mesh: Mesh, point_data: dict | None = None, cell_data: dict | None = None) -> meshio.Mesh:
+    """The mesh as a ``meshio.Mesh`` with 3D points, its region tags as cell data ``"region"``, their
+    names as gmsh-style ``field_data`` ``{name: [tag, dim]}``, and the data converted as in
+    :func:`write_vtu`."""
+    points = np.zeros((mesh.n_nodes, 3))
+    points[:, : mesh.dim] = mesh.nodes
+    pd = {k: _for_vtk(v, mesh.n_nodes, mesh.dim, f"point_data[{k!r}]") for k, v in (point_data or {}).items()}
+    cd = {"region": [mesh.regions]}
+    for k, v in (cell_data or {}).items():
+        cd[k] = [_for_vtk(v, mesh.n_cells, mesh.dim, f"cell_data[{k!r}]")]
+    names = {n: np.array([tag, mesh.dim]) for tag, n in mesh.region_names.items()}  # gmsh style
+    return meshio.Mesh(points, [(mesh.el.meshio, mesh.cells)], point_data=pd, cell_data=cd, field_data=names)
+
+
+def write_vtu(path: str | PathLike, mesh: Mesh, point_data: dict | None = None,
+              cell_data: dict | None = None) -> None:
+    """Write the mesh and results to a VTU file for ParaView.
+
+    Args:
+        path: the file to write (``.vtu``).
+        mesh: the mesh; its region tags are written as cell data ``"region"``.
+        point_data: nodal arrays ``(n_nodes,)``, ``(n_nodes, k)`` or ``(n_nodes, dim, dim)``, e.g.
+            ``{"displacement": u}`` in length units.
+        cell_data: per-cell arrays ``(n_cells, ...)``, e.g. strains or stresses (Pa) averaged over
+            the quadrature points (``s.mean(axis=1)``).
+
+    2D vectors ``(n, 2)`` are padded with a zero z component and 2D tensors ``(n, 2, 2)`` to
+    ``(n, 3, 3)`` (``zz`` = 0: add the plane-stress or plane-strain value yourself if you need it),
+    written as 9 components in row-major order; other shapes are written flattened per row.
+    """
+    to_meshio(mesh, point_data, cell_data).write(path, file_format="vtu")
+
+
+def _for_vtk(a, n, dim, what):
+    a = np.asarray(a)
+    if a.shape[:1] != (n,):
+        raise MeshError(f"{what} must have {n} rows, one per {'node' if 'point' in what else 'cell'}, "
+                        f"got shape {a.shape}")
+    if a.dtype == bool:
+        a = a.astype(np.int32)
+    if dim == 2 and a.shape[1:] == (2,):
+        a = np.concatenate([a, np.zeros((n, 1), a.dtype)], axis=1)
+    elif a.shape[1:] == (dim, dim):
+        a = np.pad(a, ((0, 0), (0, 3 - dim), (0, 3 - dim)))
+    return np.ascontiguousarray(a.reshape(n, -1) if a.ndim > 2 else a)

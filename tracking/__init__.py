@@ -1,0 +1,30 @@
+"""Tracking points through images of a deforming object: painted grids and speckle patterns.
+
+Images go in, :class:`Tracks` (identities, positions per frame, lost flags, quality) come out;
+nothing here knows of finite elements.
+
+    tracks = track_images(load_images(paths), pattern="grid", roi=(40, 30, 600, 420))
+    roles = assign_roles(tracks.reference, validate_fraction=0.2, seed=0, grid_index=tracks.grid_index)
+    xyz, lost = points_3d(tracks, range_images)            # with range images
+    mm = tracks.to_length(scale_from_grid(tracks, pitch_mm=2.0))
+"""
+
+from ._api import TRACKERS, make_tracker, track_images
+from ._errors import GridNotFoundError, ImageError, RoiError, TrackingError
+from ._grid_tracker import REFINERS, GridTracker
+from ._images import load_images, roi_mask
+from ._range import points_3d, range_lookup
+from ._roles import ROLES, assign_roles
+from ._snake import SnakeOptions
+from ._speckle_tracker import SpeckleTracker
+from ._synthetic import (GridPattern, SpecklePattern, deformed_points, grid_truth, render_grid,
+                         render_pattern, render_range, render_speckle, scaled, smooth_displacement)
+from ._tracks import Tracks, scale_from_grid
+
+__all__ = [
+    "Tracks", "track_images", "make_tracker", "TRACKERS", "GridTracker", "SpeckleTracker",
+    "SnakeOptions", "REFINERS", "load_images", "roi_mask", "range_lookup", "points_3d",
+    "assign_roles", "ROLES", "scale_from_grid", "render_grid", "render_speckle", "render_range",
+    "render_pattern", "grid_truth", "deformed_points", "smooth_displacement", "scaled", "GridPattern", "SpecklePattern",
+    "TrackingError", "ImageError", "RoiError", "GridNotFoundError",
+]

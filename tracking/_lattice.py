@@ -1,0 +1,142 @@
+"""The grid's geometry from the reference image: lattice vectors, line polarity and width.
+
+The two line families show as the two strongest non-parallel peaks of the image's power
+spectrum; their wave vectors give the crossing lattice (pitch and orientation). Folding the
+image over one family's phase gives the mean line profile: its narrow extreme tells the
+polarity (dark lines on a light sheet or the reverse) and its width the line width.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from ._errors import GridNotFoundError
+
+
+@dataclass(frozen=True)
+class GridGeometry:
+    """Lattice of grid crossings and the look of its lines (reference image, pixels).
+
+    Attributes:
+        col_step: (2,) vector from a crossing to the next one in the same row (towards +x).
+        row_step: (2,) vector from a crossing to the next one in the same column (towards +y).
+        dark_lines: True for dark lines on a light background.
+        line_width: full width at half depth of the mean line profile, blur included (px).
+    """
+
+    col_step: np.ndarray
+    row_step: np.ndarray
+    dark_lines: bool
+    line_width: float
+
+    @property
+    def pitch(self) -> float:
+        """Mean distance between neighbouring crossings (px)."""
+        return 0.5 * float(np.linalg.norm(self.col_step) + np.linalg.norm(self.row_step))
+
+
+def _spectral_peaks(image: np.ndarray, mask: np.ndarray, pitch_range) -> tuple[np.ndarray, np.ndarray]:
+    rows, cols = np.nonzero(mask)
+    r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
+    if min(r1 - r0, c1 - c0) < 2 * pitch_range[0]:
+        raise GridNotFoundError("the region of interest is too small to hold a grid; enlarge the ROI")
+    patch = image[r0:r1, c0:c1]
+    inside = mask[r0:r1, c0:c1]
+    patch = np.where(inside, patch - patch[inside].mean(), 0.0)
+    window = np.outer(np.hanning(patch.shape[0]), np.hanning(patch.shape[1]))
+    power = np.abs(np.fft.fft2(patch * window)) ** 2
+    fy = np.fft.fftfreq(patch.shape[0])[:, None] * np.ones(patch.shape)
+    fx = np.fft.fftfreq(patch.shape[1])[None, :] * np.ones(patch.shape)
+    radius = np.hypot(fx, fy)
+    usable = (radius >= 1.0 / pitch_range[1]) & (radius <= 1.0 / pitch_range[0])
+    usable &= (fx > 0) | ((fx == 0) & (fy > 0))
+    if not usable.any():
+        raise GridNotFoundError("no usable frequencies for the given pitch range")
+    score = np.where(usable, power, 0.0)
+    first = np.unravel_index(np.argmax(score), score.shape)
+    k1 = np.array([fx[first], fy[first]])
+    angle = np.abs(fx * k1[1] - fy * k1[0]) / (radius * np.linalg.norm(k1) + 1e-300)
+    score2 = np.where(usable & (angle > np.sin(np.radians(30))), power, 0.0)
+    second = np.unravel_index(np.argmax(score2), score2.shape)
+    background = np.median(power[usable])
+    for peak in (first, second):
+        if power[peak] < 20.0 * background:
+            raise GridNotFoundError(
+                "no grid found: the image spectrum has no two clear line-family peaks; check the "
+                "ROI, the pitch range (grid pitch in pixels) and that the grid is in focus")
+    return _refined_frequency(power, first, fx, fy), _refined_frequency(power, second, fx, fy)
+
+
+def _refined_frequency(power, peak, fx, fy) -> np.ndarray:
+    """Sub-bin peak position by a parabola through the log power in each axis."""
+    log = np.log(power + 1e-300)
+    shape = power.shape
+    out = np.array([fx[peak], fy[peak]])
+    for axis, step in ((1, 1.0 / shape[1]), (0, 1.0 / shape[0])):
+        lo, hi = list(peak), list(peak)
+        lo[axis] = (peak[axis] - 1) % shape[axis]
+        hi[axis] = (peak[axis] + 1) % shape[axis]
+        a, b, c = log[tuple(lo)], log[peak], log[tuple(hi)]
+        denom = a - 2 * b + c
+        if denom < 0:
+            out[0 if axis == 1 else 1] += step * 0.5 * (a - c) / denom
+    return out
+
+
+def _folded_profile(image, mask, wave, bins) -> np.ndarray:
+    rows, cols = np.nonzero(mask)
+    phase = (wave[0] * cols + wave[1] * rows) % 1.0
+    index = np.minimum((phase * bins).astype(int), bins - 1)
+    total = np.bincount(index, weights=image[rows, cols], minlength=bins)
+    count = np.bincount(index, minlength=bins)
+    filled = count > 0
+    centres = (np.arange(bins) + 0.5) / bins
+    # an axis-aligned grid samples few phases: fill the empty bins periodically
+    return np.interp(centres, centres[filled], total[filled] / count[filled], period=1.0)
+
+
+def grid_geometry(image: np.ndarray, mask: np.ndarray, pitch_range=(4.0, 80.0),
+                  dark_lines: bool | None = None) -> GridGeometry:
+    """Measure the grid lattice and line appearance in ``image`` (rows, cols) inside ``mask``.
+
+    Args:
+        pitch_range: (min, max) grid pitch in pixels to look for.
+        dark_lines: force the polarity; None detects it.
+
+    Raises:
+        GridNotFoundError: no two line families in the spectrum.
+    """
+    flat = image - ndimage.gaussian_filter(image, 2.0 * pitch_range[1])
+    k1, k2 = _spectral_peaks(flat, mask, pitch_range)
+    lattice = np.linalg.inv(np.stack([k1, k2]))  # columns a1, a2 with k_i . a_j = delta_ij
+    steps = [lattice[:, 0], lattice[:, 1]]
+    col = int(np.argmax([abs(s[0]) / np.linalg.norm(s) for s in steps]))
+    col_step, row_step = steps[col], steps[1 - col]
+    col_step = col_step if col_step[0] >= 0 else -col_step
+    row_step = row_step if row_step[1] >= 0 else -row_step
+    waves = (k1, k2)
+    pitch = float(np.mean([1.0 / np.linalg.norm(k) for k in waves]))
+    bins = max(8, int(round(pitch)))
+    profiles = [_folded_profile(flat, mask, k, bins) for k in waves]
+    profile = np.mean([np.roll(p, bins // 2 - int(np.argmax(np.abs(p - np.median(p))))) for p in profiles], axis=0)
+    base = np.median(profile)
+    if dark_lines is None:
+        dark_lines = bool(base > 0.5 * (profile.min() + profile.max()))
+    depth = (base - profile) if dark_lines else (profile - base)
+    # width at half depth, with linear interpolation of the two crossings around the extreme
+    fine = np.interp(np.arange(bins * 16) / 16.0, np.arange(bins), depth, period=bins)
+    line_width = float(np.count_nonzero(fine > 0.5 * depth.max())) / 16.0 * pitch / bins
+    return GridGeometry(col_step=col_step, row_step=row_step, dark_lines=dark_lines,
+                        line_width=max(line_width, 1.0))
+
+
+def ink_image(image: np.ndarray, geometry: GridGeometry) -> np.ndarray:
+    """Lines as positive ridges: background removed, polarity set, local contrast normalised."""
+    pitch = geometry.pitch
+    background = ndimage.gaussian_filter(image, 1.5 * pitch, mode="nearest")
+    ink = (background - image) if geometry.dark_lines else (image - background)
+    contrast = ndimage.gaussian_filter(np.abs(ink), 1.5 * pitch, mode="nearest")
+    return ink / (contrast + 1e-6 * (np.abs(contrast).max() + 1e-300))

@@ -1,0 +1,178 @@
+"""The speckle tracker: subset-based digital image correlation (DIC) on a lattice of points.
+
+Points sit every ``spacing`` px in the region of interest. Each frame is matched by IC-GN
+(see ``_dic``) starting from the previous frame's solution extrapolated at constant velocity;
+points without a usable start (the first deformed frame, or after a failure) get an integer
+guess by normalised cross-correlation within ``search`` px first. A point is lost in a frame
+when IC-GN does not converge, the subset leaves the image, or the ZNCC falls under ``min_zncc``;
+it is tried again (from its neighbours' motion) in the next frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from ._dic import icgn, reference_subsets
+from ._dic_search import integer_search
+from ._errors import RoiError, TrackingError
+from ._grid_topology import fill_field
+from ._images import as_stack, roi_mask
+from ._interp import spline_image
+from ._tracks import Tracks
+
+
+@dataclass(frozen=True)
+class SpeckleTracker:
+    """Subset DIC: affine subsets, ZNSSD criterion, IC-GN, B-spline interpolation.
+
+    Attributes:
+        spacing: distance between correlation points (px).
+        subset: subset side (px, odd; 21-41 is usual).
+        search: integer search half-range (px) around the predicted motion.
+        order: B-spline order of the target interpolation (3 bicubic, 5 quintic).
+        smoothing: Gaussian pre-smoothing of all images (px, 0 = none; ~0.5-0.8 lowers the
+            interpolation bias on sharp speckles).
+        reference: "first" (every frame against frame 0; no drift) or "previous" (frame k
+            against frame k-1; follows larger deformations, drift accumulates, a lost point
+            stays lost).
+        min_zncc: correlation under which a point is lost.
+        max_iterations, tolerance: IC-GN stopping rule (tolerance in px at the subset edge).
+        subset_in_roi: keep only points whose whole subset lies in the ROI (else the centre).
+    """
+
+    spacing: float = 10.0
+    subset: int = 21
+    search: int = 10
+    order: int = 5
+    smoothing: float = 0.0
+    reference: str = "first"
+    min_zncc: float = 0.8
+    max_iterations: int = 40
+    tolerance: float = 1e-3
+    subset_in_roi: bool = True
+
+    def points(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Correlation points in ``mask`` (rows, cols): xy (n, 2) integer pixels, (row, col) (n, 2)."""
+        radius = self.subset // 2
+        margin = radius + 2
+        rows, cols = np.nonzero(mask)
+        xs = np.arange(cols.min() + radius, cols.max() - radius + 1, self.spacing)
+        ys = np.arange(rows.min() + radius, rows.max() - radius + 1, self.spacing)
+        xx, yy = np.meshgrid(np.rint(xs), np.rint(ys))
+        jj, ii = np.meshgrid(np.arange(len(xs)), np.arange(len(ys)))
+        xy = np.stack([xx.ravel(), yy.ravel()], axis=1)
+        index = np.stack([ii.ravel(), jj.ravel()], axis=1)
+        h, w = mask.shape
+        keep = (xy[:, 0] >= margin) & (xy[:, 1] >= margin) & (xy[:, 0] < w - margin) & (xy[:, 1] < h - margin)
+        if self.subset_in_roi:
+            inside = ndimage.binary_erosion(mask, np.ones((self.subset, self.subset)), border_value=0)
+        else:
+            inside = mask
+        ok = np.zeros(len(xy), bool)
+        ok[keep] = inside[xy[keep, 1].astype(int), xy[keep, 0].astype(int)]
+        if not ok.any():
+            raise RoiError(f"no correlation point fits in the ROI with subset {self.subset} px; "
+                           "enlarge the ROI or use a smaller subset")
+        return xy[ok], index[ok]
+
+    def track(self, images, roi=None) -> Tracks:
+        """Track a lattice of points in the ROI through ``images``; quality is the ZNCC (-1..1)."""
+        if self.subset < 5 or self.subset % 2 == 0:
+            raise TrackingError(f"subset must be an odd number of pixels >= 5, got {self.subset}")
+        if self.reference not in ("first", "previous"):
+            raise TrackingError(f"reference must be 'first' or 'previous', got {self.reference!r}")
+        stack = as_stack(images)
+        if self.smoothing > 0:
+            stack = np.stack([ndimage.gaussian_filter(im, self.smoothing) for im in stack])
+        mask = roi_mask(roi, stack.shape[1:])
+        xy, index = self.points(mask)
+        n = len(xy)
+        positions = np.full((len(stack), n, 2), np.nan)
+        quality = np.zeros((len(stack), n))
+        positions[0], quality[0] = xy, 1.0
+        lattice = (index[:, 0].max() + 1, index[:, 1].max() + 1)
+        reference = spline_image(stack[0], self.order)
+        subsets = reference_subsets(reference, reference.lattice_gradient(), xy, self.subset // 2)
+        p_history = [np.zeros((n, 6))]
+        alive = np.ones(n, bool)
+        for k in range(1, len(stack)):
+            target = spline_image(stack[k], self.order)
+            if self.reference == "previous" and k > 1:
+                previous = spline_image(stack[k - 1], self.order)
+                centres = np.rint(positions[k - 1])
+                alive &= np.isfinite(centres).all(axis=1)
+                centres[~alive] = xy[~alive]
+                subsets = reference_subsets(previous, previous.lattice_gradient(), centres, self.subset // 2)
+                start = np.zeros((n, 6))
+                base = stack[k - 1]
+            else:
+                centres = xy
+                start = self._start(p_history, index, lattice)
+                base = stack[0]
+            p, zncc, ok = self._match(base, stack[k], target, subsets, centres, start, k == 1)
+            ok &= alive
+            offset = (positions[k - 1] - centres) if (self.reference == "previous" and k > 1) else np.zeros((n, 2))
+            moved = centres + offset + p[:, [0, 3]] + np.stack(
+                [p[:, 1] * offset[:, 0] + p[:, 2] * offset[:, 1], p[:, 4] * offset[:, 0] + p[:, 5] * offset[:, 1]], axis=1)
+            positions[k] = np.where(ok[:, None], moved, np.nan)
+            quality[k] = zncc
+            if self.reference == "first" or k == 1:
+                p_history.append(np.where(ok[:, None], p, np.nan))
+        lost = ~np.isfinite(positions).all(axis=-1)
+        meta = {"tracker": "speckle", "subset_px": self.subset, "spacing_px": self.spacing,
+                "reference": self.reference, "spline_order": self.order}
+        return Tracks(ids=index[:, 0] * lattice[1] + index[:, 1] + 1, reference=xy, positions=positions,
+                      lost=lost, quality=quality, grid_index=index, quality_kind="zncc", meta=meta)
+
+    def _start(self, history, index, lattice):
+        """Constant-velocity prediction of p per point; lost points take their neighbours'."""
+        last = history[-1]
+        if len(history) >= 2:
+            before = history[-2]
+            guess = np.where(np.isfinite(before), 2 * last - before, last)
+        else:
+            guess = last
+        valid = np.isfinite(guess).all(axis=1)
+        if valid.all() or not valid.any():
+            return np.nan_to_num(guess)
+        field = np.zeros(lattice + (6,))
+        known = np.zeros(lattice, bool)
+        field[index[:, 0], index[:, 1]] = np.nan_to_num(guess)
+        known[index[:, 0], index[:, 1]] = valid
+        filled = fill_field(field, known)
+        return filled[index[:, 0], index[:, 1]]
+
+    def _match(self, base, image, target, subsets, centres, start, first):
+        """IC-GN from ``start``; where that fails (or in the first frame), integer search first."""
+        radius = self.subset // 2
+        p = start.copy()
+        if first:
+            shift, _ = integer_search(base, image, centres, radius, start[:, [0, 3]], self.search)
+            usable = np.isfinite(shift).all(axis=1)
+            p[usable, 0], p[usable, 3] = shift[usable, 0], shift[usable, 1]
+        match = icgn(target, subsets, p, self.max_iterations, self.tolerance)
+        ok = match.converged & (match.zncc >= self.min_zncc)
+        if not first and not ok.all():
+            retry = np.nonzero(~ok)[0]
+            shift, _ = integer_search(base, image, centres[retry], radius, start[retry][:, [0, 3]], self.search)
+            usable = np.isfinite(shift).all(axis=1)
+            again = retry[usable]
+            p_retry = start[again].copy()
+            p_retry[:, [1, 2, 4, 5]] = 0.0
+            p_retry[:, 0], p_retry[:, 3] = shift[usable, 0], shift[usable, 1]
+            sub = _take(subsets, again)
+            second = icgn(target, sub, p_retry, self.max_iterations, self.tolerance)
+            better = second.converged & (second.zncc >= self.min_zncc)
+            match.p[again[better]] = second.p[better]
+            match.zncc[again[better]] = second.zncc[better]
+            ok[again[better]] = True
+        return match.p, match.zncc, ok
+
+
+def _take(subsets, index):
+    from ._dic import Subsets
+    return Subsets(subsets.centres[index], subsets.offsets, subsets.zero_mean[index], subsets.norm[index],
+                   subsets.jacobian[index], subsets.inverse_hessian[index])
