@@ -27,6 +27,8 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+# this file is called tracking.py: keep its folder off the path so "tracking" is the package
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 sys.path.insert(0, str(ROOT))
 
 import cv2  # noqa: E402
@@ -52,9 +54,9 @@ def _sequence(render, field, noise, seed):
     return [render(scaled(field, s), noise, seed * 100 + k) for k, s in enumerate(steps)]
 
 
-def _grid_image(displacement, noise, seed):
-    return render_grid(SHAPE, PITCH, 2.0, displacement, noise_sigma=noise, blur_sigma=1.0, seed=seed,
-                       quantize=True, lighting_gradient=0.2)
+def _grid_image(displacement, noise, seed, pitch=PITCH, shape=SHAPE):
+    return render_grid(shape, pitch, 2.0 if pitch < 15 else 3.0, displacement, noise_sigma=noise,
+                       blur_sigma=1.0, seed=seed, quantize=True, lighting_gradient=0.2)
 
 
 def _speckle_image(displacement, noise, seed):
@@ -85,17 +87,16 @@ def phase_correlation(reference, target, points, start, half=16):
             continue
         a = reference[y - half:y + half, x - half:x + half]
         b = target[sy - half:sy + half, sx - half:sx + half]
-        a = (a - a.mean()) * window
-        b = (b - b.mean()) * window
-        shift = phase_cross_correlation(a, b, upsample_factor=100)[0]
-        # the patch around (x, y) moved to (sx, sy) minus the residual shift (rows, cols)
-        out[k] = (sx + (x - points[k, 0]) * 0 - shift[1] + (points[k, 0] - x), sy - shift[0] + (points[k, 1] - y))
+        shift = phase_cross_correlation((a - a.mean()) * window, (b - b.mean()) * window, upsample_factor=100)[0]
+        # the patch's content moved by -shift (rows, cols) from (sx, sy); the point keeps its offset
+        offset = points[k] - (x, y)
+        out[k] = (sx - shift[1] + offset[0], sy - shift[0] + offset[1])
     return out
 
 
-def _grid_case(field, noise, seed, refiners=("lines", "hessian", "snake")):
-    images = _sequence(_grid_image, field, noise, seed)
-    truth_ref, _, _ = grid_truth(SHAPE, PITCH, margin=-120)
+def _grid_case(field, noise, seed, refiners=("lines", "hessian", "snake"), pitch=PITCH, competitors=True):
+    images = _sequence(lambda u, n, k: _grid_image(u, n, k, pitch), field, noise, seed)
+    truth_ref, _, _ = grid_truth(SHAPE, pitch, margin=-120)
     result = {}
     for refiner in refiners:
         start = time.perf_counter()
@@ -110,6 +111,8 @@ def _grid_case(field, noise, seed, refiners=("lines", "hessian", "snake")):
             "deformed_max_px": float(np.nanmax(np.linalg.norm(tracks.positions[-1] - truth, axis=1))),
             "lost_last_frame": int(tracks.lost[-1].sum()), "points": tracks.n_points,
             "points_per_second": tracks.n_points * len(images) / seconds}
+    if not competitors:
+        return result
     # competitors: the true reference crossings inside the ROI, oracle integer start
     x0, y0, x1, y1 = ROI
     inside = (truth_ref[:, 0] > x0) & (truth_ref[:, 0] < x1) & (truth_ref[:, 1] > y0) & (truth_ref[:, 1] < y1)
@@ -153,6 +156,33 @@ def _speckle_case(field, noise, seed):
     return result
 
 
+def _speed():
+    """Points per second on 512 x 512 images, 3 frames (ours) or one pair (competitors)."""
+    shape = (512, 512)
+    field = smooth_displacement(shape, 0.05, seed=4)
+    out = {}
+    for pattern in ("grid", "speckle"):
+        if pattern == "grid":
+            images = [_grid_image(scaled(field, s), 2.0, k, shape=shape) for k, s in enumerate([0, 0.5, 1])]
+            tracker = GridTracker()
+        else:
+            images = [render_speckle(shape, scaled(field, s), noise_sigma=2.0, seed=k, quantize=True)
+                      for k, s in enumerate([0, 0.5, 1])]
+            tracker = SpeckleTracker(spacing=10, subset=21)
+        t0 = time.perf_counter()
+        tracks = tracker.track(images, roi=(16, 16, 496, 496))
+        seconds = time.perf_counter() - t0
+        frames = len(images) if pattern == "grid" else len(images) - 1
+        entry = {"points": tracks.n_points, "ours_points_per_second": tracks.n_points * frames / seconds}
+        truth = deformed_points(tracks.reference, field)
+        for name, method in (("opencv_lk", lucas_kanade), ("phase_correlation", phase_correlation)):
+            t0 = time.perf_counter()
+            method(images[0], images[-1], tracks.reference, np.rint(truth))
+            entry[f"{name}_points_per_second"] = tracks.n_points / (time.perf_counter() - t0)
+        out[pattern] = entry
+    return out
+
+
 def dic_challenge(folder: Path):
     """Sample 3 of the DIC Challenge: mean and std of the error per frame, per method."""
     with open(folder / "truth.csv") as handle:
@@ -164,15 +194,17 @@ def dic_challenge(folder: Path):
     t0 = time.perf_counter()
     tracks = SpeckleTracker(spacing=10, subset=21).track(images, roi=roi)
     seconds = time.perf_counter() - t0
-    out = {"points": tracks.n_points, "dic_icgn_points_per_second": tracks.n_points * (len(images) - 1) / seconds}
+    out = {"points": tracks.n_points, "dic_icgn_points_per_second": tracks.n_points * (len(images) - 1) / seconds,
+           "competitor_points": "every 4th point of the same lattice, started at zero motion"}
+    few = tracks.reference[::4]
     methods = {"dic_icgn": lambda k: tracks.positions[k],
-               "opencv_lk": lambda k: lucas_kanade(images[0], images[k], tracks.reference, tracks.reference),
-               "phase_correlation": lambda k: phase_correlation(images[0], images[k], tracks.reference,
-                                                                tracks.reference)}
+               "opencv_lk": lambda k: lucas_kanade(images[0], images[k], few, few),
+               "phase_correlation": lambda k: phase_correlation(images[0], images[k], few, few)}
     for name, method in methods.items():
         frames = []
         for k in range(1, len(images)):
-            error = method(k) - tracks.reference - shifts[k]
+            points = tracks.reference if name == "dic_icgn" else few
+            error = method(k) - points - shifts[k]
             frames.append({"shift_px": float(shifts[k, 0]),
                            "mean_error_px": [float(v) for v in np.nanmean(error, axis=0)],
                            "std_error_px": [float(v) for v in np.nanstd(error, axis=0)],
@@ -198,6 +230,11 @@ def main(argv=None):
         report["strain_vs"][pattern] = [
             {"stretch": s, **case(smooth_displacement(SHAPE, s, seed=2), 2.0, seed=8)} for s in strains]
         print(f"{pattern}: done at {time.perf_counter() - t_start:.0f} s", flush=True)
+    report["pitch_vs"] = [{"pitch_px": p, **_grid_case(smooth_displacement(SHAPE, 0.2, seed=3), 2.0, seed=9,
+                                                       pitch=p, competitors=False)}
+                          for p in ([10.0, 20.0] if args.quick else [10.0, 15.0, 20.0])]
+    report["speed"] = _speed()
+    print(f"pitch and speed: done at {time.perf_counter() - t_start:.0f} s", flush=True)
     shared = Path(os.environ.get("NONRIGID_SHARED", ROOT.parent / "shared"))
     folder = shared / "data" / "dic-challenge-sample3"
     report["dic_challenge_sample3"] = dic_challenge(folder) if folder.is_dir() else None

@@ -1,0 +1,43 @@
+"""jaxfem: a differentiable total-Lagrangian hyperelastic finite-element solver in JAX.
+
+Build a :class:`Mesh`, state a :class:`Problem` (material law, kinematics, prescribed dofs),
+make a :class:`Solver` once, then solve or differentiate for any parameters::
+
+    import jaxfem as jf
+    mesh = jf.rectangle(0, 0, 100, 60, 50, 30)
+    fixed = jf.dofs(mesh, mesh.side("left")), jf.dofs(mesh, mesh.side("right"))
+    problem = jf.Problem(mesh, "neo-hookean", "plane-stress", fixed=np.concatenate(fixed))
+    solver = jf.Solver(problem)
+    theta = problem.params(E=83.76, nu=0.3, u_D=problem.prescribe(lambda X: 0.2 * X * [1, 0]))
+    u = solver.solve(theta).u                 # raises SolverError with the failing load step
+    g = jax.grad(lambda th: solver.displacement(th).sum())(theta)   # one adjoint solve
+
+Everything is float64.
+"""
+
+from . import _config  # noqa: F401
+from .derivatives import taylor_test
+from .elements import ELEMENTS, Element, get_element
+from .errors import InvertedElementError, JaxfemError, MeshError, ProblemError, SolverError
+from .io import read_mesh, to_meshio, write_vtu
+from .materials import LAWS, Material, get_material, lame
+from .mesh import Mesh, box, check_orientation, fix_orientation, rectangle, to_quadratic
+from .newton import NewtonOptions
+from .probe import Probe, boundary_interpolation, boundary_loop, locate
+from .problem import Problem, dofs
+from .results import (cauchy_stress, deformation_gradient, equivalent_strain, first_piola_stress,
+                      green_lagrange_strain, principal_strains, second_piola_stress, strain_energy,
+                      von_mises_stress)
+from .shapes import Ellipse, Rect, curve_nodes, morph, plate
+from .solver import Solution, Solver
+
+__all__ = [
+    "ELEMENTS", "Element", "get_element", "InvertedElementError", "JaxfemError", "MeshError",
+    "ProblemError", "SolverError", "read_mesh", "to_meshio", "write_vtu", "LAWS", "Material",
+    "get_material", "lame", "Mesh", "box", "check_orientation", "fix_orientation", "rectangle",
+    "to_quadratic", "NewtonOptions", "Probe", "boundary_interpolation", "boundary_loop", "locate",
+    "Problem", "dofs", "cauchy_stress", "deformation_gradient", "equivalent_strain",
+    "first_piola_stress", "green_lagrange_strain", "principal_strains", "second_piola_stress",
+    "strain_energy", "von_mises_stress", "Ellipse", "Rect", "curve_nodes", "morph", "plate",
+    "Solution", "Solver", "taylor_test",
+]

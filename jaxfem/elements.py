@@ -65,14 +65,15 @@ class Element:
 
 
 def _num_grad(shape: Callable, dim: int) -> Callable:
-    """Exact gradient of a polynomial shape function by complex-step differentiation."""
+    """Exact gradient of a polynomial shape function by complex-step differentiation
+    (``xi (..., dim) -> (..., n_nodes, dim)``)."""
 
     def grad(xi):
         xi = np.asarray(xi, dtype=float)
         out = []
         for k in range(dim):
             z = xi.astype(complex)
-            z[k] += 1e-30j
+            z[..., k] += 1e-30j
             out.append(np.imag(shape(z)) / 1e-30)
         return np.stack(out, axis=-1)
 

@@ -139,12 +139,12 @@ class Solver:
             free, fixed = arrays["free"], arrays["fixed"]
 
             def free_residual(th):
-                uu = u.at[fixed].set(th["u_D"])  # prescribed values enter through the constrained dofs
+                uu = u.at[fixed].set(th["u_D"], unique_indices=True)  # prescribed values enter through the constrained dofs
                 return self.residual(uu, th) * free
 
             _, dG = jax.jvp(free_residual, (theta,), (dtheta,))
             du_D = dtheta["u_D"]
-            rhs = -dG + jnp.zeros_like(u).at[fixed].set(du_D)
+            rhs = -dG + jnp.zeros_like(u).at[fixed].set(du_D, unique_indices=True)
             M = self._constrained(self.tangent_values(u, theta))
             mv = lambda x: matvec(M, arrays["rows"], arrays["cols"], x)  # noqa: E731
             du = jax.lax.custom_linear_solve(mv, rhs, lambda _, b: self._lin(jax.lax.stop_gradient(M), b, arrays),

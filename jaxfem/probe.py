@@ -1,0 +1,176 @@
+"""Values of nodal fields at arbitrary points, and boundary values interpolated from sparse points.
+
+- :class:`Probe` locates points in a mesh once (cell and shape-function weights) so that a nodal
+  field is evaluated at them by a fixed linear map, differentiable and cheap inside ``jit``.
+- :func:`boundary_interpolation` builds the linear map from displacements measured at a few
+  points on a 2D boundary to every boundary node, linear in arc length between neighbouring
+  points (how the paper's set P drives the model).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax.numpy as jnp
+import numpy as np
+from scipy.spatial import cKDTree
+
+from . import _config  # noqa: F401
+from .errors import MeshError
+from .mesh import Mesh
+
+
+@dataclass(frozen=True, eq=False)
+class Probe:
+    """Evaluation of nodal fields at fixed reference points.
+
+    Attributes:
+        cells: cell containing each point, ``(n_points,)``.
+        nodes: the nodes of that cell, ``(n_points, n_per_cell)``.
+        weights: shape-function values at the point, ``(n_points, n_per_cell)``.
+    """
+
+    cells: np.ndarray
+    nodes: np.ndarray
+    weights: np.ndarray
+
+    def __call__(self, field):
+        """``field (n_nodes, ...)`` -> values at the points ``(n_points, ...)``."""
+        return jnp.einsum("pk,pk...->p...", self.weights, jnp.asarray(field)[self.nodes])
+
+
+def locate(mesh: Mesh, points, tol: float = 1e-6, names=None) -> Probe:
+    """Find the cell and local coordinates of each point (reference configuration).
+
+    Args:
+        mesh: the mesh.
+        points: ``(n_points, dim)`` coordinates.
+        tol: how far outside every cell (in reference coordinates) a point may lie and still be
+            taken as on the boundary.
+        names: optional labels of the points (e.g. bundle ids) for the error message.
+    Raises:
+        MeshError: naming the points that lie outside the mesh.
+    """
+    pts = np.asarray(points, np.float64)
+    el = mesh.el
+    cent = mesh.centroids()
+    tree = cKDTree(cent)
+    k = min(24, mesh.n_cells)
+    _, cand = tree.query(pts, k=k)
+    cand = cand.reshape(len(pts), k)
+    best_cell = np.full(len(pts), -1)
+    best_xi = np.zeros((len(pts), el.dim))
+    best_out = np.full(len(pts), np.inf)
+    for j in range(k):  # a handful of candidates per point, vectorised over points
+        c = cand[:, j]
+        xi, out = _inverse_map(mesh, c, pts)
+        better = out < best_out
+        best_cell[better], best_xi[better], best_out[better] = c[better], xi[better], out[better]
+    bad = np.flatnonzero(best_out > tol)
+    if bad.size:
+        labels = [str(names[i]) if names is not None else str(i) for i in bad[:10]]
+        raise MeshError(f"{bad.size} points lie outside the mesh (e.g. {', '.join(labels)} at "
+                        f"{pts[bad[0]].round(4).tolist()}); they cannot be compared with the model")
+    N = el.shape(best_xi).reshape(len(pts), el.n_nodes)
+    return Probe(best_cell, mesh.cells[best_cell], N)
+
+
+def _inverse_map(mesh, c, pts):
+    """Reference coordinates of ``pts`` in cells ``c`` by Newton, and how far outside they are."""
+    el = mesh.el
+    Xe = mesh.nodes[mesh.cells[c]]
+    xi = np.full((len(pts), el.dim), 1.0 / 3.0 if el.name.startswith(("tri", "tet")) else 0.0)
+    for _ in range(8):
+        N, dN = el.shape(xi), el.shape_grad(xi)
+        r = np.einsum("pk,pki->pi", N, Xe) - pts
+        J = np.einsum("pki,pkj->pij", Xe, dN)
+        xi = xi - np.linalg.solve(J, r[..., None])[..., 0]
+    if el.name.startswith(("tri", "tet")):
+        out = np.maximum(0.0, np.maximum(-xi.min(axis=1), xi.sum(axis=1) - 1.0))
+    else:
+        out = np.maximum(0.0, np.abs(xi).max(axis=1) - 1.0)
+    return xi, out
+
+
+def boundary_loop(mesh: Mesh) -> np.ndarray:
+    """The outer boundary of a 2D mesh as an ordered, counter-clockwise loop of node indices
+    (mid-edge nodes included for quadratic elements)."""
+    if mesh.dim != 2:
+        raise MeshError("boundary_loop() is for 2D meshes")
+    f = mesh.boundary_facets()
+    nxt = {}
+    for e in f:
+        chain = [e[0]] + list(e[2:]) + [e[1]]  # vertex, mid-side node(s), vertex
+        for a, b in zip(chain[:-1], chain[1:]):
+            nxt[a] = b
+    loops, seen = [], set()
+    for start in nxt:
+        if start in seen:
+            continue
+        loop, n = [], start
+        while n not in seen:
+            seen.add(n)
+            loop.append(n)
+            n = nxt[n]
+        loops.append(np.array(loop))
+
+    def area(lp):
+        x, y = mesh.nodes[lp, 0], mesh.nodes[lp, 1]
+        return 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+
+    outer = max(loops, key=lambda lp: abs(area(lp)))
+    return outer if area(outer) > 0 else outer[::-1]
+
+
+def boundary_interpolation(mesh: Mesh, points, tol: float | None = None, names=None):
+    """Linear map from values at points on the outer boundary to every node of that boundary.
+
+    Between neighbouring points (in order along the boundary) values vary linearly with arc
+    length; the loop is closed, so the last point connects to the first.
+
+    Args:
+        mesh: a 2D mesh.
+        points: ``(m, 2)`` positions on the boundary (m >= 2).
+        tol: how far from the boundary a point may be (default: 1 % of the mean boundary edge).
+        names: labels for error messages.
+    Returns:
+        ``(nodes (n_b,), W (n_b, m))`` with values at the nodes = ``W @ values``.
+    """
+    loop = boundary_loop(mesh)
+    P = mesh.nodes[loop]
+    seg = np.roll(P, -1, axis=0) - P
+    L = np.linalg.norm(seg, axis=1)
+    s_nodes = np.concatenate([[0.0], np.cumsum(L)[:-1]])
+    perimeter = L.sum()
+    tol = 0.01 * L.mean() if tol is None else tol
+    pts = np.asarray(points, np.float64)
+    if len(pts) < 2:
+        raise MeshError("need at least two boundary points to interpolate along the boundary")
+    # project each point on every boundary segment, keep the nearest
+    d = pts[:, None, :] - P[None]
+    t = np.clip(np.einsum("msi,si->ms", d, seg) / (L**2)[None], 0.0, 1.0)
+    proj = P[None] + t[..., None] * seg[None]
+    dist = np.linalg.norm(pts[:, None] - proj, axis=2)
+    j = dist.argmin(axis=1)
+    dmin = dist[np.arange(len(pts)), j]
+    far = np.flatnonzero(dmin > tol)
+    if far.size:
+        labels = [str(names[i]) if names is not None else str(i) for i in far[:10]]
+        raise MeshError(f"{far.size} boundary points are not on the mesh boundary (e.g. {', '.join(labels)}, "
+                        f"{dmin[far[0]]:.3g} away); boundary points must lie on the domain's outline")
+    s_pts = s_nodes[j] + t[np.arange(len(pts)), j] * L[j]
+    order = np.argsort(s_pts)
+    sp = s_pts[order]
+    if np.any(np.diff(sp) <= 1e-12 * perimeter):
+        raise MeshError("two boundary points project to the same place on the boundary")
+    # periodic linear interpolation in arc length
+    W = np.zeros((len(loop), len(pts)))
+    ext = np.concatenate([sp - perimeter, sp, sp + perimeter])
+    idx = np.concatenate([order, order, order])
+    k = np.searchsorted(ext, s_nodes, side="right") - 1
+    a, b = ext[k], ext[k + 1]
+    w = (s_nodes - a) / (b - a)
+    rows = np.arange(len(loop))
+    np.add.at(W, (rows, idx[k]), 1.0 - w)
+    np.add.at(W, (rows, idx[k + 1]), w)
+    return loop, W
