@@ -30,6 +30,7 @@ from .results import (cauchy_stress, deformation_gradient, equivalent_strain, fi
                       von_mises_stress)
 from .shapes import Ellipse, Rect, curve_nodes, morph, plate
 from .solver import Solution, Solver
+from . import plot
 
 __all__ = [
     "ELEMENTS", "Element", "get_element", "InvertedElementError", "JaxfemError", "MeshError",

@@ -38,6 +38,11 @@ class Subsets:
     jacobian: np.ndarray
     inverse_hessian: np.ndarray
 
+    def take(self, index: np.ndarray) -> "Subsets":
+        """The subsets of the points ``index``."""
+        return Subsets(self.centres[index], self.offsets, self.zero_mean[index], self.norm[index],
+                       self.jacobian[index], self.inverse_hessian[index])
+
 
 def subset_offsets(radius: int) -> np.ndarray:
     """(P, 2) offsets (dx, dy) of a square subset of side 2 radius + 1."""

@@ -33,8 +33,8 @@ class SpeckleTracker:
         subset: subset side (px, odd; 21-41 is usual).
         search: integer search half-range (px) around the predicted motion.
         order: B-spline order of the target interpolation (3 bicubic, 5 quintic).
-        smoothing: Gaussian pre-smoothing of all images (px, 0 = none; ~0.5-0.8 lowers the
-            interpolation bias on sharp speckles).
+        smoothing: Gaussian pre-smoothing of all images (px, 0 = none); 0.8 removes most of the
+            interpolation bias (Pan et al. 2013) at almost no cost in noise.
         reference: "first" (every frame against frame 0; no drift) or "previous" (frame k
             against frame k-1; follows larger deformations, drift accumulates, a lost point
             stays lost).
@@ -46,8 +46,8 @@ class SpeckleTracker:
     spacing: float = 10.0
     subset: int = 21
     search: int = 10
-    order: int = 5
-    smoothing: float = 0.0
+    order: int = 3
+    smoothing: float = 0.8
     reference: str = "first"
     min_zncc: float = 0.8
     max_iterations: int = 40
@@ -94,33 +94,35 @@ class SpeckleTracker:
         quality = np.zeros((len(stack), n))
         positions[0], quality[0] = xy, 1.0
         lattice = (index[:, 0].max() + 1, index[:, 1].max() + 1)
+        radius = self.subset // 2
         reference = spline_image(stack[0], self.order)
-        subsets = reference_subsets(reference, reference.lattice_gradient(), xy, self.subset // 2)
-        p_history = [np.zeros((n, 6))]
+        first_subsets = reference_subsets(reference, reference.lattice_gradient(), xy, radius)
+        history = [np.zeros((n, 6))]          # p of every frame against frame 0 ("first")
+        increment = np.zeros((n, 6))          # last frame-to-frame p ("previous")
         alive = np.ones(n, bool)
+        before = reference
         for k in range(1, len(stack)):
             target = spline_image(stack[k], self.order)
             if self.reference == "previous" and k > 1:
-                previous = spline_image(stack[k - 1], self.order)
-                centres = np.rint(positions[k - 1])
-                alive &= np.isfinite(centres).all(axis=1)
-                centres[~alive] = xy[~alive]
-                subsets = reference_subsets(previous, previous.lattice_gradient(), centres, self.subset // 2)
-                start = np.zeros((n, 6))
-                base = stack[k - 1]
+                alive &= ~np.isnan(positions[k - 1]).any(axis=1)
+                last = np.where(alive[:, None], positions[k - 1], xy)
+                centres = np.rint(last)
+                offset = last - centres
+                subsets = reference_subsets(before, before.lattice_gradient(), centres, radius)
+                base, start = stack[k - 1], np.nan_to_num(increment)
             else:
-                centres = xy
-                start = self._start(p_history, index, lattice)
-                base = stack[0]
+                centres, offset, subsets = xy, np.zeros((n, 2)), first_subsets
+                base, start = stack[0], self._start(history, index, lattice)
             p, zncc, ok = self._match(base, stack[k], target, subsets, centres, start, k == 1)
             ok &= alive
-            offset = (positions[k - 1] - centres) if (self.reference == "previous" and k > 1) else np.zeros((n, 2))
-            moved = centres + offset + p[:, [0, 3]] + np.stack(
-                [p[:, 1] * offset[:, 0] + p[:, 2] * offset[:, 1], p[:, 4] * offset[:, 0] + p[:, 5] * offset[:, 1]], axis=1)
+            # the tracked point sits at ``offset`` from the subset centre: move it with the warp
+            gradient = p[:, [1, 2, 4, 5]].reshape(n, 2, 2)
+            moved = centres + offset + p[:, [0, 3]] + np.einsum("nij,nj->ni", gradient, offset)
             positions[k] = np.where(ok[:, None], moved, np.nan)
             quality[k] = zncc
-            if self.reference == "first" or k == 1:
-                p_history.append(np.where(ok[:, None], p, np.nan))
+            history.append(np.where(ok[:, None], p, np.nan))
+            increment = np.where(ok[:, None], p, np.nan)
+            before = target
         lost = ~np.isfinite(positions).all(axis=-1)
         meta = {"tracker": "speckle", "subset_px": self.subset, "spacing_px": self.spacing,
                 "reference": self.reference, "spline_order": self.order}
@@ -161,18 +163,10 @@ class SpeckleTracker:
             usable = np.isfinite(shift).all(axis=1)
             again = retry[usable]
             p_retry = start[again].copy()
-            p_retry[:, [1, 2, 4, 5]] = 0.0
             p_retry[:, 0], p_retry[:, 3] = shift[usable, 0], shift[usable, 1]
-            sub = _take(subsets, again)
-            second = icgn(target, sub, p_retry, self.max_iterations, self.tolerance)
+            second = icgn(target, subsets.take(again), p_retry, self.max_iterations, self.tolerance)
             better = second.converged & (second.zncc >= self.min_zncc)
             match.p[again[better]] = second.p[better]
             match.zncc[again[better]] = second.zncc[better]
             ok[again[better]] = True
         return match.p, match.zncc, ok
-
-
-def _take(subsets, index):
-    from ._dic import Subsets
-    return Subsets(subsets.centres[index], subsets.offsets, subsets.zero_mean[index], subsets.norm[index],
-                   subsets.jacobian[index], subsets.inverse_hessian[index])

@@ -173,8 +173,8 @@ def render_pattern(pattern, shape: tuple[int, int], displacement: Displacement |
 
 
 def render_grid(shape: tuple[int, int], pitch_px: float = 12.0, line_width: float = 2.0,
-                displacement: Displacement | None = None, *, blur_sigma: float = 1.0,
-                noise_sigma: float = 0.0, lighting_gradient: float = 0.0, seed: int = 0,
+                displacement: Displacement | None = None, blur_sigma: float = 1.0,
+                noise_sigma: float = 0.0, lighting_gradient: float = 0.0, seed: int = 0, *,
                 origin: tuple[float, float] | None = None, angle_deg: float = 0.0,
                 bright_lines: bool = False, supersample: int = 4, quantize: bool = False) -> np.ndarray:
     """Image (rows, cols) of a painted grid (dark lines on a light sheet, or bright lines).
@@ -209,13 +209,14 @@ def grid_truth(shape: tuple[int, int], pitch_px: float = 12.0, displacement: Dis
     return xy, deformed_points(xy, displacement), index
 
 
-def render_speckle(shape: tuple[int, int], displacement: Displacement | None = None, *,
-                   speckle_sigma: float = 1.2, blur_sigma: float = 0.5, noise_sigma: float = 0.0,
-                   lighting_gradient: float = 0.0, seed: int = 0, pattern_seed: int = 0,
-                   supersample: int = 2, quantize: bool = False) -> np.ndarray:
+def render_speckle(shape: tuple[int, int], speckle_sigma: float = 1.2,
+                   displacement: Displacement | None = None, blur_sigma: float = 0.5,
+                   noise_sigma: float = 0.0, lighting_gradient: float = 0.0, seed: int = 0, *,
+                   pattern_seed: int = 0, supersample: int = 2, quantize: bool = False) -> np.ndarray:
     """Image (rows, cols) of a random speckle pattern (dark dots on white) moved by ``displacement``.
 
-    The speckles come from ``pattern_seed`` (keep it fixed over a sequence), the noise from ``seed``.
+    Dots are Gaussians of ``speckle_sigma`` px (about 4 sigma across). The speckles come from
+    ``pattern_seed`` (keep it fixed over a sequence), the noise from ``seed``.
     See :func:`render_pattern` for the other arguments.
     """
     pattern = SpecklePattern(speckle_sigma=speckle_sigma, cell=2.5 * speckle_sigma, seed=pattern_seed)

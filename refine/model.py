@@ -1,0 +1,156 @@
+"""The finite-element model of a measurement: a mesh over the bundle's domain, driven frame by
+frame by the measured motion of the boundary points (the paper's set P), predicting every
+tracked point.
+
+This is where ``refine`` joins ``jaxfem`` and the observations: :meth:`MeasuredModel.predict`
+is a differentiable function of the model parameters (moduli per cell, thickness, nu, geometry),
+so any misfit between predicted and measured points can be minimised by gradients.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from scipy.spatial import cKDTree
+
+import jaxfem as jf
+
+from .exceptions import ObservationError
+from .experiment import Experiment, Polygon, Rectangle
+from .observations import Observations
+
+
+def grid_spacing(points: np.ndarray) -> float:
+    """Median nearest-neighbour distance of the tracked points (length unit)."""
+    d, _ = cKDTree(points).query(points, k=2)
+    return float(np.median(d[:, 1]))
+
+
+def domain_mesh(experiment: Experiment, h: float, element: str = "tri3", inclusions=(), holes=(),
+                root=None) -> jf.Mesh:
+    """A mesh of the experiment's domain with target element size ``h``; optional inclusions and
+    holes (``jaxfem.Ellipse``/``Rect``) are followed by the mesh."""
+    dom = experiment.domain
+    if isinstance(dom, Rectangle):
+        if not inclusions and not holes:
+            nx = max(2, int(round((dom.xmax - dom.xmin) / h)))
+            ny = max(2, int(round((dom.ymax - dom.ymin) / h)))
+            return jf.rectangle(dom.xmin, dom.ymin, dom.xmax, dom.ymax, nx, ny, element)
+        return jf.plate(dom.xmin, dom.ymin, dom.xmax, dom.ymax, h, holes=holes, inclusions=inclusions,
+                        element=element)
+    if isinstance(dom, Polygon):
+        from jaxfem.shapes import Polygon as Outline, domain
+
+        return domain(Outline(np.asarray(dom.vertices)), h, holes=holes, inclusions=inclusions, element=element)
+    path = dom.path if root is None else f"{root}/{dom.path}"
+    return jf.read_mesh(path)
+
+
+@dataclass(frozen=True, eq=False)
+class FrameDrive:
+    """How one frame's boundary motion is imposed: prescribed values = ``matrix @ U_boundary``.
+
+    Attributes:
+        matrix: ``(n_fixed, n_boundary_points * dim)``; columns of points lost in this frame are zero.
+    """
+
+    matrix: np.ndarray
+
+
+class MeasuredModel:
+    """A finite-element model driven by measured boundary points.
+
+    Args:
+        experiment: the bundle's experiment (domain, kinematics, initial law, E, nu, thickness).
+        observations: the tracked points and their displacements.
+        mesh: the mesh to use (default: a structured mesh of the domain at half the grid spacing).
+        element: element type of the default mesh.
+        linear_solver: see :mod:`jaxfem.linsolve`.
+    """
+
+    def __init__(self, experiment: Experiment, observations: Observations, mesh: jf.Mesh | None = None,
+                 element: str = "tri3", h: float | None = None, linear_solver: str = "auto", root=None):
+        if observations.dim != 2 and mesh is None:
+            raise ObservationError("3D bundles need a mesh (domain = { mesh = ... })")
+        self.experiment, self.obs = experiment, observations
+        self.spacing = grid_spacing(observations.reference)
+        self.h = h or 0.5 * self.spacing
+        self.mesh = mesh if mesh is not None else domain_mesh(experiment, self.h, element, root=root)
+        self.boundary = np.flatnonzero(observations.roles == "boundary")
+        if len(self.boundary) < 3:
+            raise ObservationError(f"only {len(self.boundary)} boundary points: at least 3 are needed to "
+                                   "drive the model")
+        loop, _ = jf.boundary_interpolation(self.mesh, observations.reference[self.boundary],
+                                            tol=0.05 * self.spacing, names=observations.ids[self.boundary])
+        self.loop = loop
+        dim = self.mesh.dim
+        self.problem = jf.Problem(self.mesh, experiment.law, experiment.kind,
+                                  fixed=jf.dofs(self.mesh, loop))
+        self.solver = jf.Solver(self.problem, linear_solver)
+        self.probe = jf.locate(self.mesh, observations.reference, names=observations.ids)
+        self.drives = [self._drive(f) for f in range(observations.n_frames)]
+        self._dim = dim
+
+    # ------------------------------------------------------------------ boundary drive
+    def _drive(self, frame: int) -> FrameDrive:
+        obs, dim = self.obs, self.mesh.dim
+        valid = obs.valid[frame, self.boundary]
+        if valid.sum() < 3:
+            raise ObservationError(f"frame {frame + 1}: only {int(valid.sum())} boundary points were tracked; "
+                                   "at least 3 are needed to drive the model")
+        idx = np.flatnonzero(valid)
+        _, W = jf.boundary_interpolation(self.mesh, obs.reference[self.boundary[idx]], tol=0.05 * self.spacing)
+        # node values (n_loop, dim) = W @ U[idx]; flatten to the fixed-dof order (node-major)
+        n_b = len(self.boundary)
+        M = np.zeros((len(self.loop) * dim, n_b * dim))
+        for c in range(dim):
+            M[c::dim, idx * dim + c] = W
+        order = np.argsort(jf.dofs(self.mesh, self.loop))  # problem.fixed is sorted
+        return FrameDrive(M[order])
+
+    def boundary_displacements(self, frame: int) -> np.ndarray:
+        """Measured boundary displacements of a frame, flattened ``(n_boundary * dim,)``; lost = 0
+        (their columns in the drive matrix are zero, so they never enter)."""
+        U = self.obs.displacements[frame, self.boundary]
+        return np.nan_to_num(U, nan=0.0).reshape(-1)
+
+    def prescribed(self, frame: int, boundary_u=None):
+        """``u_D`` of a frame from (measured or given) boundary displacements."""
+        b = self.boundary_displacements(frame) if boundary_u is None else boundary_u
+        return jnp.asarray(self.drives[frame].matrix) @ b
+
+    # ------------------------------------------------------------------ parameters and prediction
+    def params(self, E=None, nu=None, thickness=None, **kw) -> dict:
+        """Parameters of the initial model (the experiment's E, nu, thickness unless given)."""
+        ex = self.experiment
+        return self.problem.params(E=ex.E if E is None else E, nu=ex.nu if nu is None else nu,
+                                   thickness=(ex.thickness or 1.0) if thickness is None else thickness, **kw)
+
+    def solve_frames(self, theta, frames=None):
+        """Equilibrium displacements ``(n_frames, n_nodes, dim)`` for every frame, each frame
+        starting from the previous one's equilibrium (not differentiated: only the final
+        equilibrium of each frame matters for a hyperelastic material)."""
+        frames = range(self.obs.n_frames) if frames is None else frames
+        out, start = [], None
+        for f in frames:
+            th = {**theta, "u_D": self.prescribed(f)}
+            u = self.solver.displacement(th, start=start)
+            out.append(u)
+            start = (jax.lax.stop_gradient(u).reshape(-1),
+                     {"u_D": jax.lax.stop_gradient(th["u_D"]), "f": th["f"], "traction": th["traction"]})
+        return jnp.stack(out)
+
+    def predict(self, theta, frames=None):
+        """Predicted displacements of every tracked point, ``(n_frames, n_points, dim)``."""
+        U = self.solve_frames(theta, frames)
+        return jax.vmap(self.probe)(U)
+
+    def check(self, U) -> None:
+        """Raise a clear error if a solve failed (NaN displacements)."""
+        if not np.all(np.isfinite(np.asarray(U))):
+            raise jf.SolverError("the model could not be solved for some frame (NaN displacements); "
+                                 "run Solver.solve on that frame for the detailed reason", step=0,
+                                 load_factor=0.0, reason="no-convergence")
