@@ -124,3 +124,20 @@ def test_bad_inputs_raise_clear_errors():
         track_images([image, broken], "grid")
     with pytest.raises(ImageError, match="same shape"):
         track_images([image, image[:-1]], "grid")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("pitch, width", [(10.0, 2.0), (15.0, 3.0), (20.0, 4.0)])
+def test_pitch_sweep_on_larger_images(pitch, width):
+    shape = (400, 420)
+    field = smooth_displacement(shape, stretch=0.2, seed=11)
+    steps = np.linspace(0.0, 1.0, 6)
+    images = [render_grid(shape, pitch, width, scaled(field, s), noise_sigma=2.0, seed=k)
+              for k, s in enumerate(steps)]
+    tracks = track_images(images, "grid", roi=(20, 20, 400, 380))
+    reference, _ = _truth_of(tracks, shape, pitch)
+    for k, s in enumerate(steps):
+        truth = deformed_points(reference, scaled(field, s))
+        seen = ~tracks.lost[k]
+        error = np.linalg.norm(tracks.positions[k][seen] - truth[seen], axis=1)
+        assert np.sqrt(np.mean(error ** 2)) < 0.05 and error.max() < 0.3

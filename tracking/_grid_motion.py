@@ -10,6 +10,7 @@ beyond its prediction.
 
 from __future__ import annotations
 
+import warnings
 from collections import deque
 
 import numpy as np
@@ -127,11 +128,9 @@ def jumps(step: np.ndarray, valid: np.ndarray, limit: float) -> np.ndarray:
     padded = np.pad(np.where(valid[..., None], step, np.nan), ((1, 1), (1, 1), (0, 0)),
                     constant_values=np.nan)
     around = np.stack([padded[1 + di:1 + di + rows, 1 + dj:1 + dj + cols] for di, dj in _RING])
-    with np.errstate(all="ignore"):
-        import warnings
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            median = np.nanmedian(around, axis=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)      # all-NaN neighbourhoods
+        median = np.nanmedian(around, axis=0)
     count = np.sum(np.isfinite(around[..., 0]), axis=0)
     off = np.linalg.norm(step - median, axis=-1)
     return valid & (count >= 2) & (off > limit)
