@@ -16,6 +16,7 @@ identity), so a symmetric factorisation is valid.
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
 from typing import Callable
 
@@ -50,19 +51,39 @@ def _csr(pattern: Pattern, vals) -> sp.csr_matrix:
     return sp.csr_matrix((np.asarray(vals, dtype=np.float64), pattern.cols, pattern.indptr), shape=(n, n))
 
 
+class _FactorCache:
+    """Keeps the last factorisation, keyed by a hash of the matrix values: repeated solves with
+    the same tangent (tangent and adjoint solves after Newton, a Jacobian's many directions) cost
+    one factorisation and many cheap triangular solves."""
+
+    def __init__(self, factor: Callable):
+        self.factor = factor
+        self.key = None
+        self.solve = None
+
+    def __call__(self, vals, rhs):
+        v = np.ascontiguousarray(vals)
+        key = hashlib.blake2b(v.view(np.uint8), digest_size=16).digest()
+        if key != self.key:
+            self.key, self.solve = None, None
+            self.solve = self.factor(v)
+            self.key = key
+        return self.solve(np.asarray(rhs, dtype=np.float64))
+
+
 def superlu(pattern: Pattern) -> Callable:
     """SuperLU (scipy) with a symmetric ordering and diagonal pivoting preference."""
 
-    def host(vals, rhs):
+    def factor(vals):
         A = _csr(pattern, vals).tocsc()
         try:
-            lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                           options={"SymmetricMode": True})
-            return lu.solve(np.asarray(rhs))
+            return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                             options={"SymmetricMode": True}).solve
         except RuntimeError:  # exactly singular
-            return np.full(rhs.shape, np.nan)
+            return lambda b: np.full(b.shape, np.nan)
 
-    return lambda vals, rhs, arrays: _host_callback(host, vals, rhs)
+    cache = _FactorCache(factor)
+    return lambda vals, rhs, arrays: _host_callback(cache, vals, rhs)
 
 
 def pardiso(pattern: Pattern) -> Callable:
@@ -76,7 +97,7 @@ def pardiso(pattern: Pattern) -> Callable:
     indptr = np.cumsum(indptr)
     n = pattern.n_dofs
 
-    def host(vals, rhs):
+    def factor(vals):
         A = sp.csr_matrix((np.asarray(vals)[upper], c, indptr), shape=(n, n))
         A.has_sorted_indices = True
         solver = pypardiso.PyPardisoSolver(mtype=-2)
@@ -86,14 +107,20 @@ def pardiso(pattern: Pattern) -> Callable:
         solver.set_iparm(11, 0)  # no scaling (symmetric indefinite default would need weighted matching)
         solver.set_iparm(13, 0)
         try:
-            x = solver.solve(A, np.asarray(rhs, dtype=np.float64))
+            solver.factorize(A)
         except Exception:  # noqa: BLE001 - pardiso reports a singular matrix as a generic error
-            x = np.full(rhs.shape, np.nan)
-        finally:
-            solver.free_memory(everything=True)
-        return x
+            return lambda b: np.full(b.shape, np.nan)
 
-    return lambda vals, rhs, arrays: _host_callback(host, vals, rhs)
+        def solve(b):
+            try:
+                return solver.solve(A, b)
+            except Exception:  # noqa: BLE001
+                return np.full(b.shape, np.nan)
+
+        return solve
+
+    cache = _FactorCache(factor)
+    return lambda vals, rhs, arrays: _host_callback(cache, vals, rhs)
 
 
 def klu(pattern: Pattern) -> Callable:

@@ -38,6 +38,18 @@ class Probe:
         """``field (n_nodes, ...)`` -> values at the points ``(n_points, ...)``."""
         return jnp.einsum("pk,pk...->p...", self.weights, jnp.asarray(field)[self.nodes])
 
+    def moved(self, X, points):
+        """The same probe after the mesh nodes moved to ``X (n_nodes, dim)`` (a geometry morph),
+        for the same physical ``points``: each point keeps its cell, its weights are recomputed
+        (differentiably; linear simplices only, where they are the barycentric coordinates)."""
+        if self.nodes.shape[1] != X.shape[1] + 1:
+            raise MeshError("Probe.moved() supports linear triangles and tetrahedra only")
+        Xe = jnp.asarray(X)[self.nodes]  # (p, d+1, d)
+        T = jnp.swapaxes(Xe[:, 1:] - Xe[:, :1], 1, 2)  # (p, d, d)
+        lam = jnp.linalg.solve(T, (jnp.asarray(points) - Xe[:, 0])[..., None])[..., 0]
+        w = jnp.concatenate([1.0 - lam.sum(axis=1, keepdims=True), lam], axis=1)
+        return Probe(self.cells, self.nodes, w)
+
 
 def locate(mesh: Mesh, points, tol: float = 1e-6, names=None) -> Probe:
     """Find the cell and local coordinates of each point (reference configuration).

@@ -39,3 +39,8 @@ class SearchError(RefineError, ValueError):
 
 class ExperimentError(RefineError, ValueError):
     """An experiment description (model kind, domain, material, noise) is invalid."""
+
+
+class IdentifiabilityError(RefineError, ValueError):
+    """A quantity was asked for that the data cannot determine, e.g. an absolute modulus without a
+    measured force (only ratios of E times thickness are identifiable then)."""

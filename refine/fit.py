@@ -78,8 +78,8 @@ class Objective:
 
     def _count(self, kind: str):
         def bump():
-            if kind == "forward":
-                self.n_forward += self.model.obs.n_frames
+            if kind == "forward":  # one evaluation of the model over all frames, as a search counts it
+                self.n_forward += 1
             else:
                 self.n_gradient += 1
 
@@ -87,39 +87,68 @@ class Objective:
 
 
 def least_squares(objective: Objective, z0=None, method: str = "lm", rtol: float = 1e-6, atol: float = 1e-8,
-                  max_steps: int = 50) -> RefineResult:
+                  max_steps: int = 50, progress: bool = False) -> RefineResult:
     """Gauss-Newton (``"gn"``) or Levenberg-Marquardt (``"lm"``) with exact Jacobians (optimistix).
 
     Suited to a few unknowns (regions, geometry): each Jacobian costs one tangent solve per
-    unknown and frame, reusing the converged state.
+    unknown and frame, reusing the converged state. The residuals are compared component-wise in
+    noise units, so ``atol`` is the change of a residual (in standard deviations) that counts as
+    no change: 1e-8 asks for far more than the data can tell; 1e-4 is plenty. ``progress`` shows a
+    tqdm bar of evaluations (one forward solve over all frames and one Jacobian each).
     """
     import optimistix as optx
 
     z0 = objective.param.z0 if z0 is None else jnp.asarray(z0, float)
     history = []
     reg = objective.param.regularization
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
 
-    def fn(z, _):
-        objective._count("forward")
-        r = objective.residuals(z)
-        jax.debug.callback(lambda zz, rr: history.append({"step": len(history), "z": np.asarray(zz).tolist(),
-                                                          "misfit": float(0.5 * np.sum(np.asarray(rr) ** 2))}),
-                           z, r)
-        return r
+        bar = tqdm(desc=f"least squares ({method})", unit="solve")
+
+    def record(zz, rr):
+        history.append({"step": len(history), "z": np.asarray(zz).tolist(),
+                        "misfit": float(0.5 * np.sum(np.asarray(rr) ** 2))})
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(misfit=history[-1]["misfit"])
 
     if not (isinstance(reg(z0), float) and reg(z0) == 0.0):
         raise ValueError("least_squares() fits unregularised parametrisations; use lbfgsb() for a "
                          "regularised field")
     solver = {"lm": optx.LevenbergMarquardt, "gn": optx.GaussNewton}[method](rtol=rtol, atol=atol)
+    n0 = objective.n_forward  # the objective may have been used before: count this run only
+    objective._recorder = record
     t0 = time.perf_counter()
-    sol = optx.least_squares(fn, solver, z0, max_steps=max_steps, throw=False)
+    sol = optx.least_squares(_residual_function(objective), solver, z0, max_steps=max_steps, throw=False)
+    if bar is not None:
+        bar.close()
     z = np.asarray(sol.value)
     ok = bool(sol.result == optx.RESULTS.successful)
     n_jac = int(sol.stats.get("num_steps", 0))
-    return RefineResult(values={"z": z, **objective.param.values(z)}, error=float(objective.value(z)),
-                        n_forward=objective.n_forward, n_gradient=n_jac, seconds=time.perf_counter() - t0,
+    at_z = [h["misfit"] for h in history if np.array_equal(h["z"], z.tolist())]
+    error = at_z[-1] if at_z else float(objective.value(z))  # no extra solve when the end point was seen
+    return RefineResult(values={"z": z, **objective.param.values(z)}, error=error,
+                        n_forward=objective.n_forward - n0, n_gradient=n_jac, seconds=time.perf_counter() - t0,
                         history=history, method=f"least-squares-{method}", converged=ok,
                         message=str(optx.RESULTS[sol.result]) if not ok else "converged")
+
+
+def _residual_function(objective: Objective):
+    """The residual function handed to optimistix, made once per objective: optimistix compiles
+    per function object, and the compilation (the whole nonlinear solve and its tangent, tens of
+    seconds) is then reused by every later fit of the same objective."""
+    fn = objective.__dict__.get("_residual_fn")
+    if fn is None:
+        def fn(z, _):
+            objective._count("forward")
+            r = objective.residuals(z)
+            jax.debug.callback(lambda zz, rr: objective._recorder(zz, rr), z, r)  # looked up per run
+            return r
+
+        objective._residual_fn = fn
+    return fn
 
 
 def lbfgsb(objective: Objective, z0=None, bounds=None, maxiter: int = 100, tol: float = 1e-5,
@@ -135,14 +164,20 @@ def lbfgsb(objective: Objective, z0=None, bounds=None, maxiter: int = 100, tol: 
     lo, hi = (-np.inf, np.inf) if bounds is None else bounds
     bnds = (jnp.full(z.shape, lo, float), jnp.full(z.shape, hi, float))
 
-    def vg(z):
-        objective._count("forward")
-        objective._count("gradient")
-        return jax.value_and_grad(objective.value)(z)
+    # One solver per objective and settings: jaxopt compiles per instance, so later fits are warm.
+    cache = objective.__dict__.setdefault("_lbfgsb", {})
+    if (maxiter, tol) not in cache:
+        def vg(z):
+            objective._count("forward")
+            objective._count("gradient")
+            return jax.value_and_grad(objective.value)(z)
 
-    solver = jaxopt.LBFGSB(fun=vg, value_and_grad=True, maxiter=maxiter, tol=tol, jit=True)
+        solver = jaxopt.LBFGSB(fun=vg, value_and_grad=True, maxiter=maxiter, tol=tol, jit=True)
+        cache[maxiter, tol] = solver, jax.jit(solver.init_state)  # not jitted, init would trace op by op
+    solver, init_state = cache[maxiter, tol]
+    n0, g0 = objective.n_forward, objective.n_gradient  # count this run only
     t0 = time.perf_counter()
-    state = solver.init_state(z, bounds=bnds)
+    state = init_state(z, bounds=bnds)
     history = []
     it = range(maxiter)
     if progress:
@@ -151,11 +186,15 @@ def lbfgsb(objective: Objective, z0=None, bounds=None, maxiter: int = 100, tol: 
         it = tqdm(it, desc="L-BFGS-B")
     for k in it:
         z, state = solver.update(z, state, bounds=bnds)
-        history.append({"step": k + 1, "value": float(state.value), "error": float(state.error)})
+        row = {"step": k + 1, "value": float(state.value), "error": float(state.error)}
+        if z.size <= 16:  # a few unknowns: keep the iterates, as least_squares() does
+            row["z"] = np.asarray(z).tolist()
+        history.append(row)
         if float(state.error) <= tol or not np.isfinite(float(state.value)):
             break
     ok = float(state.error) <= tol
     return RefineResult(values={"z": np.asarray(z), **objective.param.values(np.asarray(z))},
-                        error=float(state.value), n_forward=objective.n_forward, n_gradient=objective.n_gradient,
+                        error=float(state.value), n_forward=objective.n_forward - n0,
+                        n_gradient=objective.n_gradient - g0,
                         seconds=time.perf_counter() - t0, history=history, method="l-bfgs-b", converged=ok,
                         message="converged" if ok else f"stopped after {len(history)} iterations")

@@ -132,21 +132,33 @@ class MeasuredModel:
     def solve_frames(self, theta, frames=None):
         """Equilibrium displacements ``(n_frames, n_nodes, dim)`` for every frame, each frame
         starting from the previous one's equilibrium (not differentiated: only the final
-        equilibrium of each frame matters for a hyperelastic material)."""
-        frames = range(self.obs.n_frames) if frames is None else frames
-        out, start = [], None
-        for f in frames:
-            th = {**theta, "u_D": self.prescribed(f)}
-            u = self.solver.displacement(th, start=start)
-            out.append(u)
-            start = (jax.lax.stop_gradient(u).reshape(-1),
-                     {"u_D": jax.lax.stop_gradient(th["u_D"]), "f": th["f"], "traction": th["traction"]})
-        return jnp.stack(out)
+        equilibrium of each frame matters for a hyperelastic material). A ``lax.scan`` over the
+        frames, so the solve is traced and compiled once whatever the number of frames."""
+        frames = list(range(self.obs.n_frames)) if frames is None else list(frames)
+        U_D = jnp.stack([self.prescribed(f) for f in frames])
+        rest = {"f": theta["f"], "traction": theta["traction"]}
+
+        def step(carry, u_D):
+            u_prev, uD_prev = carry
+            u = self.solver.displacement({**theta, "u_D": u_D}, start=(u_prev, {"u_D": uD_prev, **rest}))
+            return (jax.lax.stop_gradient(u.reshape(-1)), jax.lax.stop_gradient(u_D)), u
+
+        start = (jnp.zeros(self.problem.n_dofs), jnp.zeros_like(U_D[0]))
+        rest = jax.lax.stop_gradient(rest)
+        return jax.lax.scan(step, start, U_D)[1]
 
     def predict(self, theta, frames=None):
         """Predicted displacements of every tracked point, ``(n_frames, n_points, dim)``."""
-        U = self.solve_frames(theta, frames)
-        return jax.vmap(self.probe)(U)
+        return self.at_points(self.solve_frames(theta, frames), theta)
+
+    def at_points(self, U, theta):
+        """Nodal displacements ``U (n_frames, n_nodes, dim)`` (from :meth:`solve_frames`) at every
+        tracked point, ``(n_frames, n_points, dim)``; lets a caller that also needs the nodal
+        solution (reaction forces, strain maps) solve only once."""
+        probe = self.probe
+        if self.mesh.element in ("tri3", "tet4"):  # follow a geometry morph of the reference nodes
+            probe = probe.moved(theta["X"], self.obs.reference)
+        return jax.vmap(probe)(U)
 
     def check(self, U) -> None:
         """Raise a clear error if a solve failed (NaN displacements)."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -207,3 +208,35 @@ class ShapeGeometry:
         names = self.names or tuple(f"shape{k + 1}" for k in range(len(p)))
         return {n: {"centre": p[k, :2].tolist(), "axes": p[k, 2:4].tolist(), "angle": float(p[k, 4])}
                 for k, n in enumerate(names)}
+
+
+@dataclass(frozen=True, eq=False)
+class UniformParameter:
+    """One material parameter uniform over the body (e.g. ``nu`` or ``c01_fraction``), fitted
+    through a smooth bounded map ``value = lo + (hi - lo) * sigmoid(z)`` started at ``start``."""
+
+    key: str
+    start: float
+    lo: float
+    hi: float
+
+    @property
+    def size(self) -> int:
+        return 1
+
+    @property
+    def z0(self):
+        s = (self.start - self.lo) / (self.hi - self.lo)
+        return jnp.array([np.log(s / (1 - s))])
+
+    def value(self, z):
+        return self.lo + (self.hi - self.lo) * jax.nn.sigmoid(jnp.asarray(z)[0])
+
+    def apply(self, theta, z):
+        return {**theta, self.key: jnp.full_like(theta[self.key], self.value(z))}
+
+    def regularization(self, z):
+        return 0.0
+
+    def values(self, z) -> dict:
+        return {self.key: float(self.value(z))}

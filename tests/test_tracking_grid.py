@@ -89,7 +89,8 @@ def test_line_fit_refinement_beats_hessian_and_snake_alone():
 def test_occluded_crossings_are_lost_then_found_again():
     field = smooth_displacement(SHAPE, stretch=0.1, seed=2)
     steps = [0.0, 0.25, 0.5, 0.75, 1.0]
-    images = [render_grid(SHAPE, 12.0, 2.0, scaled(field, s), noise_sigma=2.0, seed=k) for k, s in enumerate(steps)]
+    images = [render_grid(SHAPE, 12.0, 2.0, scaled(field, s), noise_sigma=2.0, seed=k)
+              for k, s in enumerate(steps)]
     yy, xx = np.mgrid[0:SHAPE[0], 0:SHAPE[1]]
     blot = (xx - 115) ** 2 + (yy - 95) ** 2 < 22 ** 2
     images[2] = np.where(blot, 200.0, images[2])
@@ -141,3 +142,18 @@ def test_pitch_sweep_on_larger_images(pitch, width):
         seen = ~tracks.lost[k]
         error = np.linalg.norm(tracks.positions[k][seen] - truth[seen], axis=1)
         assert np.sqrt(np.mean(error ** 2)) < 0.05 and error.max() < 0.3
+
+
+def test_blank_frame_loses_everything_and_tracking_resumes():
+    field = smooth_displacement(SHAPE, stretch=0.08, seed=8)
+    steps = [0.0, 0.25, 0.5, 0.75]
+    images = [render_grid(SHAPE, 12.0, 2.0, scaled(field, s), noise_sigma=2.0, seed=k)
+              for k, s in enumerate(steps)]
+    images[2] = 200.0 + np.random.default_rng(0).normal(0, 2, SHAPE)
+    tracks = track_images(images, "grid", roi=ROI)
+    assert tracks.lost[2].all() and not tracks.lost[:2].any()
+    reference, _ = _truth_of(tracks, SHAPE, 12.0)
+    truth = deformed_points(reference, scaled(field, steps[3]))
+    seen = ~tracks.lost[3]
+    assert seen.mean() > 0.95
+    assert np.linalg.norm(tracks.positions[3][seen] - truth[seen], axis=1).max() < 0.1

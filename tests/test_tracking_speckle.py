@@ -20,7 +20,8 @@ def _shared() -> Path:
 def test_synthetic_sequence_to_20_percent_stretch():
     field = smooth_displacement(SHAPE, stretch=0.2, seed=5)
     steps = np.linspace(0.0, 1.0, 5)
-    images = [render_speckle(SHAPE, displacement=scaled(field, s), noise_sigma=2.0, seed=k) for k, s in enumerate(steps)]
+    images = [render_speckle(SHAPE, displacement=scaled(field, s), noise_sigma=2.0, seed=k)
+              for k, s in enumerate(steps)]
     tracks = track_images(images, "speckle", roi=(10, 10, 190, 170), spacing=12, subset=21)
     assert tracks.quality_kind == "zncc"
     for k, s in enumerate(steps):
@@ -39,7 +40,8 @@ def test_synthetic_sequence_to_20_percent_stretch():
 def test_incremental_reference_follows_the_sequence():
     field = smooth_displacement(SHAPE, stretch=0.3, seed=6)
     steps = np.linspace(0.0, 1.0, 6)
-    images = [render_speckle(SHAPE, displacement=scaled(field, s), noise_sigma=1.0, seed=k) for k, s in enumerate(steps)]
+    images = [render_speckle(SHAPE, displacement=scaled(field, s), noise_sigma=1.0, seed=k)
+              for k, s in enumerate(steps)]
     tracks = track_images(images, "speckle", roi=(40, 40, 160, 140), spacing=15, reference="previous")
     truth = deformed_points(tracks.reference, field)
     seen = ~tracks.lost[-1]
@@ -49,7 +51,8 @@ def test_incremental_reference_follows_the_sequence():
 
 def test_decorrelated_region_is_lost_with_low_zncc():
     field = smooth_displacement(SHAPE, stretch=0.05, seed=7)
-    images = [render_speckle(SHAPE, displacement=scaled(field, s), noise_sigma=2.0, seed=k) for k, s in enumerate([0, 0.5, 1])]
+    images = [render_speckle(SHAPE, displacement=scaled(field, s), noise_sigma=2.0, seed=k)
+              for k, s in enumerate([0, 0.5, 1])]
     other = render_speckle(SHAPE, displacement=field, noise_sigma=2.0, pattern_seed=99)
     images[1][60:120, 70:130] = other[60:120, 70:130]       # a smear: new texture, same place
     tracks = track_images(images, "speckle", roi=(10, 10, 190, 170), spacing=10, subset=21)

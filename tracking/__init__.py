@@ -25,6 +25,7 @@ __all__ = [
     "Tracks", "track_images", "make_tracker", "TRACKERS", "GridTracker", "SpeckleTracker",
     "SnakeOptions", "REFINERS", "load_images", "roi_mask", "range_lookup", "points_3d",
     "assign_roles", "ROLES", "scale_from_grid", "render_grid", "render_speckle", "render_range",
-    "render_pattern", "grid_truth", "deformed_points", "smooth_displacement", "scaled", "GridPattern", "SpecklePattern",
+    "render_pattern", "grid_truth", "deformed_points", "smooth_displacement", "scaled",
+    "GridPattern", "SpecklePattern",
     "TrackingError", "ImageError", "RoiError", "GridNotFoundError",
 ]

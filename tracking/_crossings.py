@@ -64,8 +64,13 @@ class Refined:
 
 
 def spacing_or(spacing: np.ndarray, default: float) -> np.ndarray:
-    """(N, 2) spacings with a missing side replaced by the other side, then by ``default``."""
+    """(N, 2) spacings with a missing side replaced by the other side, then by ``default``.
+
+    Spacings are kept within 0.6-1.6 times the median of the given ones (a snake caught on a
+    blemish must not shrink or stretch the fitting windows).
+    """
     out = np.array(spacing, dtype=np.float64)
     out[:, 0] = np.where(np.isfinite(out[:, 0]), out[:, 0], out[:, 1])
     out[:, 1] = np.where(np.isfinite(out[:, 1]), out[:, 1], out[:, 0])
-    return np.where(np.isfinite(out), out, default)
+    typical = np.nanmedian(out) if np.any(np.isfinite(out)) else default
+    return np.clip(np.where(np.isfinite(out), out, default), 0.6 * typical, 1.6 * typical)

@@ -81,7 +81,8 @@ def warp_matrices(p: np.ndarray) -> np.ndarray:
 
 def warp_parameters(w: np.ndarray) -> np.ndarray:
     """Inverse of :func:`warp_matrices`."""
-    return np.stack([w[:, 0, 2], w[:, 0, 0] - 1, w[:, 0, 1], w[:, 1, 2], w[:, 1, 0], w[:, 1, 1] - 1], axis=1)
+    return np.stack([w[:, 0, 2], w[:, 0, 0] - 1, w[:, 0, 1],
+                     w[:, 1, 2], w[:, 1, 0], w[:, 1, 1] - 1], axis=1)
 
 
 @dataclass(frozen=True)
@@ -130,7 +131,8 @@ def icgn(target: SplineImage, subsets: Subsets, p0: np.ndarray, max_iterations: 
         w = warp_matrices(p[active]) @ np.linalg.inv(warp_matrices(dp))
         p[active] = warp_parameters(w)
         iterations[active] += 1
-        size = np.sqrt(dp[:, 0] ** 2 + dp[:, 3] ** 2 + radius ** 2 * np.sum(dp[:, [1, 2, 4, 5]] ** 2, axis=1))
+        gradient_step = np.sum(dp[:, [1, 2, 4, 5]] ** 2, axis=1)
+        size = np.sqrt(dp[:, 0] ** 2 + dp[:, 3] ** 2 + radius ** 2 * gradient_step)
         done = (size < tolerance) & inside
         converged[active[done]] = True
         # a subset may pass the image border on the way; only the final position must be inside

@@ -24,10 +24,13 @@ _RING = tuple((di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1) if (di, dj) != 
 def predict(history: list[np.ndarray], active: np.ndarray) -> np.ndarray:
     """Predicted crossings (R, C, 2) for the next frame from the past ones (each (R, C, 2), NaN lost).
 
-    Constant velocity where the last two frames have the crossing, else its last displacement
-    (from the reference) or its neighbours', filled harmonically.
+    Constant velocity where the last two frames have the crossing; otherwise its last known
+    displacement, or (never seen since frame 0) its neighbours' displacements, filled harmonically.
     """
-    reference, last = history[0], history[-1]
+    reference = history[0]
+    last = np.full(reference.shape, np.nan)
+    for frame in history:                     # the most recent position each crossing had
+        last = np.where(np.isfinite(frame), frame, last)
     displacement = last - reference
     valid = np.isfinite(displacement[..., 0]) & active
     displacement = fill_field(np.where(valid[..., None], displacement, 0.0), valid) if valid.any() \

@@ -124,7 +124,9 @@ class GridTracker:
         crossing, row_dir, col_dir = snake_crossings(
             frame.ink, nodes, use, geometry.pitch, geometry.line_width,
             (geometry.col_step, geometry.row_step), self.snake)
-        row_gap, col_gap = lattice_spacing(crossing)
+        # neighbours beyond the image border give no spacing (their snakes end at the border)
+        seen = frame.spline.inside(crossing[..., 0], crossing[..., 1], margin=1.0)
+        row_gap, col_gap = lattice_spacing(np.where(seen[..., None], crossing, np.nan))
         flat = use.ravel()
         guess = CrossingGuess(crossing.reshape(-1, 2)[flat], row_dir.reshape(-1, 2)[flat],
                               col_dir.reshape(-1, 2)[flat], row_gap.reshape(-1, 2)[flat],

@@ -74,7 +74,8 @@ def as_stack(images) -> np.ndarray:
             else:
                 raise ImageError(f"image {k} has shape {frame.shape}; expected (rows, cols)")
         if not np.all(np.isfinite(frame)):
-            raise ImageError(f"image {k} contains NaN or infinite values; tracking needs finite grey values")
+            raise ImageError(f"image {k} contains NaN or infinite values; "
+                             "tracking needs finite grey values")
         stack.append(np.asarray(frame, dtype=np.float64))
     shapes = {frame.shape for frame in stack}
     if len(shapes) != 1:

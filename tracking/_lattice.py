@@ -121,7 +121,9 @@ def grid_geometry(image: np.ndarray, mask: np.ndarray, pitch_range=(4.0, 80.0),
     pitch = float(np.mean([1.0 / np.linalg.norm(k) for k in waves]))
     bins = max(8, int(round(pitch)))
     profiles = [_folded_profile(flat, mask, k, bins) for k in waves]
-    profile = np.mean([np.roll(p, bins // 2 - int(np.argmax(np.abs(p - np.median(p))))) for p in profiles], axis=0)
+    # centre each family's line in its profile before averaging the two
+    profile = np.mean([np.roll(p, bins // 2 - int(np.argmax(np.abs(p - np.median(p)))))
+                       for p in profiles], axis=0)
     base = np.median(profile)
     if dark_lines is None:
         dark_lines = bool(base > 0.5 * (profile.min() + profile.max()))

@@ -59,7 +59,8 @@ def range_lookup(range_image: np.ndarray, positions: np.ndarray, order: int = 1,
     wx = np.stack([1 - (x - x0), x - x0], axis=-1) if order == 1 else _keys(x - x0)
     wy = np.stack([1 - (y - y0), y - y0], axis=-1) if order == 1 else _keys(y - y0)
     cx, cy = x0[:, None] + taps[None, :], y0[:, None] + taps[None, :]
-    inside = (cx.min(axis=1) >= 0) & (cx.max(axis=1) < cols) & (cy.min(axis=1) >= 0) & (cy.max(axis=1) < rows)
+    inside = ((cx.min(axis=1) >= 0) & (cx.max(axis=1) < cols)
+              & (cy.min(axis=1) >= 0) & (cy.max(axis=1) < rows))
     cxc, cyc = np.clip(cx, 0, cols - 1), np.clip(cy, 0, rows - 1)
     support = z_image[cyc[:, :, None], cxc[:, None, :]]                # (m, taps_y, taps_x)
     holes = bad[cyc[:, :, None], cxc[:, None, :]].any(axis=(1, 2))

@@ -28,7 +28,8 @@ class HessianRefiner:
     def refine(self, frame: GridFrame, guess: CrossingGuess) -> Refined:
         sigma = max(0.8, self.scale * frame.line_width)
         orders = ((0, 1), (1, 0), (0, 2), (1, 1), (2, 0))    # (d/dy, d/dx) orders: gx gy gxx gxy gyy
-        coefficients = [ndimage.spline_filter(ndimage.gaussian_filter(frame.ink, sigma, order=o, mode="nearest"))
+        coefficients = [ndimage.spline_filter(ndimage.gaussian_filter(frame.ink, sigma, order=o,
+                                                                      mode="nearest"))
                         for o in orders]
         xy = guess.xy.copy()
         for _ in range(self.iterations):
@@ -52,7 +53,8 @@ class HessianRefiner:
     @staticmethod
     def _at(coefficients, xy):
         coords = np.stack([xy[:, 1], xy[:, 0]])
-        return [ndimage.map_coordinates(c, coords, order=3, prefilter=False, mode="mirror") for c in coefficients]
+        return [ndimage.map_coordinates(c, coords, order=3, prefilter=False, mode="mirror")
+                for c in coefficients]
 
 
 @dataclass(frozen=True)

@@ -2,14 +2,19 @@
 
 Each line through a crossing is followed along both arms, away from the crossing itself. At
 every station, the intensity profile across the line must be mirror symmetric about the line's
-centre; the centre line is modelled as a parabola m(tau) = m0 + m1 tau + m2 tau^2 in the local
-frame (tau along the line), plus a linear intensity trend b across it for uneven lighting. The
-four parameters are fitted by Gauss-Newton on the asymmetry residuals
-I(centre + u n) - I(centre - u n) - 2 b u, which needs no model of the line's profile (any
-width, blur or paint). The crossing is where the two fitted parabolas meet; the fit is redone
-once around the new crossing. Quality is the fraction of the profiles' variance that is
-symmetric (min over the two lines), set to 0 when fewer than three of the four arms show a
-line or when the crossing itself shows no ink (occlusion, dirt).
+centre; the centre line is modelled in the local frame (tau along the line) as a straight line
+m(tau) = m0 + m1 tau (optionally a parabola, + m2 tau^2), plus a linear intensity trend b across
+it for uneven lighting. The parameters are fitted by Gauss-Newton on the asymmetry residuals
+I(centre + u n) - I(centre - u n) - 2 b u, sampled on the quintic B-spline interpolant; this
+needs no model of the line's profile (any width, blur or paint). Stations that are far less
+symmetric than is typical (an occluding edge, dirt) are then dropped and the fit repeated. The
+crossing is where the two fitted lines meet. Quality is the fraction of the profiles' variance
+that is symmetric (min over the two lines), set to 0 when fewer than three of the four arms
+show a line or when the crossing itself shows no ink (occlusion, dirt).
+
+Straight lines beat parabolas here: with no data at the crossing itself the parabola's offset
+is an extrapolation whose noise is about twice as large, while the bias of a straight fit on
+smoothly curved lines stays under 0.005 px at 20 % strain.
 """
 
 from __future__ import annotations
@@ -58,7 +63,8 @@ class LineFitRefiner:
         quality = np.zeros(n)
         for _ in range(self.passes):
             normals = np.stack([-tangents[..., 1], tangents[..., 0]], axis=-1)
-            sine = np.abs(tangents[:, 0, 0] * tangents[:, 1, 1] - tangents[:, 0, 1] * tangents[:, 1, 0])[:, None]
+            sine = np.abs(tangents[:, 0, 0] * tangents[:, 1, 1]
+                          - tangents[:, 0, 1] * tangents[:, 1, 0])[:, None]
             clear = (0.5 * width + 1.0) / np.maximum(sine, 0.3)             # crossing's half extent
             tau = self._stations(along, clear)                                # (N, 2, S)
             half = np.minimum(0.5 * width + 2.0, 0.45 * across)               # (N, 2)
@@ -110,8 +116,10 @@ class LineFitRefiner:
                 # stations off the line (grid edge) or reaching the image border carry no weight
                 typical = np.median(contrast) if self.contrast is None else self.contrast
                 weight = (contrast >= 0.5 * typical).astype(float)
-                ends = [base[:, :, :, None, :] + (m + sign * uu[..., -1:])[..., None] * nn for sign in (1, -1)]
-                weight *= np.all([spline.inside(e[..., 0], e[..., 1], margin=2.0)[..., 0] for e in ends], axis=0)
+                ends = [base[:, :, :, None, :] + (m + sign * uu[..., -1:])[..., None] * nn
+                        for sign in (1, -1)]
+                weight *= np.all([spline.inside(e[..., 0], e[..., 1], margin=2.0)[..., 0]
+                                  for e in ends], axis=0)
             if iteration in (0, self.iterations):
                 if iteration == self.iterations:
                     # robust stage: drop stations far less symmetric than is typical (an occluding
@@ -136,9 +144,11 @@ class LineFitRefiner:
         score = np.where(weight.sum(axis=-1) >= 3, 1.0 - ssr / sst, 0.0)     # 3 stations at least
         quality = np.clip(score, 0.0, 1.0).min(axis=1)
         half = weight.shape[-1] // 2
-        arms = (weight[..., :half].sum(axis=-1) >= 2).sum(axis=1) + (weight[..., half:].sum(axis=-1) >= 2).sum(axis=1)
+        arms = ((weight[..., :half].sum(axis=-1) >= 2).sum(axis=1)
+                + (weight[..., half:].sum(axis=-1) >= 2).sum(axis=1))
         total = np.maximum(weight.sum(axis=(1, 2)), 1.0)
-        edge = np.sum(0.25 * (plus[..., -2:].sum(-1) + minus[..., -2:].sum(-1)) * weight, axis=(1, 2)) / total
+        outer = 0.25 * (plus[..., -2:].sum(-1) + minus[..., -2:].sum(-1))
+        edge = np.sum(outer * weight, axis=(1, 2)) / total
         centre = np.sum(0.5 * (plus[..., 0] + minus[..., 0]) * weight, axis=(1, 2)) / total
         depth = centre - edge
         depth = np.where(np.abs(depth) > 1e-9, depth, np.nan)

@@ -80,7 +80,8 @@ def _system(blocks: np.ndarray, size: int, rigidity: float):
     pieces = []
     for start, stop in blocks:
         n = stop - start
-        d2 = sparse.diags([np.ones(n - 2), -2 * np.ones(n - 2), np.ones(n - 2)], [0, 1, 2], shape=(n - 2, n))
+        ones = np.ones(n - 2)
+        d2 = sparse.diags([ones, -2 * ones, ones], [0, 1, 2], shape=(n - 2, n))
         pieces.append(sparse.identity(n) + rigidity * (d2.T @ d2))
     return splu(sparse.block_diag(pieces, format="csc")) if pieces else None
 
@@ -108,7 +109,8 @@ def _evolve(samples, blocks, solver, field, options: SnakeOptions) -> np.ndarray
     x = samples.copy()
     for _ in range(options.iterations):
         coords = np.stack([x[:, 1], x[:, 0]])
-        force = np.stack([ndimage.map_coordinates(g, coords, order=1, mode="nearest") for g in (gx, gy)], axis=1)
+        force = np.stack([ndimage.map_coordinates(g, coords, order=1, mode="nearest")
+                          for g in (gx, gy)], axis=1)
         normal = _normals(x, blocks)
         push = np.clip(np.sum(force * normal, axis=1), -1.0, 1.0) * options.step
         new = solver.solve(x + push[:, None] * normal)

@@ -59,14 +59,16 @@ class SpeckleTracker:
         radius = self.subset // 2
         margin = radius + 2
         rows, cols = np.nonzero(mask)
-        xs = np.arange(cols.min() + radius, cols.max() - radius + 1, self.spacing)
-        ys = np.arange(rows.min() + radius, rows.max() - radius + 1, self.spacing)
+        h, w = mask.shape
+        x0, y0 = max(cols.min() + radius, margin), max(rows.min() + radius, margin)
+        xs = np.arange(x0, min(cols.max() - radius, w - 1 - margin) + 1, self.spacing)
+        ys = np.arange(y0, min(rows.max() - radius, h - 1 - margin) + 1, self.spacing)
         xx, yy = np.meshgrid(np.rint(xs), np.rint(ys))
         jj, ii = np.meshgrid(np.arange(len(xs)), np.arange(len(ys)))
         xy = np.stack([xx.ravel(), yy.ravel()], axis=1)
         index = np.stack([ii.ravel(), jj.ravel()], axis=1)
-        h, w = mask.shape
-        keep = (xy[:, 0] >= margin) & (xy[:, 1] >= margin) & (xy[:, 0] < w - margin) & (xy[:, 1] < h - margin)
+        keep = ((xy[:, 0] >= margin) & (xy[:, 1] >= margin)
+                & (xy[:, 0] < w - margin) & (xy[:, 1] < h - margin))
         if self.subset_in_roi:
             inside = ndimage.binary_erosion(mask, np.ones((self.subset, self.subset)), border_value=0)
         else:
@@ -159,7 +161,8 @@ class SpeckleTracker:
         ok = match.converged & (match.zncc >= self.min_zncc)
         if not first and not ok.all():
             retry = np.nonzero(~ok)[0]
-            shift, _ = integer_search(base, image, centres[retry], radius, start[retry][:, [0, 3]], self.search)
+            shift, _ = integer_search(base, image, centres[retry], radius,
+                                      start[retry][:, [0, 3]], self.search)
             usable = np.isfinite(shift).all(axis=1)
             again = retry[usable]
             p_retry = start[again].copy()

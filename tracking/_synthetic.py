@@ -106,7 +106,7 @@ class SpecklePattern:
 
 
 def reference_points(x: np.ndarray, y: np.ndarray, displacement: Displacement | None,
-                     tol: float = 1e-9, max_iter: int = 200) -> tuple[np.ndarray, np.ndarray]:
+                     tol: float = 1e-8, max_iter: int = 200) -> tuple[np.ndarray, np.ndarray]:
     """Reference coordinates X with X + u(X) = x, by fixed-point iterations (arrays in pixels)."""
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
@@ -160,7 +160,8 @@ def render_pattern(pattern, shape: tuple[int, int], displacement: Displacement |
     background, ink_level = levels
     image = background + (ink_level - background) * pattern.ink(rx, ry)
     if lighting_gradient:
-        ramp = ((xx - (cols - 1) / 2) * np.cos(np.pi / 6) + (yy - (rows - 1) / 2) * np.sin(np.pi / 6)) / cols
+        ramp = ((xx - (cols - 1) / 2) * np.cos(np.pi / 6)
+                + (yy - (rows - 1) / 2) * np.sin(np.pi / 6)) / cols
         image = image * (1.0 + lighting_gradient * ramp)
     if blur_sigma > 0:
         image = ndimage.gaussian_filter(image, blur_sigma * s, mode="nearest")
@@ -199,7 +200,9 @@ def grid_pattern(shape, pitch_px=12.0, line_width=2.0, origin=None, angle_deg=0.
 
 def grid_truth(shape: tuple[int, int], pitch_px: float = 12.0, displacement: Displacement | None = None,
                *, origin=None, angle_deg: float = 0.0, margin: float = 0.0):
-    """True crossings of :func:`render_grid`'s grid: reference xy (n, 2), deformed xy (n, 2), (row, col) (n, 2).
+    """True crossings of :func:`render_grid`'s grid.
+
+    Returns reference xy (n, 2), deformed xy (n, 2) and (row, col) (n, 2).
 
     Only crossings whose reference position lies at least ``margin`` px inside the image are listed.
     """

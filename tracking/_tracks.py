@@ -31,11 +31,14 @@ class Tracks:
         quality: (n_frames, n) float, tracker-specific, higher is better (see ``quality_kind``):
             ``"zncc"`` for the speckle tracker (zero-normalised cross-correlation, -1..1),
             ``"symmetry"`` for the grid tracker (fraction of the local line-profile variance that is
-            mirror symmetric about the fitted lines, 0..1; values under ~0.8 are doubtful).
+            mirror symmetric about the fitted lines, 0..1; typically > 0.99, the tracker loses a
+            crossing under 0.8), ``"peak-sharpness"`` (0..1, relative to the frame's median) for
+            its Hessian refiner, ``"snake"`` (1 where found) for snake crossings alone.
         grid_index: (n, 2) int, (row, column) of the point in the grid topology (grid tracker) or in
             the lattice of correlation points (speckle tracker); -1 where there is none.
         units: length unit of the coordinates ("px" or what :meth:`to_length` was given).
         quality_kind: what ``quality`` measures.
+        meta: facts about the run (tracker, grid pitch and line width in px, subset size...).
     """
 
     ids: np.ndarray
@@ -71,6 +74,7 @@ class Tracks:
             raise TrackingError("Tracks: a point that is not lost has a NaN position")
         if np.any(np.isfinite(positions[lost])):
             raise TrackingError("Tracks: a lost point must have a NaN position")
+        object.__setattr__(self, "meta", dict(self.meta))
         for name, value in (("ids", ids), ("reference", reference), ("positions", positions),
                             ("lost", lost), ("quality", quality), ("grid_index", grid_index)):
             object.__setattr__(self, name, value)

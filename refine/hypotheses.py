@@ -1,0 +1,178 @@
+"""Extended models the diagnosis tries, each fitted by exact gradients.
+
+A hypothesis is a way the initial model may be wrong: regions of other stiffness (ellipses whose
+centre, axes and moduli are fitted), a hole (an ellipse whose centre and axes are fitted), or a
+different material law. Each builds its own model (a mesh that follows the shapes), is fitted on
+the guide points chosen for fitting, and is scored on held-out guide points and by an
+information criterion.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+import jaxfem as jf
+
+from .fit import Objective, least_squares
+from .model import MeasuredModel, domain_mesh
+from .parametrize import Combined, RegionModuli, ShapeGeometry, UniformParameter
+
+
+@dataclass
+class Fitted:
+    """A fitted hypothesis.
+
+    Attributes:
+        cause: ``"none"``, ``"stiffer-region"``, ``"softer-region"``, ``"hole"``, ``"regions"`` or
+            ``"material-law"``.
+        k: number of fitted parameters.
+        chi2_fit: whitened squared misfit on the fitting points; chi2_holdout: on held-out points.
+        bic: chi2_fit + k ln(n_fit).
+        predicted: displacements of all points ``(frames, n_points, dim)``.
+        shapes: fitted shapes ``[(kind, cx, cy, a, b, angle, relative_elasticity)]``.
+        law: the material law of the model.
+    """
+
+    cause: str
+    k: int
+    chi2_fit: float
+    chi2_holdout: float
+    bic: float
+    predicted: np.ndarray
+    shapes: list = field(default_factory=list)
+    law: str = ""
+    result: object = None
+    model: object = None
+    theta: object = None
+
+    def describe(self) -> str:
+        parts = [f"{s[0]} at ({s[1]:.1f}, {s[2]:.1f}) axes ({s[3]:.1f}, {s[4]:.1f}) ratio {s[6]:.2f}"
+                 for s in self.shapes]
+        return f"{self.cause} [{'; '.join(parts) or self.law}] chi2 {self.chi2_fit:.0f} holdout {self.chi2_holdout:.0f}"
+
+
+def _score(cause, obj_fit: Objective, obj_hold: Objective, z, k, **kw) -> Fitted:
+    r = np.asarray(obj_fit.residuals(z))
+    rh = np.asarray(obj_hold.residuals(z))
+    pred = np.asarray(obj_fit.predict(z))
+    chi2 = float(r @ r)
+    return Fitted(cause, k, chi2, float(rh @ rh), chi2 + k * np.log(max(len(r), 2)), pred, **kw)
+
+
+def _objectives(model, param, fit_mask, hold_mask, sigma, theta=None):
+    return (Objective(model, param, theta=theta, points=fit_mask, noise_std=sigma),
+            Objective(model, param, theta=theta, points=hold_mask, noise_std=sigma))
+
+
+def baseline(model: MeasuredModel, fit_mask, hold_mask, sigma) -> Fitted:
+    """The initial model, nothing fitted (under pure displacement driving a uniform modulus
+    cancels out, so there is nothing to fit without measured forces)."""
+    param = RegionModuli(np.zeros((0, model.mesh.n_cells)), model.experiment.E)
+    of, oh = _objectives(model, param, fit_mask, hold_mask, sigma)
+    return _score("none", of, oh, param.z0, 0, law=model.experiment.law, model=model, theta=model.params())
+
+
+def _clamp_shape(shape, ex, spacing):
+    """Keep a candidate ellipse inside the domain, at least about one grid spacing across."""
+    dom = ex.domain
+    a, b = max(shape[2], 0.6 * spacing), max(shape[3], 0.6 * spacing)
+    m = 0.5 * spacing
+    cx = float(np.clip(shape[0], dom.xmin + a + m, dom.xmax - a - m)) if dom.xmax - dom.xmin > 2 * (a + m) else shape[0]
+    cy = float(np.clip(shape[1], dom.ymin + b + m, dom.ymax - b - m)) if dom.ymax - dom.ymin > 2 * (b + m) else shape[1]
+    return cx, cy, a, b, shape[4]
+
+
+def _disjoint(ells, gap):
+    """Shrink ellipses that overlap (or nearly touch) until they are ``gap`` apart."""
+    ells = list(ells)
+    for _ in range(20):
+        clash = False
+        for i in range(len(ells)):
+            for j in range(i + 1, len(ells)):
+                a, b = ells[i], ells[j]
+                pa = np.concatenate([p for p, _ in a._pieces(gap / 4)])
+                if b.contains(pa).any() or np.min(np.linalg.norm(pa - b.to_curve(pa), axis=1)) < gap:
+                    clash = True
+                    ells[i] = jf.Ellipse(a.cx, a.cy, 0.85 * a.rx, 0.85 * a.ry, a.angle)
+                    ells[j] = jf.Ellipse(b.cx, b.cy, 0.85 * b.rx, 0.85 * b.ry, b.angle)
+        if not clash:
+            return ells
+    raise ValueError("candidate regions overlap")
+
+
+def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, geometry: bool = True,
+                h: float | None = None) -> Fitted:
+    """Regions of other stiffness: ellipses ``shapes [(cx, cy, a, b, angle)]`` with fitted log
+    moduli (start: x3 for stiffer, /3 for softer) and, with ``geometry``, fitted centres and axes."""
+    ex, obs = base.experiment, base.obs
+    ells = _disjoint([jf.Ellipse(*_clamp_shape(s, ex, base.spacing)) for s in shapes], base.spacing)
+    mesh = domain_mesh(ex, h or base.h, inclusions=ells)
+    model = MeasuredModel(ex, obs, mesh=mesh, h=h or base.h)
+    masks = np.stack([(mesh.regions == k + 1).astype(float) for k in range(len(ells))])
+    moduli = RegionModuli(masks, ex.E, names=tuple(f"region{k + 1}" for k in range(len(ells))))
+    parts = [moduli]
+    if geometry:
+        parts.append(ShapeGeometry(jf.morph(mesh, ells), np.stack([e.params for e in ells]), scale=base.spacing))
+    param = Combined(tuple(parts))
+    z0 = np.zeros(param.size)
+    z0[: len(ells)] = np.log(3.0) * np.asarray(signs, float)
+    of, oh = _objectives(model, param, fit_mask, hold_mask, sigma)
+    res = least_squares(of, z0=z0, method="lm", max_steps=40)
+    z = np.asarray(res.values["z"])
+    ratios = np.exp(z[: len(ells)])
+    geo = np.asarray(parts[1].shape_params(z[len(ells):])) if geometry else np.stack([e.params for e in ells])
+    fitted = [("ellipse", *geo[k, :4], geo[k, 4], float(ratios[k])) for k in range(len(ells))]
+    causes = {"stiffer-region" if r > 1 else "softer-region" for r in ratios}
+    cause = causes.pop() if len(causes) == 1 and len(ells) == 1 else "regions"
+    out = _score(cause, of, oh, z, param.size, shapes=fitted, law=ex.law, result=res, model=model,
+                 theta=param.apply(model.params(), z))
+    return out
+
+
+def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | None = None) -> Fitted:
+    """A hole: an ellipse removed from the domain, centre and axes fitted. The starting ellipse is
+    shrunk until no tracked point lies inside it (material was seen there)."""
+    ex, obs = base.experiment, base.obs
+    cx, cy, a, b, ang = _clamp_shape(shape, ex, base.spacing)
+    pts = obs.reference
+    for _ in range(30):
+        e = jf.Ellipse(cx, cy, a, b, ang)
+        if not e.contains(pts).any() and np.min(np.linalg.norm(pts - e.to_curve(pts), axis=1)) > 0.2 * base.spacing:
+            break
+        a, b = 0.9 * a, 0.9 * b
+    hole = jf.Ellipse(cx, cy, a, b, ang)
+    mesh = domain_mesh(ex, h or base.h, holes=[hole])
+    model = MeasuredModel(ex, obs, mesh=mesh, h=h or base.h)
+    param = ShapeGeometry(jf.morph(mesh, [hole]), hole.params[None], scale=0.5 * base.spacing)
+    of, oh = _objectives(model, param, fit_mask, hold_mask, sigma)
+    res = least_squares(of, method="lm", max_steps=40)
+    z = np.asarray(res.values["z"])
+    g = np.asarray(param.shape_params(z))[0]
+    return _score("hole", of, oh, z, param.size, shapes=[("hole", *g[:4], g[4], 0.0)], law=ex.law,
+                  result=res, model=model, theta=param.apply(model.params(), z))
+
+
+ALTERNATIVE_LAWS = {"neo-hookean": ("mooney-rivlin", "saint-venant-kirchhoff"),
+                    "mooney-rivlin": ("neo-hookean", "saint-venant-kirchhoff"),
+                    "saint-venant-kirchhoff": ("neo-hookean", "mooney-rivlin"),
+                    "linear-elastic": ("neo-hookean",)}
+
+
+def fit_law(base: MeasuredModel, law: str, fit_mask, hold_mask, sigma) -> Fitted:
+    """A different homogeneous material law, with its Poisson's ratio (and for Mooney-Rivlin its
+    second-invariant share) fitted."""
+    from dataclasses import replace
+
+    ex = replace(base.experiment, law=law)
+    model = MeasuredModel(ex, base.obs, mesh=base.mesh, h=base.h)
+    parts = [UniformParameter("nu", float(ex.nu), 0.0, 0.499)]
+    if law == "mooney-rivlin":
+        parts.append(UniformParameter("c01_fraction", 0.25, 0.0, 0.95))
+    param = Combined(tuple(parts))
+    of, oh = _objectives(model, param, fit_mask, hold_mask, sigma)
+    res = least_squares(of, method="lm", max_steps=30)
+    z = np.asarray(res.values["z"])
+    return _score("material-law", of, oh, z, param.size, law=law, result=res, model=model,
+                  theta=param.apply(model.params(), z))
