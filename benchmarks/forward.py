@@ -16,8 +16,8 @@ For a sweep of mesh sizes it measures, on this machine and in one run:
 
 It writes benchmarks/results/forward.json (all numbers, the targets with pass/fail) and forward.png.
 
-    python benchmarks/forward.py           # ~10 minutes on 2 idle cores: 2D to 51k, 3D to 29k DOFs
-    python benchmarks/forward.py --full    # adds 2D 102k-406k and 3D 54k-103k DOFs (an hour or more)
+    python benchmarks/forward.py           # ~10-15 minutes on 2 cores: 2D to 51k, 3D to 10k DOFs
+    python benchmarks/forward.py --full    # adds 2D 102k-406k and 3D 29k-103k DOFs (an hour or more)
     python benchmarks/forward.py --quick   # smoke test, tiny sizes
 
 A combination predicted to take more than --budget seconds (60) for one solve is skipped and
@@ -60,7 +60,7 @@ STRETCH = 0.2
 
 SIZES_2D = {"quick": [(10, 6), (40, 24)], "default": [(40, 24), (65, 39), (130, 78), (205, 123)],
             "full": [(40, 24), (65, 39), (130, 78), (205, 123), (290, 174), (410, 246), (580, 348)]}
-SIZES_3D = {"quick": [3, 6], "default": [6, 11, 16], "full": [6, 11, 16, 20, 25]}
+SIZES_3D = {"quick": [3, 6], "default": [6, 11], "full": [6, 11, 16, 20, 25]}
 DOC_N = {"quick": [5], "default": [5, 9], "full": [5, 9, 13]}   # torch-fem's own benchmark sizes
 DOC = {"E": 1000.0, "nu": 0.3, "U": 19.0, "n_inc": 21}          # as in torch-fem's benchmark
 
@@ -229,7 +229,7 @@ def measure_size(pb, theta, right, args, ext: Extrapolator, label, extra_solvers
         setup = time.perf_counter() - t0
         env = {"": None, "mkl_rt": mkl_rt} if name == "pardiso" else None
         try:
-            res, sol = run_jaxfem(solver, theta, args.repeats, env=env, budget=4 * args.budget)
+            res, sol = run_jaxfem(solver, theta, args.repeats, env=env, budget=args.budget)
         except jf.SolverError as e:
             skipped[name] = f"SolverError: {e}"[:300]
             continue
@@ -321,6 +321,16 @@ def sweep_sheet(args, mode):
     rows, rows_ps = RESULTS["sheet_plane_stress"], RESULTS["sheet_plane_strain"]
     ext, ext_sk = Extrapolator(1.5), Extrapolator(1.3)
     for k, (nx, ny) in enumerate(SIZES_2D[mode]):
+        old = reused("sheet_plane_stress", nx=nx, ny=ny)
+        old_ps = reused("sheet_plane_strain", nx=nx, ny=ny)
+        if old is not None and old_ps is not None:
+            rows.append(old)
+            rows_ps.append(old_ps)
+            seed(ext, old)
+            if "seconds" in old_ps.get("skfem", {}):
+                ext_sk.add("skfem", old_ps["dofs"], old_ps["skfem"]["seconds"])
+            log(f"sheet {old['dofs']} dofs: reused from {args.reuse}")
+            continue
         pb, theta, right = sheet(nx, ny)
         extra = ("cg", "dense") if k == 0 else ()
         row, sols = measure_size(pb, theta, right, args, ext, "sheet", extra)
@@ -341,7 +351,7 @@ def sweep_sheet(args, mode):
                 continue
             solver = jf.Solver(pbs, linear_solver=name)
             env = {"mkl_rt": _peers.mkl_rt_path()} if name == "pardiso" else None
-            res, sol = run_jaxfem(solver, ths, args.repeats, env=env, budget=4 * args.budget)
+            res, sol = run_jaxfem(solver, ths, args.repeats, env=env, budget=args.budget)
             r = next(iter(res.values()))
             key = name if name != "pardiso" else "pardiso+PYPARDISO_MKL_RT"
             ps["jaxfem"][key] = r
@@ -383,6 +393,15 @@ def sweep_block(args, mode):
     rows = RESULTS["block"]
     ext, ext_tf = Extrapolator(2.0), Extrapolator(1.5)
     for n in SIZES_3D[mode]:
+        old = reused("block", n=n)
+        if old is not None:
+            rows.append(old)
+            seed(ext, old)
+            for k, v in old.get("torchfem", {}).items():
+                if "seconds" in v:
+                    ext_tf.add(("torchfem", int(k.split("_")[1])), old["dofs"], v["seconds"])
+            log(f"block {old['dofs']} dofs: reused from {args.reuse}")
+            continue
         pb, theta, right = block(n)
         row, sols = measure_size(pb, theta, right, args, ext, "block")
         row.update(n=n, mesh=f"{2 * n} x {n} x {n} hex8")
@@ -422,10 +441,15 @@ def sweep_documented(args, mode):
     """torch-fem's own neo-Hookean benchmark (forward pass), and jaxfem on the same problem."""
     rows = RESULTS["torchfem_documented"]
     for N in DOC_N[mode]:
+        old = reused("torchfem_documented", N=N)
+        if old is not None:
+            rows.append(old)
+            log(f"torch-fem benchmark N={N}: reused from {args.reuse}")
+            continue
         pb, theta, right = torchfem_cube(N)
         row = {"N": N, "dofs": pb.n_dofs, "jaxfem": {}}
         solver = jf.Solver(pb, linear_solver="superlu")
-        res, sol = run_jaxfem(solver, theta, args.repeats, budget=4 * args.budget)
+        res, sol = run_jaxfem(solver, theta, args.repeats, budget=args.budget)
         r = res[""]
         row["jaxfem"]["superlu (own load stepping)"] = r
         row["jaxfem_reaction_x"] = float(solver.reactions(sol.u, theta, right)[0])
@@ -447,7 +471,7 @@ def sweep_documented(args, mode):
             jax.block_until_ready(u0)
             return its
         chained()
-        t, times, its = best_of(chained, args.repeats, budget=4 * args.budget)
+        t, times, its = best_of(chained, args.repeats, budget=args.budget)
         row["jaxfem"]["superlu (torch-fem's 20 increments)"] = {"warm_s": t, "all_warm_s": times, "iterations": its,
                                                                "steps": len(incs) - 1, "load": loadavg()}
         log(f"torch-fem benchmark N={N}: jaxfem with torch-fem's increments {t:.3f} s, {its} its")
@@ -537,6 +561,25 @@ def versions():
 
 
 RESULTS: dict = {}
+REUSE: dict = {}
+
+
+def reused(kind, **key):
+    """The row of an earlier run (--reuse) with the same size, or None."""
+    for r in REUSE.get(kind, []):
+        if all(r.get(k) == v for k, v in key.items()):
+            return r
+    return None
+
+
+def seed(ext, row):
+    """Feed a reused row's timings to the extrapolator (for the skip predictions)."""
+    for name, r in row.get("jaxfem", {}).items():
+        if "warm_s" in r and "+" not in name:
+            ext.add(("jaxfem", name), row["dofs"], r["warm_s"])
+    for name, r in row.get("factor_solve", {}).items():
+        if "seconds" in r:
+            ext.add(("direct", name), row["dofs"], r["seconds"])
 
 
 def write_partial(args):
@@ -627,7 +670,11 @@ def main():
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--only", choices=["sheet", "block", "documented"], action="append")
     ap.add_argument("--out", default=str(HERE / "results" / "forward.json"))
+    ap.add_argument("--reuse", default=None, help="an earlier forward.json: keep its rows of the same sizes "
+                    "and measure only the others (e.g. --full after a default run)")
     args = ap.parse_args()
+    if args.reuse:
+        REUSE.update(json.loads(Path(args.reuse).read_text()))
     mode = "quick" if args.quick else "full" if args.full else "default"
     if args.quick:
         args.repeats = 1
@@ -645,6 +692,8 @@ def main():
         "platform": platform.platform(), "python": platform.python_version(), "versions": versions(),
         "jax_devices": [str(d) for d in jax.devices()], "load_start": loadavg(),
         "budget_s": args.budget, "peer_budget_s": args.peer_budget, "repeats": args.repeats,
+        "reused_rows_from": None if not args.reuse else {"file": args.reuse, "date": REUSE.get("meta", {}).get("date"),
+                                                          "load_start": REUSE.get("meta", {}).get("load_start")},
         "auto_pardiso_min_dofs": AUTO_PARDISO_MIN_DOFS, "linear_solvers_available": available(),
         "direct_solvers_available": _peers.available_direct(),
         "problems": {
@@ -657,7 +706,7 @@ def main():
                                    "right face stretched to 20x the length (u_x = 19) in 20 geometric increments, "
                                    "symmetry planes y = z = 0.5; forward pass timed (parameters declared differentiable, as there)",
         },
-        "timing": "warm = best of N calls after the first; compile = first - warm; iterations = linear solves incl. "
+        "timing": "warm = best of N (3, fewer where they would pass the budget) calls after the first; compile = first - warm; iterations = linear solves incl. "
                   "the predictor (failed, cut-back attempts included); factor+solve = one solve of the constrained "
                   "tangent at the solution, from the CSR values to x, best of N; each timing carries the 1-min "
                   "load average when it was taken (the machine may be shared)",

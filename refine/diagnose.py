@@ -21,10 +21,10 @@ import numpy as np
 
 from .bundle import Bundle
 from .errors import mean_position_error, tracking_error
-from .hypotheses import ALTERNATIVE_LAWS, Fitted, baseline, fit_hole, fit_law, fit_regions
+from .hypotheses import ALTERNATIVE_LAWS, Fitted, baseline, fit_hole, fit_law, fit_regions, refit
 from .localize import Candidate, ellipse_polygon, fit_field, segment
 from .model import MeasuredModel
-from .noise import NullTest, boundary_sensitivity, estimate_noise, null_test
+from .noise import NullTest, estimate_noise, null_test, propagated_noise
 
 
 @dataclass(frozen=True)
@@ -150,10 +150,10 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
     log(f"noise {sigma:.3g} ({'given' if ex.noise_std is not None else 'estimated'}), model discretisation "
         f"error {sigma_model:.3g}")
     base = baseline(model, fit, hold, sigma_eff)
-    J = boundary_sensitivity(model, model.params(), obs.n_frames - 1, guide)
+    V = propagated_noise(model, model.params(), sigma, guide, seed=cfg.seed) if sigma > 0 else np.zeros((0,))
     meas = obs.displacements[:, guide]
     null = null_test(base.predicted[:, guide] - np.nan_to_num(meas), np.isfinite(meas).all(-1), sigma,
-                     sigma_model, J)
+                     sigma_model, V.reshape((-1,) + meas.shape) if V.size else np.zeros((0,) + meas.shape))
     log(f"initial model: misfit {null.ratio:.2f}x its null level over {null.dof} residuals (p = {null.p_value:.3g})")
     tried, candidates, z = [base], [], None
     chosen = base
@@ -165,7 +165,7 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
         log(f"field: {len(candidates)} candidate regions " +
             ", ".join(f"{'stiffer' if c.sign > 0 else 'softer'} at ({c.centroid[0]:.1f}, {c.centroid[1]:.1f})"
                       for c in candidates))
-        tried += _try_hypotheses(model, candidates, fit, hold, sigma_eff, cfg, log)
+        tried += _try_hypotheses(model, candidates, fit, hold, sigma_eff, cfg, log, null, n_res)
         chosen = _choose(base, tried, cfg)
         if chosen is not base:  # refit the chosen model on every guide point
             chosen = _refit(model, chosen, guide, hold, sigma_eff)
@@ -182,7 +182,15 @@ def _shape_of(c: Candidate):
     return (float(c.centroid[0]), float(c.centroid[1]), float(c.axes[0]), float(c.axes[1]), c.angle)
 
 
-def _try_hypotheses(model, candidates, fit, hold, sigma, cfg, log) -> list[Fitted]:
+def _explains(f: Fitted, n_fit: int, null: NullTest) -> bool:
+    """Whether a fit leaves no more misfit than noise, its propagation and model error would."""
+    return f.chi2_fit / max(n_fit, 1) < 1.5 * (1.0 + null.propagation)
+
+
+def _try_hypotheses(model, candidates, fit, hold, sigma, cfg, log, null, n_fit) -> list[Fitted]:
+    """Greedy: the strongest candidate region first (as a stiffer/softer region, and as a hole
+    when softer); add the next candidate only while the misfit is still above the null level;
+    other material laws only if no region explains the data."""
     out = []
 
     def attempt(fn, *args):
@@ -190,17 +198,28 @@ def _try_hypotheses(model, candidates, fit, hold, sigma, cfg, log) -> list[Fitte
             f = fn(*args)
             log(f"  tried {f.describe()}")
             out.append(f)
+            return f
         except Exception as e:  # noqa: BLE001 - a hypothesis that cannot be fitted is reported and skipped
             log(f"  could not fit {fn.__name__}: {e}")
+            return None
 
+    best = None
+    used: list[Candidate] = []
     for c in candidates:
-        attempt(fit_regions, model, [_shape_of(c)], [c.sign], fit, hold, sigma)
-        if c.sign < 0:
-            attempt(fit_hole, model, _shape_of(c), fit, hold, sigma)
-    if len(candidates) >= 2:
-        attempt(fit_regions, model, [_shape_of(c) for c in candidates[:2]], [c.sign for c in candidates[:2]],
-                fit, hold, sigma)
-    if cfg.try_laws:
+        trial = used + [c]
+        fits = [attempt(fit_regions, model, [_shape_of(k) for k in trial], [k.sign for k in trial], fit, hold, sigma)]
+        if c.sign < 0 and not used:
+            fits.append(attempt(fit_hole, model, _shape_of(c), fit, hold, sigma))
+        fits = [f for f in fits if f is not None]
+        if not fits:
+            continue
+        top = min(fits, key=lambda f: f.bic)
+        if best is not None and top.bic > best.bic - cfg.bic_margin:
+            break  # the extra region does not pay for its parameters
+        best, used = top, trial
+        if _explains(best, n_fit, null) or best.cause == "hole":
+            break
+    if cfg.try_laws and (best is None or not _explains(best, n_fit, null)):
         for law in ALTERNATIVE_LAWS.get(model.experiment.law, ()):
             attempt(fit_law, model, law, fit, hold, sigma)
     return out
@@ -214,11 +233,4 @@ def _choose(base: Fitted, tried: list[Fitted], cfg: DiagnoseConfig) -> Fitted:
 
 
 def _refit(model, chosen: Fitted, guide, hold, sigma) -> Fitted:
-    if chosen.cause == "material-law":
-        return fit_law(model, chosen.law, guide, hold, sigma)
-    if chosen.cause == "hole":
-        s = chosen.shapes[0]
-        return fit_hole(model, (s[1], s[2], s[3], s[4], s[5]), guide, hold, sigma)
-    shapes = [(s[1], s[2], s[3], s[4], s[5]) for s in chosen.shapes]
-    signs = [1 if s[6] > 1 else -1 for s in chosen.shapes]
-    return fit_regions(model, shapes, signs, guide, hold, sigma)
+    return refit(chosen, guide, hold, sigma)

@@ -15,7 +15,7 @@ import numpy as np
 
 import jaxfem as jf
 
-from .fit import Objective, least_squares
+from .fit import Compiled, levenberg_marquardt
 from .model import MeasuredModel, domain_mesh
 from .parametrize import Combined, RegionModuli, ShapeGeometry, UniformParameter
 
@@ -46,6 +46,9 @@ class Fitted:
     result: object = None
     model: object = None
     theta: object = None
+    compiled: object = None
+    z: object = None
+    shapes_from: object = None
 
     def describe(self) -> str:
         parts = [f"{s[0]} at ({s[1]:.1f}, {s[2]:.1f}) axes ({s[3]:.1f}, {s[4]:.1f}) ratio {s[6]:.2f}"
@@ -53,25 +56,41 @@ class Fitted:
         return f"{self.cause} [{'; '.join(parts) or self.law}] chi2 {self.chi2_fit:.0f} holdout {self.chi2_holdout:.0f}"
 
 
-def _score(cause, obj_fit: Objective, obj_hold: Objective, z, k, **kw) -> Fitted:
-    r = np.asarray(obj_fit.residuals(z))
-    rh = np.asarray(obj_hold.residuals(z))
-    pred = np.asarray(obj_fit.predict(z))
-    chi2 = float(r @ r)
-    return Fitted(cause, k, chi2, float(rh @ rh), chi2 + k * np.log(max(len(r), 2)), pred, **kw)
+def _chi2(pred, obs, points, sigma) -> float:
+    meas = obs.displacements[:, points]
+    ok = np.isfinite(meas).all(-1)
+    r = ((pred[:, points] - np.nan_to_num(meas)) / sigma)[ok]
+    return float(np.sum(r * r))
 
 
-def _objectives(model, param, fit_mask, hold_mask, sigma, theta=None):
-    return (Objective(model, param, theta=theta, points=fit_mask, noise_std=sigma),
-            Objective(model, param, theta=theta, points=hold_mask, noise_std=sigma))
+def _fit(cause, compiled: Compiled, fit_mask, hold_mask, sigma, z0=None, shapes_from=None, **kw) -> Fitted:
+    """Fit by Levenberg-Marquardt on the fitting points, score on both sets."""
+    res = levenberg_marquardt(compiled, fit_mask, sigma, z0=z0)
+    z = np.asarray(res.values["z"])
+    pred = compiled.predict(z)
+    obs = compiled.model.obs
+    chi2 = _chi2(pred, obs, fit_mask, sigma)
+    n = int(np.isfinite(obs.displacements[:, fit_mask]).all(-1).sum()) * pred.shape[-1]
+    k = compiled.param.size
+    return Fitted(cause, k, chi2, _chi2(pred, obs, hold_mask, sigma), chi2 + k * np.log(max(n, 2)), pred,
+                  shapes=shapes_from(z) if shapes_from else [], result=res, model=compiled.model,
+                  theta=compiled.param.apply(compiled.theta, z), compiled=compiled, z=z,
+                  shapes_from=shapes_from, **kw)
+
+
+def refit(f: Fitted, points, hold_mask, sigma) -> Fitted:
+    """The same hypothesis refitted on other points (e.g. all guide points), from its solution,
+    reusing its compiled model."""
+    return _fit(f.cause, f.compiled, points, hold_mask, sigma, z0=f.z, shapes_from=f.shapes_from, law=f.law)
 
 
 def baseline(model: MeasuredModel, fit_mask, hold_mask, sigma) -> Fitted:
     """The initial model, nothing fitted (under pure displacement driving a uniform modulus
     cancels out, so there is nothing to fit without measured forces)."""
-    param = RegionModuli(np.zeros((0, model.mesh.n_cells)), model.experiment.E)
-    of, oh = _objectives(model, param, fit_mask, hold_mask, sigma)
-    return _score("none", of, oh, param.z0, 0, law=model.experiment.law, model=model, theta=model.params())
+    pred = np.asarray(model.predict(model.params()))
+    chi2 = _chi2(pred, model.obs, fit_mask, sigma)
+    return Fitted("none", 0, chi2, _chi2(pred, model.obs, hold_mask, sigma), chi2, pred, law=model.experiment.law,
+                  model=model, theta=model.params())
 
 
 def _clamp_shape(shape, ex, spacing):
@@ -118,16 +137,17 @@ def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, 
     param = Combined(tuple(parts))
     z0 = np.zeros(param.size)
     z0[: len(ells)] = np.log(3.0) * np.asarray(signs, float)
-    of, oh = _objectives(model, param, fit_mask, hold_mask, sigma)
-    res = least_squares(of, z0=z0, method="lm", max_steps=40)
-    z = np.asarray(res.values["z"])
-    ratios = np.exp(z[: len(ells)])
-    geo = np.asarray(parts[1].shape_params(z[len(ells):])) if geometry else np.stack([e.params for e in ells])
-    fitted = [("ellipse", *geo[k, :4], geo[k, 4], float(ratios[k])) for k in range(len(ells))]
-    causes = {"stiffer-region" if r > 1 else "softer-region" for r in ratios}
-    cause = causes.pop() if len(causes) == 1 and len(ells) == 1 else "regions"
-    out = _score(cause, of, oh, z, param.size, shapes=fitted, law=ex.law, result=res, model=model,
-                 theta=param.apply(model.params(), z))
+    n = len(ells)
+
+    def shapes_from(z):
+        ratios = np.exp(z[:n])
+        geo = np.asarray(parts[1].shape_params(z[n:])) if geometry else np.stack([e.params for e in ells])
+        return [("ellipse", *geo[k, :4], geo[k, 4], float(ratios[k])) for k in range(n)]
+
+    out = _fit("regions", Compiled(model, param), fit_mask, hold_mask, sigma, z0=z0, shapes_from=shapes_from,
+               law=ex.law)
+    causes = {"stiffer-region" if s[6] > 1 else "softer-region" for s in out.shapes}
+    out.cause = causes.pop() if len(causes) == 1 and n == 1 else "regions"
     return out
 
 
@@ -146,12 +166,12 @@ def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | 
     mesh = domain_mesh(ex, h or base.h, holes=[hole])
     model = MeasuredModel(ex, obs, mesh=mesh, h=h or base.h)
     param = ShapeGeometry(jf.morph(mesh, [hole]), hole.params[None], scale=0.5 * base.spacing)
-    of, oh = _objectives(model, param, fit_mask, hold_mask, sigma)
-    res = least_squares(of, method="lm", max_steps=40)
-    z = np.asarray(res.values["z"])
-    g = np.asarray(param.shape_params(z))[0]
-    return _score("hole", of, oh, z, param.size, shapes=[("hole", *g[:4], g[4], 0.0)], law=ex.law,
-                  result=res, model=model, theta=param.apply(model.params(), z))
+
+    def shapes_from(z):
+        g = np.asarray(param.shape_params(z))[0]
+        return [("hole", *g[:4], g[4], 0.0)]
+
+    return _fit("hole", Compiled(model, param), fit_mask, hold_mask, sigma, shapes_from=shapes_from, law=ex.law)
 
 
 ALTERNATIVE_LAWS = {"neo-hookean": ("mooney-rivlin", "saint-venant-kirchhoff"),
@@ -171,8 +191,4 @@ def fit_law(base: MeasuredModel, law: str, fit_mask, hold_mask, sigma) -> Fitted
     if law == "mooney-rivlin":
         parts.append(UniformParameter("c01_fraction", 0.25, 0.0, 0.95))
     param = Combined(tuple(parts))
-    of, oh = _objectives(model, param, fit_mask, hold_mask, sigma)
-    res = least_squares(of, method="lm", max_steps=30)
-    z = np.asarray(res.values["z"])
-    return _score("material-law", of, oh, z, param.size, law=law, result=res, model=model,
-                  theta=param.apply(model.params(), z))
+    return _fit("material-law", Compiled(model, param), fit_mask, hold_mask, sigma, law=law)

@@ -93,6 +93,7 @@ class MeasuredModel:
         self.probe = jf.locate(self.mesh, observations.reference, names=observations.ids)
         self.drives = [self._drive(f) for f in range(observations.n_frames)]
         self._dim = dim
+        self._solve_all = jax.jit(self._solve_frames)  # traced and compiled once per model
 
     # ------------------------------------------------------------------ boundary drive
     def _drive(self, frame: int) -> FrameDrive:
@@ -129,14 +130,27 @@ class MeasuredModel:
         return self.problem.params(E=ex.E if E is None else E, nu=ex.nu if nu is None else nu,
                                    thickness=(ex.thickness or 1.0) if thickness is None else thickness, **kw)
 
-    def solve_frames(self, theta, frames=None):
-        """Equilibrium displacements ``(n_frames, n_nodes, dim)`` for every frame, each frame
-        starting from the previous one's equilibrium (not differentiated: only the final
+    def measured_boundary(self) -> np.ndarray:
+        """Measured boundary displacements of every frame, ``(n_frames, n_boundary * dim)`` (lost = 0)."""
+        return np.stack([self.boundary_displacements(f) for f in range(self.obs.n_frames)])
+
+    def solve_frames(self, theta, frames=None, boundary=None):
+        """Equilibrium displacements ``(n_frames, n_nodes, dim)`` for the given frames (default all).
+
+        Each frame starts from the previous one's equilibrium (not differentiated: only the final
         equilibrium of each frame matters for a hyperelastic material). A ``lax.scan`` over the
-        frames, so the solve is traced and compiled once whatever the number of frames."""
-        frames = list(range(self.obs.n_frames)) if frames is None else list(frames)
-        U_D = jnp.stack([self.prescribed(f) for f in frames])
-        rest = {"f": theta["f"], "traction": theta["traction"]}
+        frames, compiled once per model. ``boundary`` replaces the measured boundary displacements
+        ``(n_frames, n_boundary * dim)`` (e.g. to propagate their noise).
+        """
+        B = jnp.asarray(self.measured_boundary() if boundary is None else boundary)
+        if frames is None:
+            return self._solve_all(theta, B)
+        return self._solve_frames(theta, B, tuple(frames))
+
+    def _solve_frames(self, theta, B, frames=None):
+        frames = tuple(range(self.obs.n_frames)) if frames is None else frames
+        U_D = jnp.stack([jnp.asarray(self.drives[f].matrix) @ B[f] for f in frames])
+        rest = jax.lax.stop_gradient({"f": theta["f"], "traction": theta["traction"]})
 
         def step(carry, u_D):
             u_prev, uD_prev = carry
@@ -144,17 +158,11 @@ class MeasuredModel:
             return (jax.lax.stop_gradient(u.reshape(-1)), jax.lax.stop_gradient(u_D)), u
 
         start = (jnp.zeros(self.problem.n_dofs), jnp.zeros_like(U_D[0]))
-        rest = jax.lax.stop_gradient(rest)
         return jax.lax.scan(step, start, U_D)[1]
 
-    def predict(self, theta, frames=None):
+    def predict(self, theta, frames=None, boundary=None):
         """Predicted displacements of every tracked point, ``(n_frames, n_points, dim)``."""
-        return self.at_points(self.solve_frames(theta, frames), theta)
-
-    def at_points(self, U, theta):
-        """Nodal displacements ``U (n_frames, n_nodes, dim)`` (from :meth:`solve_frames`) at every
-        tracked point, ``(n_frames, n_points, dim)``; lets a caller that also needs the nodal
-        solution (reaction forces, strain maps) solve only once."""
+        U = self.solve_frames(theta, frames, boundary)
         probe = self.probe
         if self.mesh.element in ("tri3", "tet4"):  # follow a geometry morph of the reference nodes
             probe = probe.moved(theta["X"], self.obs.reference)

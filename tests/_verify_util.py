@@ -170,19 +170,20 @@ def traction_patch(mesh: jf.Mesh, P, thickness: float = 1.0):
 
 # ====================================================================== shared solves
 @functools.lru_cache(maxsize=None)
-def stretched_block(kinematics: str = "plane-strain"):
-    """A neo-Hookean block [0, 2] x [0, 1] (x [0, 1] in 3D) on a distorted mesh (P1 in 2D, hex8 in
-    3D), clamped on the left and moved 20 % of its length to the right on the right end (held
-    laterally): a non-homogeneous finite stretch. Returns ``(mesh, problem, solver, theta,
-    solution)``; cached, so the test files share one compilation."""
+def pulled_block(kinematics: str = "plane-strain"):
+    """A neo-Hookean block [0, 2] x [0, 1] (x [0, 1] in 3D; E = 10, nu = 0.3) on a distorted mesh
+    (P1 in 2D, hex8 in 3D), clamped on the left and pulled on the right by the dead traction that
+    stretches a free bar by 20 % (P11 of :func:`uniaxial_neo_hookean`): a non-homogeneous finite
+    stretch of about 18-20 %. Returns ``(mesh, problem, solver, theta, solution)``; cached, so the
+    test files share one compilation."""
     if kinematics == "solid":
         mesh = distort(jf.box(0.0, 0.0, 0.0, 2.0, 1.0, 1.0, 6, 3, 3, "hex8"), 0.05, seed=3)
     else:
         mesh = distort(jf.rectangle(0.0, 0.0, 2.0, 1.0, 10, 5, "tri3"), 0.05, seed=3)
-    ends = np.concatenate([mesh.side("left"), mesh.side("right")])
-    target = np.zeros((mesh.n_nodes, mesh.dim))
-    target[mesh.side("right"), 0] = 0.4
-    problem = jf.Problem(mesh, "neo-hookean", kinematics, fixed=jf.dofs(mesh, ends))
+    problem = jf.Problem(mesh, "neo-hookean", kinematics, fixed=jf.dofs(mesh, mesh.side("left")),
+                         traction_facets=mesh.side_facets("right"))
     solver = jf.Solver(problem)
-    theta = problem.params(E=10.0, nu=0.3, u_D=problem.prescribe(target))
+    load = np.zeros(mesh.dim)
+    load[0] = uniaxial_neo_hookean(1.2, *lame(10.0, 0.3))[1]
+    theta = problem.params(E=10.0, nu=0.3, traction=load)
     return mesh, problem, solver, theta, solver.solve(theta)

@@ -89,7 +89,7 @@ def kirsch_plate(h, law):
     return angle, hoop, float(hoop[top[0]]), u
 
 
-@pytest.mark.parametrize("h, tol_top, tol_rms", [(0.5, 0.03, 0.06),
+@pytest.mark.parametrize("h, tol_top, tol_rms", [(0.5, 0.04, 0.06),
                                                  pytest.param(0.25, 0.006, 0.015, marks=pytest.mark.slow)])
 def test_kirsch_concentration_linear_and_neo_hookean(h, tol_top, tol_rms):
     angle, hoop, top, u_lin = kirsch_plate(h, "linear-elastic")

@@ -1,0 +1,121 @@
+"""Gradient fits recover hidden regions from synthetic measurements made on another mesh.
+
+Data come from :func:`refine.synthetic.synthetic_bundle` (quadratic triangles on a larger sheet,
+noise 0.02 mm); the inversions use linear triangles over the tracked region, so a few per cent of
+discretisation error is expected and 10 % is the tolerance. Every fit compiles the whole
+nonlinear solve and its derivatives once (tens of seconds), so the fixtures share bundles and
+models; more seeds run under ``-m slow``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from refine.exceptions import IdentifiabilityError
+from refine.fit import Objective, lbfgsb, least_squares
+from refine.forces import ForcedObjective, fit_region_moduli
+from refine.model import MeasuredModel, domain_mesh
+from refine.parametrize import ModulusField, RegionModuli
+from refine.synthetic import random_truth, synthetic_bundle
+
+DATA = dict(spacing=10.0, noise=0.02, fractions=(0.5, 1.0), h=3.0)
+MODEL_H = 2.5
+WRONG_E = 60.0  # the model's initial background, kPa; the truth is 83.76
+
+
+def region_model(truth, bundle, experiment=None):
+    """A model whose mesh follows the true inclusions (regions 1, 2, ...) and their masks."""
+    experiment = experiment or bundle.experiment
+    shapes = [inc.shape for inc in truth.inclusions]
+    mesh = domain_mesh(experiment, MODEL_H, inclusions=shapes)
+    masks = np.stack([mesh.regions == k for k in range(1, len(shapes) + 1)])
+    return MeasuredModel(experiment, bundle.observations, mesh=mesh), masks
+
+
+def one_region(seed):
+    truth = random_truth(np.random.default_rng(seed), "stiffer-region")
+    bundle = synthetic_bundle(truth, seed=seed, forces=True, **DATA)
+    # start from a wrong background: displacements cannot see it, the force can
+    model, masks = region_model(truth, bundle, dataclasses.replace(bundle.experiment, E=WRONG_E))
+    return truth, model, masks
+
+
+@pytest.fixture(scope="module")
+def stiff_region():
+    return one_region(0)
+
+
+def check_relative(truth, model, masks):
+    elasticity, result = fit_region_moduli(model, masks, ("inclusion",), use_forces=False)
+    ratio = truth.inclusions[0].ratio
+    assert result.converged, result.message
+    assert elasticity.relative["inclusion"] == pytest.approx(ratio, rel=0.10)
+    assert result.n_forward == len(result.history) <= 15  # one evaluation = all frames solved once
+    assert not elasticity.absolute and elasticity.background_modulus is None
+    with pytest.raises(IdentifiabilityError, match="thickness"):
+        elasticity.modulus("inclusion")
+    with pytest.raises(IdentifiabilityError):
+        elasticity.modulus()
+    assert "relative elasticity" in elasticity.note and "confounded" in elasticity.note
+
+
+def test_lm_recovers_one_region_relative_without_forces(stiff_region):
+    check_relative(*stiff_region)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_lm_recovers_one_region_more_seeds(seed):
+    check_relative(*one_region(seed))
+
+
+def test_forces_make_the_background_absolute(stiff_region):
+    truth, model, masks = stiff_region
+    elasticity, result = fit_region_moduli(model, masks, ("inclusion",))  # the bundle has forces
+    assert result.converged, result.message
+    assert elasticity.absolute and "absolute" in elasticity.note
+    assert elasticity.modulus() == pytest.approx(truth.E, rel=0.03)  # from a start at 60 kPa
+    assert elasticity.relative["inclusion"] == pytest.approx(truth.inclusions[0].ratio, rel=0.10)
+    assert elasticity.modulus("inclusion") == pytest.approx(truth.E * truth.inclusions[0].ratio, rel=0.10)
+
+
+@pytest.fixture(scope="module")
+def two_regions():
+    truth = random_truth(np.random.default_rng(11), "two-regions")
+    bundle = synthetic_bundle(truth, seed=11, **DATA)
+    model, masks = region_model(truth, bundle)
+    return truth, model, masks
+
+
+def test_forced_objective_needs_a_force(two_regions):
+    _, model, masks = two_regions
+    with pytest.raises(IdentifiabilityError, match="no measured force"):
+        ForcedObjective(model, RegionModuli(masks=masks, E0=83.76, background=True))
+
+
+def test_gauss_newton_recovers_two_regions(two_regions):
+    truth, model, masks = two_regions
+    objective = Objective(model, RegionModuli(masks=masks, E0=model.experiment.E, names=("a", "b")))
+    result = least_squares(objective, method="gn", rtol=1e-5, atol=1e-4)
+    assert result.converged, result.message
+    for name, inclusion in zip(("a", "b"), truth.inclusions):
+        assert result.values[f"{name}_relative_elasticity"] == pytest.approx(inclusion.ratio, rel=0.10)
+    assert result.n_forward <= 15
+
+
+def test_tv_field_by_lbfgsb_shows_the_stiff_region(stiff_region):
+    truth, model, _ = stiff_region
+    shape = truth.inclusions[0].shape
+    mesh = domain_mesh(model.experiment, MODEL_H)  # knows nothing of the region
+    field_model = MeasuredModel(model.experiment, model.obs, mesh=mesh)
+    param = ModulusField(mesh, model.experiment.E, weight=1.0, kind="tv")
+    result = lbfgsb(Objective(field_model, param), bounds=(-3.0, 3.0), maxiter=60)
+    z = np.asarray(result.values["z"])
+    inside = shape.contains(mesh.centroids())
+    assert inside[np.argmax(z)], "the stiffest cell lies outside the true region"
+    assert np.exp(z[inside].mean() - z[~inside].mean()) > 1.5  # stiffer inside than around
+    assert result.n_gradient == result.n_forward > 0
+    assert len(result.history) <= 60 and result.history[-1]["value"] < result.history[0]["value"]
