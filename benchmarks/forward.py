@@ -331,6 +331,8 @@ def sweep_sheet(args, mode):
                 ext_sk.add("skfem", old_ps["dofs"], old_ps["skfem"]["seconds"])
             log(f"sheet {old['dofs']} dofs: reused from {args.reuse}")
             continue
+        if 2 * (nx + 1) * (ny + 1) > args.max_dofs:
+            continue
         pb, theta, right = sheet(nx, ny)
         extra = ("cg", "dense") if k == 0 else ()
         row, sols = measure_size(pb, theta, right, args, ext, "sheet", extra)
@@ -401,6 +403,8 @@ def sweep_block(args, mode):
                 if "seconds" in v:
                     ext_tf.add(("torchfem", int(k.split("_")[1])), old["dofs"], v["seconds"])
             log(f"block {old['dofs']} dofs: reused from {args.reuse}")
+            continue
+        if 3 * (2 * n + 1) * (n + 1) ** 2 > args.max_dofs:
             continue
         pb, theta, right = block(n)
         row, sols = measure_size(pb, theta, right, args, ext, "block")
@@ -586,6 +590,10 @@ def write_partial(args):
     RESULTS["meta"]["load_now"] = loadavg()
     RESULTS["targets"] = targets(RESULTS)
     Path(args.out).write_text(json.dumps(RESULTS, indent=1, default=_json_default))
+    try:
+        plot(RESULTS, Path(args.out).with_suffix(".png"))
+    except Exception as e:  # noqa: BLE001 - a plot must not end a long run
+        log(f"plot failed: {e}")
 
 
 def _json_default(o):
@@ -661,6 +669,33 @@ def plot(res, path):
     fig.savefig(path, dpi=110)
 
 
+def memory_watchdog(limit_gb):
+    """Abort (with every thread's stack) if this process's resident memory passes ``limit_gb``: the
+    machine may be shared, and a sparse factorisation with bad fill can take it all."""
+    import faulthandler
+    import threading
+
+    def rss_gb():
+        return int(open("/proc/self/statm").read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 1e9
+
+    def watch():
+        while True:
+            if rss_gb() > limit_gb:
+                log(f"resident memory {rss_gb():.1f} GB > {limit_gb:.1f} GB: aborting")
+                faulthandler.dump_traceback(all_threads=True)
+                os._exit(3)
+            time.sleep(0.25)
+
+    threading.Thread(target=watch, daemon=True).start()
+
+
+def mem_available_gb():
+    for line in open("/proc/meminfo"):
+        if line.startswith("MemAvailable:"):
+            return int(line.split()[1]) / 1e6
+    return 8.0
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--full", action="store_true", help="add the large sizes (2D to 406k, 3D to 103k DOFs)")
@@ -670,11 +705,15 @@ def main():
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--only", choices=["sheet", "block", "documented"], action="append")
     ap.add_argument("--out", default=str(HERE / "results" / "forward.json"))
+    ap.add_argument("--max-dofs", type=int, default=10**9, help="leave out the sizes above this")
+    ap.add_argument("--max-memory-gb", type=float, default=None,
+                    help="abort past this resident memory (default: 75 %% of what is available at the start)")
     ap.add_argument("--reuse", default=None, help="an earlier forward.json: keep its rows of the same sizes "
                     "and measure only the others (e.g. --full after a default run)")
     args = ap.parse_args()
     if args.reuse:
         REUSE.update(json.loads(Path(args.reuse).read_text()))
+    memory_watchdog(args.max_memory_gb or 0.75 * mem_available_gb())
     mode = "quick" if args.quick else "full" if args.full else "default"
     if args.quick:
         args.repeats = 1
@@ -720,6 +759,12 @@ def main():
                      "pyvista (VTK, plotting only) is stubbed out in the child process.",
     }
     only = set(args.only or ["sheet", "block", "documented"])
+    for part, kinds in (("sheet", ("sheet_plane_stress", "sheet_plane_strain")), ("block", ("block",)),
+                        ("documented", ("torchfem_documented",))):
+        if part not in only:  # parts not measured now: carried over from --reuse
+            for k in kinds:
+                if k in REUSE:
+                    RESULTS[k] = REUSE[k]
     if "sheet" in only:
         RESULTS["sheet_plane_stress"], RESULTS["sheet_plane_strain"] = [], []
         sweep_sheet(args, mode)

@@ -132,14 +132,20 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
         def body(c):
             u1, it, _, _, reason, stl = c
             R, vals = assemble(u1, loads)
-            du = lin(constrained(vals), -R * free, arrays)
+            # any part of the prescribed jump a damped update left out is imposed again here
+            gap = jnp.zeros(n).at[fixed].set(loads["u_D"] - u1[fixed])
+            rhs = -(R + matvec(vals, arrays["rows"], arrays["cols"], gap)) * free + gap
+            du = lin(constrained(vals), rhs, arrays)
             bad_solve = ~jnp.all(jnp.isfinite(du))
             u2, ok = guarded_update(u1, jnp.where(bad_solve, 0.0, du))
             R2 = residual(u2, loads)
             res, scale = norms(R2, loads)
             stl = log(stl, res / scale)
             dun = jnp.linalg.norm(du)
-            conv = (res <= opts.rtol * scale) & (dun <= opts.utol * jnp.maximum(jnp.linalg.norm(u2), 1e-300))
+            unorm = jnp.maximum(jnp.linalg.norm(u2), 1e-300)
+            miss = jnp.linalg.norm(loads["u_D"] - u2[fixed])  # prescribed values must be met too
+            conv = ((res <= opts.rtol * scale) & (dun <= opts.utol * unorm)
+                    & (miss <= 1e-10 * jnp.maximum(jnp.linalg.norm(loads["u_D"]), unorm)))
             reason = jnp.where(bad_solve, SINGULAR, jnp.where(~ok, INVERTED,
                                jnp.where(~jnp.isfinite(res), NAN, reason)))
             return u2, it + 1, conv, (reason != OK) | bad_solve | ~ok, reason, stl

@@ -81,13 +81,19 @@ def second_piola_stress(solver, u, theta):
 
 
 def cauchy_stress(solver, u, theta):
-    """Cauchy (true) stress sigma = P F^T / J per cell, ``(n_cells, 3, 3)``."""
+    """Cauchy (true) stress sigma = P F^T / J per cell, ``(n_cells, 3, 3)`` (for the small-strain
+    law, the symmetric stress of linear elasticity)."""
     F, p, dV = _qp(solver, u, theta)
     psi = solver.problem.material.energy
 
+    small = not solver.problem.material.finite
+
     def sig(Fq, pc):
         F3 = solver.law.full_F(Fq, pc)
-        return jax.grad(psi)(F3, pc) @ F3.T / det(F3)
+        P = jax.grad(psi)(F3, pc)
+        if small:  # small strain: the stress is the (symmetric) derivative itself, no push-forward
+            return 0.5 * (P + P.T)
+        return P @ F3.T / det(F3)
 
     return _cell_average(_per_qp(sig, F, p), dV)
 

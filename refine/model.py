@@ -162,7 +162,12 @@ class MeasuredModel:
 
     def predict(self, theta, frames=None, boundary=None):
         """Predicted displacements of every tracked point, ``(n_frames, n_points, dim)``."""
-        U = self.solve_frames(theta, frames, boundary)
+        return self.at_points(self.solve_frames(theta, frames, boundary), theta)
+
+    def at_points(self, U, theta):
+        """Nodal displacements ``U (n_frames, n_nodes, dim)`` (from :meth:`solve_frames`) at every
+        tracked point, ``(n_frames, n_points, dim)``: for callers that also need the nodal
+        solution (reaction forces in :mod:`refine.forces`, strain maps), so they solve once."""
         probe = self.probe
         if self.mesh.element in ("tri3", "tet4"):  # follow a geometry morph of the reference nodes
             probe = probe.moved(theta["X"], self.obs.reference)

@@ -25,7 +25,6 @@ import tracking
 from .bundle import Bundle, write_bundle
 from .exceptions import RefineError
 from .experiment import LAWS, Experiment, Polygon, Rectangle
-from .model import grid_spacing
 from .observations import Observations
 
 RECTANGLE_TOLERANCE = 0.02  # of the point spacing: how far ring points may stray from a rectangle
@@ -170,6 +169,8 @@ def bundle_from_tracks(tracks: tracking.Tracks, name: str, model: ModelSkeleton 
     Returns:
         The bundle and the ids of the points left out, ``(k,)``.
     """
+    from .model import grid_spacing  # imported here: it brings jax, which the parser does not need
+
     if tracks.n_frames < 2:
         raise TrackCommandError("the tracks have only the reference frame; a bundle needs at least one more")
     reference = tracks.reference

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import functools
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from scipy.optimize import brentq
@@ -148,12 +147,6 @@ MFRONT_NEO_HOOKE = jf.Material("mfront-neo-hooke", _mfront_energy)
 
 
 # ====================================================================== jaxfem probes
-def jitted(fn, solver):
-    """``fn(solver, u, theta)`` (a :mod:`jaxfem.results` function) jitted for one solver: the
-    eager versions dispatch hundreds of tiny ops and take seconds."""
-    return jax.jit(lambda u, theta: fn(solver, u, theta))
-
-
 def traction_patch(mesh: jf.Mesh, P, thickness: float = 1.0):
     """Boundary facets of a box-shaped mesh and the dead load ``P N`` on each (times the thickness
     in 2D), ``(facets, loads)``: the tractions of the homogeneous first Piola stress ``P``."""

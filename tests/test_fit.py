@@ -21,7 +21,7 @@ from refine.model import MeasuredModel, domain_mesh
 from refine.parametrize import ModulusField, RegionModuli
 from refine.synthetic import random_truth, synthetic_bundle
 
-DATA = dict(spacing=10.0, noise=0.02, fractions=(0.5, 1.0), h=3.0)
+DATA = dict(spacing=5.0, noise=0.02, fractions=(0.5, 1.0), h=3.0)  # 10 mm leaves a small inclusion few points
 MODEL_H = 2.5
 WRONG_E = 60.0  # the model's initial background, kPa; the truth is 83.76
 

@@ -21,7 +21,7 @@ Nearly incompressible case, de Souza Neto, Peric, Dutko & Owen, Int. J. Solids S
 CooksMembrane, CooksMembrane.prj and CooksMembraneFbar.py): MFront "NeoHooke",
 psi = K/2 (J - 1)^2 + G/2 (J^(-2/3) I1 - 3), with E = 240.565 MPa and nu = 0.499 as OGS runs it,
 total load 100 N (6.25 N/mm), vertical displacement of the top corner (48, 60). OGS's F-bar Q1
-results (locking-free) are 6.825, 6.859, 6.873, 6.891 mm at 15, 20, 25, 30 elements per side. The
+results (locking-free) are 6.824, 6.859, 6.873, 6.891 mm at 15, 20, 25, 30 elements per side. The
 linear triangle (tri3) locks: it is far too stiff and gets stiffer as nu -> 1/2, while tri6
 converges to the reference.
 """

@@ -104,11 +104,6 @@ def test_solver_error_reports_the_failing_load_step():
     assert np.isfinite(np.asarray(u)).all()
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "jaxfem/newton.py:129: the predictor's line search (guarded_update) scales the whole update, "
-    "the prescribed increment included, and the corrections keep du = 0 on fixed dofs, so a "
-    "damped predictor leaves the Dirichlet values at a fraction of u_D; the convergence test only "
-    "looks at the free residual, so the solve 'succeeds' (top at -0.6 for -1.2 prescribed)"))
 def test_crushing_displacement_raises_solver_error():
     # the top edge pushed 1.2 x the height down, through the clamped bottom: no equilibrium
     mesh, problem, solver = squeezed_block()
@@ -120,8 +115,6 @@ def test_crushing_displacement_raises_solver_error():
     assert f"load step {e.step + 1}" in str(e)
 
 
-@pytest.mark.xfail(strict=True, reason="same defect as test_crushing_displacement_raises_solver_error "
-                                       "(jaxfem/newton.py:129-142): a returned solution misses its Dirichlet data")
 @pytest.mark.parametrize("dy", [-0.99, -1.2])
 def test_returned_solution_satisfies_prescribed_displacements(dy):
     mesh, problem, solver = squeezed_block()
@@ -135,7 +128,7 @@ def test_returned_solution_satisfies_prescribed_displacements(dy):
 
 
 def test_prescribed_displacements_hold_when_the_predictor_is_not_damped():
-    # control case for the two xfails: a feasible 90 % squeeze reaches its Dirichlet data exactly
+    # control case: a feasible 90 % squeeze reaches its Dirichlet data exactly
     mesh, problem, solver = squeezed_block()
     theta = squeeze(problem, mesh, -0.9)
     u = np.asarray(solver.solve(theta).u)

@@ -1,6 +1,6 @@
 """Write notebooks/paper_section3.ipynb (without outputs) from the cells below.
 
-    python notebooks/make_paper_section3.py
+    python notebooks/_make_paper_section3.py
 
 Edit the cells here, not in the notebook, so that the two never drift apart.
 """
