@@ -11,7 +11,7 @@ identity), so a symmetric factorisation is valid.
 - ``"cg"``: Jacobi-preconditioned conjugate gradients in pure JAX (runs on a GPU; iterative).
 - ``"dense"``: LAPACK on the dense matrix, for toy sizes and tests only.
 - ``"auto"``: measured choice (see ``benchmarks/forward.py``): PARDISO where installed and the
-  system has more than 20k unknowns, else SuperLU.
+  system has more than 50k unknowns, else SuperLU.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import scipy.sparse.linalg as spla
 
 from .assembly import Pattern, matvec
 
-AUTO_PARDISO_MIN_DOFS = 20_000
+AUTO_PARDISO_MIN_DOFS = 50_000
 
 
 def available() -> list[str]:
@@ -97,15 +97,23 @@ def pardiso(pattern: Pattern) -> Callable:
     indptr = np.cumsum(indptr)
     n = pattern.n_dofs
 
-    def factor(vals):
-        A = sp.csr_matrix((np.asarray(vals)[upper], c, indptr), shape=(n, n))
-        A.has_sorted_indices = True
+    holder = {}
+
+    def make():
+        # Constructing a PyPardisoSolver searches the environment for MKL's runtime (0.6 s with a
+        # large site-packages): make one per pattern and refactorise it.
         solver = pypardiso.PyPardisoSolver(mtype=-2)
         solver.set_iparm(1, 1)  # use the parameters below rather than MKL defaults
         solver.set_iparm(2, 2)  # nested dissection (METIS) ordering
         solver.set_iparm(10, 8)  # pivot perturbation 1e-8
         solver.set_iparm(11, 0)  # no scaling (symmetric indefinite default would need weighted matching)
         solver.set_iparm(13, 0)
+        return solver
+
+    def factor(vals):
+        A = sp.csr_matrix((np.asarray(vals)[upper], c, indptr), shape=(n, n))
+        A.has_sorted_indices = True
+        solver = holder.get("solver") or holder.setdefault("solver", make())
         try:
             solver.factorize(A)
         except Exception:  # noqa: BLE001 - pardiso reports a singular matrix as a generic error

@@ -2,6 +2,7 @@
 
     nonrigid simulate BUNDLE --out DIR    drive the bundle's initial model with its boundary points
     nonrigid diagnose BUNDLE --out DIR    find what the initial model gets wrong, and the gain
+    nonrigid track --pattern grid|speckle --scale MM_PER_PX --roi X0,Y0,X1,Y1 IMAGES... --out BUNDLE
     nonrigid demo [--out DIR]             a synthetic sheet with a hidden inclusion, end to end
 """
 
@@ -126,6 +127,9 @@ def main(argv=None) -> int:
     p = sub.add_parser("diagnose", help="find what the initial model gets wrong and measure the gain")
     p.add_argument("bundle")
     p.add_argument("--out", required=True, help="output directory (report.json and figures)")
+    from . import track_cmd
+
+    track_cmd.add_parser(sub)
     p = sub.add_parser("demo", help="generate a sheet with a hidden inclusion and analyse it")
     p.add_argument("--out", default="nonrigid-demo", help="output directory (default: ./nonrigid-demo)")
     p.add_argument("--seed", type=int, default=None, help="random seed of the hidden inclusion")
@@ -134,6 +138,8 @@ def main(argv=None) -> int:
     from .exceptions import RefineError
 
     try:
+        if args.command == "track":
+            return track_cmd.run(args)
         if args.command == "simulate":
             _simulate(args.bundle, args.out, args.h)
         elif args.command == "diagnose":

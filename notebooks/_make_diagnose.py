@@ -1,0 +1,72 @@
+"""Write notebooks/diagnose.ipynb (without outputs) from the cells below.
+
+    python notebooks/_make_diagnose.py
+"""
+
+from pathlib import Path
+
+import nbformat
+from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook
+
+CELLS = [
+    ("md", """# Diagnosis: what is the initial model getting wrong?
+
+A sheet region of 100 x 60 mm is tracked on a grid while the sheet is pulled. The initial model says
+the sheet is uniform. Something is hidden in it; the diagnosis must show where the uniform model
+fails, decide whether the failure is more than noise, name the cause, fit it, and measure the gain
+on validation points held out of every fit.
+
+Edit the cell below to hide something else: `cause` is one of `"none"`, `"stiffer-region"`,
+`"softer-region"`, `"hole"`, `"two-regions"`, `"rectangle"`; or build a `Truth` by hand. The data
+come from a finer quadratic mesh of a larger sheet, with noise, so the inversion never sees its own
+discretisation. To diagnose your own measurements, read them with `refine.bundle.read_bundle`."""),
+    ("code", """import numpy as np
+import matplotlib.pyplot as plt
+import jaxfem as jf
+from refine.synthetic import Truth, Inclusion, random_truth, synthetic_bundle
+from refine.diagnose import diagnose
+from refine import report
+
+cause, seed = "stiffer-region", 4
+truth = random_truth(np.random.default_rng(seed), cause)
+# or, by hand: truth = Truth(inclusions=(Inclusion(jf.Ellipse(60, 40, 8, 5, 0.3), ratio=5.0),))
+bundle = synthetic_bundle(truth, seed=seed, spacing=5.0, noise=0.02, fractions=(0.5, 1.0))
+obs = bundle.observations
+print(truth)
+print({r: int((obs.roles == r).sum()) for r in ("boundary", "guide", "validate")}, "points,", obs.n_frames, "frames")"""),
+    ("md", "## Show, decide, name, extend, measure"),
+    ("code", """d = diagnose(bundle)
+print()
+print(report.summary(d))"""),
+    ("md", """The strain map of the uniform model already hints at the cause (the paper reads abnormality
+from it: a stiffer inclusion is a pocket of low strain, a hole one of high strain); the residual
+arrows show where the uniform model misses the measured points; the localisation field (a modulus
+per cell fitted by adjoint gradients with total-variation smoothing) shows where, and its
+segmentation seeds the parametric fit of the region."""),
+    ("code", """out = report.write(d, "diagnose-out")
+fig, axes = plt.subplots(1, 2, figsize=(13, 4))
+for ax, name in zip(axes, ["strain_before_after.png", "regions.png"]):
+    ax.imshow(plt.imread(out.parent / name)); ax.axis("off")
+plt.show()
+plt.figure(figsize=(12, 4)); plt.imshow(plt.imread(out.parent / "residuals.png")); plt.axis("off"); plt.show()"""),
+    ("md", "## Compare with the truth"),
+    ("code", """for f in d.findings:
+    print(f["cause"], f["region"]["centroid"] if f["region"] else "", "relative elasticity", f["relative_elasticity"])
+for inc in truth.inclusions:
+    print("truth:", inc.cause, (round(inc.shape.cx, 2), round(inc.shape.cy, 2)), "ratio", round(inc.ratio, 3))
+for h in truth.holes:
+    print("truth: hole", (round(h.cx, 2), round(h.cy, 2)), "area", round(h.area, 1))
+print("hypotheses tried:")
+for f in d.tried:
+    print("  ", f.describe(), "BIC", round(f.bic))"""),
+]
+
+
+def main():
+    nb = new_notebook(cells=[new_markdown_cell(src) if kind == "md" else new_code_cell(src) for kind, src in CELLS])
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    nbformat.write(nb, Path(__file__).with_name("diagnose.ipynb"))
+
+
+if __name__ == "__main__":
+    main()
