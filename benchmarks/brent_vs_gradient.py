@@ -36,6 +36,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -263,9 +264,8 @@ def plot(cases: dict, path: Path) -> None:
         for r in rows:
             if not r.get("curve"):
                 continue
+            label = None if r["method"] in colors else r["method"]  # one legend entry per method
             c = colors.setdefault(r["method"], f"C{len(colors)}")
-            label = r["method"] if sum(1 for q in rows if q["method"] == r["method"] and q is r) and \
-                r is next(q for q in rows if q["method"] == r["method"]) else None
             d = np.maximum(r["curve"]["distance"], 1e-7)
             axes[0, col].semilogy(r["curve"]["solves"], d, "-", color=c, alpha=0.7, label=label)
             axes[1, col].semilogy(r["curve"]["seconds"], d, "-", color=c, alpha=0.7, label=label)
@@ -281,12 +281,26 @@ def plot(cases: dict, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
+def run_case(name: str, seed: int, quick: bool) -> list[dict]:
+    if name == "paper":
+        return paper_case(seed)
+    if name == "two_regions":
+        return two_region_case(seed)
+    return field_case(seed, maxiter=60 if quick else 150, warm=not quick)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--quick", action="store_true", help="shorter field run, no warm re-run of it")
     ap.add_argument("--cases", default="paper,two_regions,field")
+    ap.add_argument("--one", nargs=3, metavar=("CASE", "SEED", "OUT"), help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.one:  # child process: one case and seed, rows to a JSON file
+        name, seed, out = args.one
+        rows = run_case(name, int(seed), args.quick)
+        Path(out).write_text(json.dumps([{**r, "seed": int(seed)} for r in rows]))
+        return
     RESULTS.mkdir(parents=True, exist_ok=True)
     out_json, out_png = RESULTS / "brent_vs_gradient.json", RESULTS / "brent_vs_gradient.png"
     wanted = args.cases.split(",")
@@ -294,23 +308,24 @@ def main(argv=None) -> None:
     started = time.perf_counter()
     for seed in range(args.seeds):
         for name in wanted:
+            # Each case in its own process: every model compiles its own solves, and the compiled
+            # code of earlier models piles up in one process (it reached 18 GB and was killed).
             t = time.perf_counter()
-            if name == "paper":
-                rows = paper_case(seed)
-            elif name == "two_regions":
-                rows = two_region_case(seed)
-            else:
-                rows = field_case(seed, maxiter=60 if args.quick else 150, warm=not args.quick)
-            for r in rows:
-                r["seed"] = seed
-            cases[name].extend(rows)
+            tmp = RESULTS / f"brent_vs_gradient.{name}.{seed}.tmp"
+            cmd = [sys.executable, __file__, "--one", name, str(seed), str(tmp)] + (["--quick"] if args.quick else [])
+            done = subprocess.run(cmd).returncode == 0 and tmp.exists()
+            if not done:
+                print(f"seed {seed} {name}: FAILED (see the output above)", flush=True)
+                continue
+            cases[name].extend(json.loads(tmp.read_text()))
+            tmp.unlink()
             print(f"seed {seed} {name}: {time.perf_counter() - t:.0f} s", flush=True)
-        result = {"benchmark": "brent_vs_gradient", "seeds": seed + 1, "noise_mm": DATA["noise"],
-                  "grid_spacing_mm": DATA["spacing"], "frames": len(DATA["fractions"]),
-                  "load_average": os.getloadavg(), "cpu_count": os.cpu_count(),
-                  "wall_seconds": time.perf_counter() - started, **summarise(cases), "cases": cases}
-        out_json.write_text(json.dumps(result, indent=1))
-        plot(cases, out_png)
+            result = {"benchmark": "brent_vs_gradient", "seeds": seed + 1, "noise_mm": DATA["noise"],
+                      "grid_spacing_mm": DATA["spacing"], "frames": len(DATA["fractions"]),
+                      "load_average": os.getloadavg(), "cpu_count": os.cpu_count(),
+                      "wall_seconds": time.perf_counter() - started, **summarise(cases), "cases": cases}
+            out_json.write_text(json.dumps(result, indent=1))  # after every case: a long run may be cut
+            plot(cases, out_png)
     for t in result["targets"]:
         print(("PASS " if t["pass"] else "FAIL ") + t["target"], {k: v for k, v in t.items() if k not in ("target", "pass")})
     print(f"wrote {out_json} and {out_png}")

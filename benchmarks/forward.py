@@ -16,7 +16,7 @@ For a sweep of mesh sizes it measures, on this machine and in one run:
 
 It writes benchmarks/results/forward.json (all numbers, the targets with pass/fail) and forward.png.
 
-    python benchmarks/forward.py           # ~10-15 minutes on 2 cores: 2D to 51k, 3D to 10k DOFs
+    python benchmarks/forward.py           # ~25 min on a loaded 2-core machine: 2D to 51k, 3D to 10k DOFs
     python benchmarks/forward.py --full    # adds 2D 102k-406k and 3D 29k-103k DOFs (an hour or more)
     python benchmarks/forward.py --quick   # smoke test, tiny sizes
 
@@ -28,6 +28,7 @@ average when it was taken.
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import math
 import os
@@ -240,7 +241,6 @@ def measure_size(pb, theta, right, args, ext: Extrapolator, label, extra_solvers
             log(f"{label} {n} dofs: jaxfem {key:24s} warm {r['warm_s']:.3f} s, compile {r['compile_s']:.1f} s, "
                 f"{r['iterations']} its / {r['steps']} steps, {r['per_iteration_s']:.4f} s/it")
         ext.add(("jaxfem", name), n, res[""]["warm_s"])
-        sols[name] = sol
         if name == primary:
             iters = res[""]["iterations"]
             row["newton_log"] = sol.newton_log()
@@ -278,7 +278,8 @@ def measure_size(pb, theta, right, args, ext: Extrapolator, label, extra_solvers
             import scipy.sparse as sps
             A = sps.csr_matrix((vals, pat.cols, pat.indptr), shape=(n, n))
             row["csr_to_csc_s"], _, _ = best_of(lambda: A.tocsc(), 3)
-        del solver
+        del solver, sol
+        gc.collect()
     row["jaxfem"] = jax_rows
     row["jaxfem_skipped"] = skipped
     summarize_row(row)
@@ -331,13 +332,15 @@ def sweep_sheet(args, mode):
                 ext_sk.add("skfem", old_ps["dofs"], old_ps["skfem"]["seconds"])
             log(f"sheet {old['dofs']} dofs: reused from {args.reuse}")
             continue
-        if 2 * (nx + 1) * (ny + 1) > args.max_dofs:
+        if not args.min_dofs <= 2 * (nx + 1) * (ny + 1) <= args.max_dofs:
             continue
         pb, theta, right = sheet(nx, ny)
         extra = ("cg", "dense") if k == 0 else ()
         row, sols = measure_size(pb, theta, right, args, ext, "sheet", extra)
         row.update(nx=nx, ny=ny)
         rows.append(row)
+        del sols
+        gc.collect()
         # plane strain: jaxfem (SuperLU, and the fastest plane-stress solver) against scikit-fem
         pbs, ths, rights = sheet(nx, ny, "plane-strain")
         ps = {"dofs": pbs.n_dofs, "nx": nx, "ny": ny, "jaxfem": {}}
@@ -404,11 +407,13 @@ def sweep_block(args, mode):
                     ext_tf.add(("torchfem", int(k.split("_")[1])), old["dofs"], v["seconds"])
             log(f"block {old['dofs']} dofs: reused from {args.reuse}")
             continue
-        if 3 * (2 * n + 1) * (n + 1) ** 2 > args.max_dofs:
+        if not args.min_dofs <= 3 * (2 * n + 1) * (n + 1) ** 2 <= args.max_dofs:
             continue
         pb, theta, right = block(n)
         row, sols = measure_size(pb, theta, right, args, ext, "block")
         row.update(n=n, mesh=f"{2 * n} x {n} x {n} hex8")
+        del sols
+        gc.collect()
         # torch-fem on the same mesh and boundary conditions, the full stretch in one increment
         cons = np.zeros((pb.mesh.n_nodes, 3), bool)
         cons.reshape(-1)[pb.fixed] = True
@@ -657,7 +662,7 @@ def plot(res, path):
             ax.plot(*zip(*pts), "k:", label="jaxfem assembly R + K (jitted)")
         names = sorted({k for r in rows for k in r.get("factor_solve", {})})
         for nm in names:
-            pts = [(r["dofs"], r["factor_solve"][nm]["seconds"]) for r in rows if "seconds" in r["factor_solve"].get(nm, {})]
+            pts = [(r["dofs"], r["factor_solve"][nm]["seconds"]) for r in rows if "seconds" in r.get("factor_solve", {}).get(nm, {})]
             if pts:
                 ax.plot(*zip(*pts), "--", marker=".", label=f"factor+solve {nm}")
         ax.set(xscale="log", yscale="log", xlabel="DOFs", ylabel="seconds", title=title)
@@ -705,7 +710,8 @@ def main():
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--only", choices=["sheet", "block", "documented"], action="append")
     ap.add_argument("--out", default=str(HERE / "results" / "forward.json"))
-    ap.add_argument("--max-dofs", type=int, default=10**9, help="leave out the sizes above this")
+    ap.add_argument("--max-dofs", type=int, default=10**9, help="leave out the sheet and block sizes above this")
+    ap.add_argument("--min-dofs", type=int, default=0, help="... and below this (unless --reuse has them)")
     ap.add_argument("--max-memory-gb", type=float, default=None,
                     help="abort past this resident memory (default: 75 %% of what is available at the start)")
     ap.add_argument("--reuse", default=None, help="an earlier forward.json: keep its rows of the same sizes "
@@ -713,7 +719,7 @@ def main():
     args = ap.parse_args()
     if args.reuse:
         REUSE.update(json.loads(Path(args.reuse).read_text()))
-    memory_watchdog(args.max_memory_gb or 0.75 * mem_available_gb())
+    memory_watchdog(args.max_memory_gb or min(0.75 * mem_available_gb(), 12.0))
     mode = "quick" if args.quick else "full" if args.full else "default"
     if args.quick:
         args.repeats = 1

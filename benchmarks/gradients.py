@@ -19,10 +19,14 @@ compilation), best of 3:
 
 It compares the gradient overhead with the target "at most 0.5 x a forward solve" and with the
 cost of finite differences (one forward solve per parameter, extrapolated). Compile times are
-reported separately. Writes benchmarks/results/gradients.json and gradients.png.
+reported separately. Besides wall seconds it records the process's CPU seconds (all threads),
+which other jobs on a shared machine disturb far less. Writes benchmarks/results/gradients.json
+and gradients.png.
 
-    python benchmarks/gradients.py            # ~15 minutes on 2 cores
-    python benchmarks/gradients.py --quick    # small meshes, a smoke test
+    python benchmarks/gradients.py                    # ~15 CPU minutes (55 wall minutes at load 10)
+    python benchmarks/gradients.py --only block-3d    # one problem; updates its entry in the json
+    python benchmarks/gradients.py --quick            # small meshes, a smoke test
+    python benchmarks/gradients.py --plot             # redraw gradients.png from the json
 """
 
 from __future__ import annotations
@@ -227,20 +231,26 @@ def breakdown(solver, theta, u) -> dict:
 
 
 def plot(results: dict, path: Path):
+    """Bars of wall and CPU seconds per problem, with the 0.5 x forward target for the overhead."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(results), figsize=(5.5 * len(results), 4))
-    for ax, (name, r) in zip(np.atleast_1d(axes), results.items()):
-        s = r["seconds"]
+    fig, axes = plt.subplots(1, len(results), figsize=(6 * len(results), 4.2), squeeze=False)
+    for ax, (name, r) in zip(axes[0], results.items()):
         labels = ["forward", "value\n+grad", "grad\noverhead", "JVP", f"vmap {BATCH}\n/ {BATCH}"]
-        vals = [s["forward"], s["value_and_grad"], s["gradient_overhead"], s["jvp"], s[f"batch{BATCH}_vmap"] / BATCH]
-        ax.bar(labels, vals, color=["C0", "C1", "C2", "C3", "C4"])
-        ax.axhline(TARGET_OVERHEAD * s["forward"], color="k", ls="--", lw=1, label="target overhead 0.5 x forward")
-        ax.set_title(f"{name}: {r['dofs']} DOFs, {r['n_params_E']} moduli\n"
-                     f"finite differences would take {r['finite_differences']['seconds_extrapolated']:.0f} s")
-        ax.set_ylabel("warm seconds (best of 3)")
+        x = np.arange(len(labels))
+        for k, (kind, s) in enumerate((("wall", r["seconds"]), ("CPU", r["cpu_seconds"]))):
+            overhead = s["value_and_grad"] - s["forward"]
+            vals = [s["forward"], s["value_and_grad"], overhead, s["jvp"], s[f"batch{BATCH}_vmap"] / BATCH]
+            ax.bar(x + (k - 0.5) * 0.38, vals, 0.38, label=f"{kind} seconds")
+            ax.hlines(TARGET_OVERHEAD * s["forward"], 1.6, 2.4, colors=f"C{k}", linestyles="--", lw=1.5)
+        ax.set_xticks(x, labels)
+        load = r.get("machine", {}).get("load_average_at_start", [np.nan])[0]
+        ax.set_title(f"{name}: {r['dofs']} DOFs, {r['n_params_E']} moduli ({r['linear_solver']})\n"
+                     f"dashes: target overhead 0.5 x forward; load average {load:.0f} on {r['machine']['cpus']} cores",
+                     fontsize=9)
+        ax.set_ylabel("warm seconds, best of 3")
         ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -250,13 +260,16 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="small meshes (smoke test)")
     parser.add_argument("--only", choices=["sheet-2d", "block-3d"], help="run one problem")
+    parser.add_argument("--plot", action="store_true", help="only redraw the plot from the saved results")
     args = parser.parse_args()
     _install_counters()
     builds = {"sheet-2d": (sheet, True), "block-3d": (block, args.quick)}
     out = ROOT / "benchmarks" / "results"
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"gradients{'_quick' if args.quick else ''}.json"
-    results = json.loads(path.read_text()) if args.only and path.exists() else {}  # --only updates one entry
+    results = json.loads(path.read_text()) if (args.only or args.plot) and path.exists() else {}
+    if args.plot:
+        return plot(results, path.with_suffix(".png"))
     for key, (build, separate_batch) in builds.items():
         if args.only in (None, key):
             machine = {"cpus": os.cpu_count(), "load_average_at_start": os.getloadavg(), "jax": jax.__version__}

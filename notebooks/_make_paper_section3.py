@@ -1,10 +1,12 @@
-"""Write notebooks/paper_section3.ipynb (without outputs) from the cells below.
+"""Write notebooks/paper_section3.ipynb from the cells below.
 
-    python notebooks/_make_paper_section3.py
+    python notebooks/_make_paper_section3.py             # without outputs
+    python notebooks/_make_paper_section3.py --execute   # run it headless and store the outputs
 
 Edit the cells here, not in the notebook, so that the two never drift apart.
 """
 
+import sys
 from pathlib import Path
 
 import nbformat
@@ -143,5 +145,11 @@ def build() -> nbformat.NotebookNode:
 
 if __name__ == "__main__":
     path = Path(__file__).with_name("paper_section3.ipynb")
-    nbformat.write(build(), path)
+    nb = build()
+    if "--execute" in sys.argv:
+        from nbclient import NotebookClient
+
+        NotebookClient(nb, timeout=600, kernel_name="python3",
+                       resources={"metadata": {"path": str(path.parent)}}).execute()
+    nbformat.write(nb, path)
     print(f"wrote {path}")

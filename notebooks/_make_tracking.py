@@ -25,6 +25,7 @@ from pathlib import Path
 import cv2
 import matplotlib.pyplot as plt
 import numpy as np
+from IPython.display import Image, display
 
 from refine import report, track_cmd
 from refine.bundle import read_bundle
@@ -76,11 +77,10 @@ bundle_dir = work / "bundle"
 argv = ["track", "--pattern", "grid", "--scale", str(scale), "--roi", ",".join(f"{v:g}" for v in roi_px),
         *map(str, paths), "--out", str(bundle_dir), "--E", str(truth.E)]
 assert track_cmd.run(parser.parse_args(argv)) == 0"""),
-    ("code", """fig, axes = plt.subplots(1, 2, figsize=(14, 4.5))
-for ax, k in zip(axes, (0, len(images) - 1)):
-    ax.imshow(plt.imread(bundle_dir / "overlays" / f"frame_{k:03d}.png"))
-    ax.set_title(f"overlay of frame {k} (orange boundary, green guide, blue validate; red x lost)")
-    ax.axis("off")"""),
+    ("md", """The overlays the command wrote (orange: boundary, green: guide, blue: validate points; a lost
+point would be a red x; frame 0 also shows the ROI, dashed, and the bundle's domain):"""),
+    ("code", """for k in (0, len(images) - 1):
+    display(Image(filename=bundle_dir / "overlays" / f"frame_{k:03d}.png", width=700))"""),
     ("code", """print((bundle_dir / "experiment.toml").read_text())
 print("\\n".join((bundle_dir / "points.csv").read_text().splitlines()[:6]), "\\n...")"""),
     ("md", """## 3. Diagnose the bundle
@@ -92,11 +92,13 @@ region, a hole, another law) compete on held-out points."""),
 d = diagnose(bundle)
 report.write(d, work / "diagnosis")
 print(report.summary(d))"""),
-    ("code", """fig, axes = plt.subplots(1, 2, figsize=(14, 4.5))
-for ax, name in zip(axes, ("regions.png", "residuals.png")):
-    ax.imshow(plt.imread(work / "diagnosis" / name))
-    ax.axis("off")"""),
-    ("code", """print(json.dumps({k: v for k, v in d.report().items() if k != "decision"}, indent=1)[:2500])"""),
+    ("code", """for name in ("regions.png", "residuals.png"):
+    display(Image(filename=work / "diagnosis" / name, width=800))"""),
+    ("code", """content = d.report()  # report.json; the outlines are shortened here
+for finding in content["findings"]:
+    if finding["region"]:
+        finding["region"]["polygon"] = f"[{len(finding['region']['polygon'])} vertices]"
+print(json.dumps({k: v for k, v in content.items() if k != "decision"}, indent=1))"""),
     ("md", """## 4. Found versus hidden"""),
     ("code", """domain = bundle.experiment.domain
 diagonal = np.hypot(domain.xmax - domain.xmin, domain.ymax - domain.ymin)

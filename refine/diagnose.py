@@ -75,15 +75,20 @@ class Diagnosis:
         if self.chosen.cause == "material-law":
             return [{"cause": "material-law", "region": None, "relative_elasticity": None, "modulus": None,
                      "law": self.chosen.law, "evidence": self._evidence()}]
-        for kind, cx, cy, a, b, ang, ratio in self.chosen.shapes:
+        std = self.chosen.z_std
+        for i, (kind, cx, cy, a, b, ang, ratio) in enumerate(self.chosen.shapes):
             cause = "hole" if kind == "hole" else ("stiffer-region" if ratio > 1 else "softer-region")
+            # z holds log ratios first, then 4 geometry unknowns (cx, cy, a, b) per shape, scaled
+            unc = {}
+            if std is not None and kind != "hole":
+                unc["relative_elasticity_std"] = round(float(ratio * std[i]), 4)
             out.append({"cause": cause,
                         "region": {"centroid": [round(float(cx), 4), round(float(cy), 4)],
                                    "area": round(float(np.pi * a * b), 4),
                                    "polygon": ellipse_polygon(cx, cy, a, b, ang),
                                    "axes": [round(float(a), 4), round(float(b), 4)], "angle": round(float(ang), 4)},
                         "relative_elasticity": round(float(ratio), 4), "modulus": None,
-                        "evidence": self._evidence()})
+                        **unc, "evidence": self._evidence()})
         return out
 
     def _evidence(self) -> str:

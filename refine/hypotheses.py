@@ -49,6 +49,7 @@ class Fitted:
     compiled: object = None
     z: object = None
     shapes_from: object = None
+    z_std: object = None
 
     def describe(self) -> str:
         parts = [f"{s[0]} at ({s[1]:.1f}, {s[2]:.1f}) axes ({s[3]:.1f}, {s[4]:.1f}) ratio {s[6]:.2f}"
@@ -80,8 +81,24 @@ def _fit(cause, compiled: Compiled, fit_mask, hold_mask, sigma, z0=None, shapes_
 
 def refit(f: Fitted, points, hold_mask, sigma) -> Fitted:
     """The same hypothesis refitted on other points (e.g. all guide points), from its solution,
-    reusing its compiled model."""
-    return _fit(f.cause, f.compiled, points, hold_mask, sigma, z0=f.z, shapes_from=f.shapes_from, law=f.law)
+    reusing its compiled model; with the standard errors of its unknowns."""
+    g = _fit(f.cause, f.compiled, points, hold_mask, sigma, z0=f.z, shapes_from=f.shapes_from, law=f.law)
+    g.z_std = standard_errors(g, points, sigma)
+    return g
+
+
+def standard_errors(f: Fitted, points, sigma) -> np.ndarray:
+    """Standard errors of the fitted unknowns z from the Gauss-Newton covariance
+    (J^T J)^-1 scaled by the reduced chi^2 (at least 1): how well the data fix each one."""
+    obs = f.compiled.model.obs
+    valid = np.isfinite(obs.displacements[:, points]).all(-1)
+    J = f.compiled.jacobian(f.z)[:, points][valid].reshape(-1, len(f.z)) / sigma
+    n, k = J.shape
+    scale = max(f.chi2_fit / max(n - k, 1), 1.0)
+    try:
+        return np.sqrt(np.clip(np.diag(np.linalg.inv(J.T @ J)), 0, None) * scale)
+    except np.linalg.LinAlgError:
+        return np.full(k, np.nan)
 
 
 def baseline(model: MeasuredModel, fit_mask, hold_mask, sigma) -> Fitted:

@@ -212,10 +212,11 @@ class PaperExperiment:
         from jaxfem.results import equivalent_strain
 
         moduli = list(moduli)
+        strain = jax.jit(lambda u, theta: equivalent_strain(self.model.solver, u, theta))  # op by op: slow
         maps = []
         for E in moduli:
             theta, u = self.equilibrium(E, frame)
-            maps.append((u, np.asarray(equivalent_strain(self.model.solver, u, theta))))
+            maps.append((u, np.asarray(strain(u, theta))))
         vmax = max(float(m.max()) for _, m in maps)
         nrows = -(-len(moduli) // ncols)
         fig, axes = plt.subplots(nrows, ncols, figsize=(4.6 * ncols, 2.9 * nrows), squeeze=False)

@@ -119,6 +119,8 @@ def render_sheet_images(truth: Truth, frames: Sequence[float] | int = (0.5, 1.0)
         reference first; ``roi_px = (x0, y0, x1, y1)`` pixels of the first image, the ROI widened
         by half a pitch so that grid crossings on its edges are tracked; ``scale`` in mm/px.
     """
+    if pattern not in ("grid", "speckle"):
+        raise RefineError(f"unknown pattern {pattern!r}; use 'grid' or 'speckle'")
     if isinstance(frames, (int, np.integer)):
         frames = tuple((k + 1) / frames for k in range(int(frames)))
     scale = float(scale_mm_per_px)
@@ -131,17 +133,15 @@ def render_sheet_images(truth: Truth, frames: Sequence[float] | int = (0.5, 1.0)
     shape = (int(np.ceil(reach[:, 1].max() + margin)), int(np.ceil(reach[:, 0].max() + margin)))
     if reach.min() < 0:
         raise RefineError(f"the region of interest {tuple(roi)} mm leaves the image at (0, 0) while the sheet "
-                         "deforms; move it away from the sheet's corner or use a smaller scale")
+                          "deforms; keep it far enough from the sheet's (0, 0) corner")
     common = dict(blur_sigma=blur_sigma, noise_sigma=noise_sigma, supersample=supersample)
     images = []
     for k, u in enumerate([None, *fields]):
         if pattern == "grid":
             image = tracking.render_grid(shape, pitch_px, line_width, u, seed=seed + k,
                                          origin=(x0 / scale, y0 / scale), **common)
-        elif pattern == "speckle":
-            image = tracking.render_speckle(shape, pitch_px / 8.0, u, seed=seed + k, pattern_seed=seed, **common)
         else:
-            raise RefineError(f"unknown pattern {pattern!r}; use 'grid' or 'speckle'")
+            image = tracking.render_speckle(shape, pitch_px / 8.0, u, seed=seed + k, pattern_seed=seed, **common)
         images.append(image)
     half = 0.5 * pitch_px
     roi_px = (max(0.0, x0 / scale - half), max(0.0, y0 / scale - half),

@@ -22,7 +22,8 @@ def summary(d) -> str:
             lines.append(f"Finding: material law - {k['law']} fits better than {d.bundle.experiment.law}.")
             continue
         reg = k["region"]
-        what = "hole" if k["cause"] == "hole" else f"{k['cause']} ({k['relative_elasticity']:.2f}x the background)"
+        pm = f" +- {k['relative_elasticity_std']:.2f}" if k.get("relative_elasticity_std") is not None else ""
+        what = "hole" if k["cause"] == "hole" else f"{k['cause']} ({k['relative_elasticity']:.2f}{pm} x the background)"
         lines.append(f"Finding: {what} centred at ({reg['centroid'][0]:.1f}, {reg['centroid'][1]:.1f}), "
                      f"area {reg['area']:.1f}, semi-axes {reg['axes'][0]:.1f} x {reg['axes'][1]:.1f}.")
     if r["findings"]:

@@ -52,23 +52,26 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser("track", help="track a grid or speckle pattern through images into a bundle",
                               description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("images", nargs="+", help="image files; the first is the reference (frame 0)")
-    p.add_argument("--out", required=True, help="bundle directory to write")
+    p.add_argument("--out", required=True, metavar="BUNDLE", help="bundle directory to write")
     p.add_argument("--pattern", choices=sorted(tracking.TRACKERS), default="grid", help="painted grid or speckle")
     scale = p.add_mutually_exclusive_group()
-    scale.add_argument("--scale", type=float, help="mm per pixel")
-    scale.add_argument("--grid-pitch", type=float, help="grid pitch in mm (derives the scale; grid pattern only)")
-    p.add_argument("--roi", help="X0,Y0,X1,Y1: tracked region in pixels of the first image (default: all of it)")
-    p.add_argument("--origin", default="0,0", help="X,Y: pixel of the first image that becomes (0, 0) mm")
+    scale.add_argument("--scale", type=float, metavar="MM_PER_PX", help="mm per pixel")
+    scale.add_argument("--grid-pitch", type=float, metavar="MM",
+                       help="grid pitch in mm (derives the scale; grid pattern only)")
+    p.add_argument("--roi", metavar="X0,Y0,X1,Y1",
+                   help="tracked region in pixels of the first image (default: all of it)")
+    p.add_argument("--origin", default="0,0", metavar="X,Y", help="pixel of the first image that becomes (0, 0) mm")
     p.add_argument("--name", help="experiment name (default: the bundle directory's name)")
     p.add_argument("--validate-fraction", type=float, default=0.2, help="share of interior points held out")
     p.add_argument("--seed", type=int, default=0, help="seed of the choice of validation points")
-    p.add_argument("--noise-std", default="auto", help="displacement noise in mm, or 'auto' (estimated by diagnose)")
+    p.add_argument("--noise-std", default="auto", metavar="auto|MM",
+                   help="displacement noise in mm, or 'auto' (estimated by diagnose)")
     p.add_argument("--kind", choices=("plane-stress", "plane-strain"), default="plane-stress")
     p.add_argument("--law", choices=LAWS, default="neo-hookean")
     p.add_argument("--E", type=float, default=1.0, help="background modulus (relative without forces)")
     p.add_argument("--nu", type=float, default=0.3)
     p.add_argument("--thickness", type=float, default=1.0, help="sheet thickness, mm")
-    p.add_argument("--overlays", help="directory of the overlay images (default: BUNDLE/overlays)")
+    p.add_argument("--overlays", metavar="DIR", help="directory of the overlay images (default: BUNDLE/overlays)")
     t = p.add_argument_group("tracker options (see tracking.GridTracker / tracking.SpeckleTracker)")
     t.add_argument("--spacing", type=float, help="speckle: distance between correlation points, px")
     t.add_argument("--subset", type=int, help="speckle: subset side, px (odd)")
@@ -295,10 +298,7 @@ def write_overlays(stack: np.ndarray, tracks: tracking.Tracks, bundle: Bundle, s
         tracks: the tracks in pixels; ``bundle`` the bundle made of them, in mm with ``scale`` (mm/px)
             and ``origin`` (px).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # not pyplot: the caller's backend (a notebook's) stays as it is
     from scipy.spatial import cKDTree
 
     directory.mkdir(parents=True, exist_ok=True)
@@ -309,7 +309,7 @@ def write_overlays(stack: np.ndarray, tracks: tracking.Tracks, bundle: Bundle, s
     marker = 2.0 + zoom
     paths = []
     for k, image in enumerate(stack):
-        fig = plt.figure(figsize=(zoom * cols / 100, zoom * rows / 100), dpi=100)
+        fig = Figure(figsize=(zoom * cols / 100, zoom * rows / 100), dpi=100)
         ax = fig.add_axes([0, 0, 1, 1])
         ax.imshow(image, cmap="gray", interpolation="nearest")
         ok = ~tracks.lost[k]
@@ -336,7 +336,6 @@ def write_overlays(stack: np.ndarray, tracks: tracking.Tracks, bundle: Bundle, s
         ax.axis("off")
         path = directory / f"frame_{k:03d}.png"
         fig.savefig(path)
-        plt.close(fig)
         paths.append(path)
     return paths
 
@@ -356,7 +355,8 @@ def _summary(tracks: tracking.Tracks, bundle: Bundle, scale: float, dropped: np.
           f"at {scale:.6g} mm/px: {counts}")
     print("  lost per frame: " + " ".join(f"{k}:{int(n)}" for k, n in enumerate(tracks.lost.sum(axis=1))))
     if dropped.size:
-        print(f"  left out {dropped.size} points outside the lattice's outline (ids {dropped[:8].tolist()}...)")
+        print(f"  left out {dropped.size} points outside the lattice's outline (ids {dropped[:8].tolist()}"
+              f"{'...' if dropped.size > 8 else ''})")
     if isinstance(domain, Rectangle):
         print(f"  domain: rectangle [{domain.xmin:.4g}, {domain.ymin:.4g}, {domain.xmax:.4g}, {domain.ymax:.4g}] mm")
     else:

@@ -2,6 +2,8 @@
 
 import argparse
 import csv
+import subprocess
+import sys
 
 import cv2
 import numpy as np
@@ -82,8 +84,13 @@ def test_bundle_reads_back_with_the_tracker_ids_and_image_axes_in_mm(tracked, ca
     assert "CHECK" in (out / "experiment.toml").read_text()
 
 
-def test_ids_are_the_same_in_every_file_and_every_frame(tracked):
+def test_ids_are_the_same_in_every_file_every_frame_and_every_run(tracked, grid_images, tmp_path):
     out, tracks, _ = tracked
+    paths, _ = grid_images
+    assert run("--scale", SCALE, "--roi", ",".join(map(str, ROI)), *paths, "--out", tmp_path / "again",
+               "--validate-fraction", 0.25, "--seed", 3) == 0
+    for name in ("points.csv", "displacements.csv"):
+        assert (tmp_path / "again" / name).read_text() == (out / name).read_text()
     with open(out / "points.csv") as f:
         ids = [int(row["id"]) for row in csv.DictReader(f)]
     with open(out / "displacements.csv") as f:
@@ -135,6 +142,18 @@ def test_the_summary_says_points_frames_and_lost_per_frame(grid_images, tmp_path
     assert run("--scale", SCALE, "--roi", "60,50,200,140", *paths, "--out", tmp_path / "b") == 0
     text = capsys.readouterr().out
     assert "tracked" in text and "3 images" in text and "lost per frame: 0:0 1:0 2:" in text
+
+
+def test_the_nonrigid_command_line_runs_track(grid_images, tmp_path):
+    paths, _ = grid_images
+    command = [sys.executable, "-m", "refine.cli", "track", "--scale", str(SCALE), "--roi", "60,50,200,140",
+               *map(str, paths[:2]), "--out", str(tmp_path / "b")]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert read_bundle(tmp_path / "b").observations.n_frames == 1
+    command[command.index("60,50,200,140")] = "60,50,400,140"
+    done = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 2 and "nonrigid track: error:" in done.stderr and "outside the image" in done.stderr
 
 
 def test_grid_pitch_gives_the_scale(grid_images, tmp_path):
