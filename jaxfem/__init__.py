@@ -16,8 +16,10 @@ Everything is float64.
 """
 
 from . import _config  # noqa: F401
+from .batch import batch_displacement, stack_params
 from .derivatives import taylor_test
 from .elements import ELEMENTS, Element, get_element
+from .geometry import check_geometry, with_geometry
 from .errors import InvertedElementError, JaxfemError, MeshError, ProblemError, SolverError
 from .io import read_mesh, to_meshio, write_vtu
 from .materials import LAWS, Material, get_material, lame
@@ -40,5 +42,6 @@ __all__ = [
     "Problem", "dofs", "cauchy_stress", "deformation_gradient", "equivalent_strain",
     "first_piola_stress", "green_lagrange_strain", "principal_strains", "second_piola_stress",
     "strain_energy", "von_mises_stress", "Ellipse", "Rect", "curve_nodes", "morph", "plate",
-    "Solution", "Solver", "taylor_test",
+    "Solution", "Solver", "taylor_test", "batch_displacement", "stack_params", "check_geometry",
+    "with_geometry",
 ]

@@ -94,6 +94,8 @@ class Solver:
             newton_solve, asm=self.assembler, lin=self._lin, nnz=pat.nnz, opts=self.options,
             facet_element=self._facet_element, finite=problem.material.finite))
         self._equilibrium = self._make_equilibrium()
+        # compiled once: an eager jax.grad would otherwise run the implicit rule op by op (~1 s)
+        self._displacement = jax.jit(self._equilibrium)
 
     # ------------------------------------------------------------------ parameters
     def params(self, **kw) -> dict:
@@ -172,7 +174,7 @@ class Solver:
         """
         u0, loads0 = self._start(theta, start)
         u0, loads0 = jax.lax.stop_gradient((u0, loads0))
-        return self._equilibrium(theta, u0, loads0).reshape(-1, self.problem.mesh.dim)
+        return self._displacement(theta, u0, loads0).reshape(-1, self.problem.mesh.dim)
 
     def solve(self, theta, start=None) -> Solution:
         """Solve and return a :class:`Solution`; raise :class:`SolverError` if Newton fails."""
