@@ -41,7 +41,7 @@ obs = ex.bundle.observations
 print({role: int((obs.roles == role).sum()) for role in ("boundary", "guide", "validate")},
       "points;", ex.model.mesh.n_cells, ex.model.mesh.element, "cells")"""),
     ("code", """ax = jf.plot.cell_map(ex.model.mesh, ex.model.mesh.regions, cmap="Pastel1", label="region",
-                     title="inversion mesh, the rectangle (region 1) and the tracked grid")
+                     title="inversion mesh, rectangle and tracked grid")
 for role, style in (("boundary", "ks"), ("guide", "bo"), ("validate", "r^")):
     p = obs.reference[obs.roles == role]
     ax.plot(p[:, 0], p[:, 1], style, ms=4, label=role)

@@ -30,7 +30,7 @@ from .parametrize import RegionModuli
 from .result import RefineResult
 
 RELATIVE_ONLY = (
-    "no force was measured, so only relative elasticity E_R = (E2 b2)/(E1 b1) (eq. 8) is identifiable: "
+    "only relative elasticity E_R = (E2 b2)/(E1 b1) (eq. 8) is identifiable without a measured force: "
     "for a plane-stress sheet driven by its measured boundary the displacements depend on modulus x "
     "thickness only through ratios, so E and the thickness b are confounded and no absolute modulus "
     "can be given. Add a measured force (forces.csv, e.g. a load cell on one side) to fix E b."
@@ -57,7 +57,7 @@ class ForcedObjective(Objective):
         super().__init__(model, param, **kw)
         forces = model.obs.forces
         if forces is None or edge not in forces.edges:
-            raise IdentifiabilityError(f"the bundle has no measured force on the {edge!r} side; " + RELATIVE_ONLY)
+            raise IdentifiabilityError(f"the bundle has no measured force on the {edge!r} side, so " + RELATIVE_ONLY)
         self.edge = edge
         self.nodes = model.mesh.side(edge)
         if not np.isin(self.nodes, model.loop).all():
@@ -115,7 +115,7 @@ class Elasticity:
             IdentifiabilityError: no force was measured; only :attr:`relative` is known.
         """
         if self.background_modulus is None:
-            raise IdentifiabilityError(RELATIVE_ONLY)
+            raise IdentifiabilityError("no force was measured, so " + RELATIVE_ONLY)
         return self.background_modulus * (1.0 if region is None else self.relative[region])
 
 
@@ -151,4 +151,4 @@ def fit_region_moduli(model: MeasuredModel, masks, names=(), *, edge: str = "rig
         note = (f"absolute: the force measured on the {edge} side fixes E b; moduli assume the thickness "
                 f"b = {thickness:g}")
         return Elasticity(relative, float(E0 * np.exp(z[0])), thickness, note), result
-    return Elasticity(relative, None, thickness, RELATIVE_ONLY), result
+    return Elasticity(relative, None, thickness, "relative: no force was measured, so " + RELATIVE_ONLY), result

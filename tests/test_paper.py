@@ -80,7 +80,6 @@ def test_gradient_fit_reaches_its_minimum_in_fewer_solves_than_brent(experiment,
     assert n_lm < 0.7 * min(n_brent)
 
 
-@pytest.mark.slow  # compiling L-BFGS-B's line search around the solve takes about a minute
 def test_lbfgsb_agrees_with_least_squares(experiment):
     r = experiment.lbfgsb()
     lm = experiment.least_squares("lm")  # compiled already by the test above
