@@ -54,10 +54,9 @@ class Solution:
 
     def newton_log(self) -> list[tuple[int, float]]:
         """(load step, relative free residual) after every Newton correction, in order."""
-        n = int(self.info["n_log"]) if "n_log" in self.info else len(self.info["residual_log"])
         res, step = np.asarray(self.info["residual_log"]), np.asarray(self.info["log_step"])
-        keep = np.isfinite(res[:n]) & (step[:n] >= 0)
-        return list(zip(step[:n][keep].tolist(), res[:n][keep].tolist()))
+        keep = np.isfinite(res) & (step >= 0)  # unused slots are NaN with step -1
+        return list(zip(step[keep].tolist(), res[keep].tolist()))
 
 
 class Solver:

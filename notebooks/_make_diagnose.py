@@ -5,8 +5,9 @@
 
 from pathlib import Path
 
-import nbformat
-from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook
+import sys
+
+from _nbgen import write
 
 CELLS = [
     ("md", """# Diagnosis: what is the initial model getting wrong?
@@ -62,11 +63,5 @@ for f in d.tried:
 ]
 
 
-def main():
-    nb = new_notebook(cells=[new_markdown_cell(src) if kind == "md" else new_code_cell(src) for kind, src in CELLS])
-    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
-    nbformat.write(nb, Path(__file__).with_name("diagnose.ipynb"))
-
-
 if __name__ == "__main__":
-    main()
+    write(CELLS, Path(__file__).with_name("diagnose.ipynb"), execute="--execute" in sys.argv)

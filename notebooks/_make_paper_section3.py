@@ -9,8 +9,7 @@ Edit the cells here, not in the notebook, so that the two never drift apart.
 import sys
 from pathlib import Path
 
-import nbformat
-from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook
+from _nbgen import write
 
 CELLS = [
     ("md", """# The paper's Section 3.1, reproduced: Brent's search, the cubic fit, and gradients
@@ -136,20 +135,6 @@ print(f"notebook ran in {time.perf_counter() - t0:.0f} s")"""),
 ]
 
 
-def build() -> nbformat.NotebookNode:
-    nb = new_notebook()
-    nb.cells = [new_markdown_cell(src) if kind == "md" else new_code_cell(src) for kind, src in CELLS]
-    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
-    return nb
-
-
 if __name__ == "__main__":
-    path = Path(__file__).with_name("paper_section3.ipynb")
-    nb = build()
-    if "--execute" in sys.argv:
-        from nbclient import NotebookClient
-
-        NotebookClient(nb, timeout=600, kernel_name="python3",
-                       resources={"metadata": {"path": str(path.parent)}}).execute()
-    nbformat.write(nb, path)
-    print(f"wrote {path}")
+    write(CELLS, Path(__file__).with_name("paper_section3.ipynb"), execute="--execute" in sys.argv,
+          cwd=Path(__file__).parent)

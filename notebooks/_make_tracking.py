@@ -6,8 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import nbformat
-from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook
+from _nbgen import write
 
 CELLS = [
     ("md", """# From images to a named cause
@@ -117,20 +116,6 @@ print(f"whole notebook: {time.perf_counter() - start:.0f} s")"""),
 ]
 
 
-def build() -> nbformat.NotebookNode:
-    nb = new_notebook()
-    nb.cells = [new_markdown_cell(src) if kind == "md" else new_code_cell(src) for kind, src in CELLS]
-    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
-    return nb
-
-
 if __name__ == "__main__":
-    target = Path(__file__).with_name("tracking.ipynb")
-    nb = build()
-    if "--execute" in sys.argv:
-        from nbclient import NotebookClient
-
-        NotebookClient(nb, timeout=600, kernel_name="python3",
-                       resources={"metadata": {"path": str(target.parent.parent)}}).execute()
-    nbformat.write(nb, target)
-    print(f"wrote {target}")
+    write(CELLS, Path(__file__).with_name("tracking.ipynb"), execute="--execute" in sys.argv,
+          cwd=Path(__file__).parents[1])

@@ -173,7 +173,7 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
         tried += _try_hypotheses(model, candidates, fit, hold, sigma_eff, cfg, log, null, n_res)
         chosen = _choose(base, tried, cfg)
         if chosen is not base:  # refit the chosen model on every guide point
-            chosen = _refit(model, chosen, guide, hold, sigma_eff)
+            chosen = refit(chosen, guide, hold, sigma_eff)
     log(f"chosen: {chosen.describe()}")
     d = Diagnosis(bundle, null, base, chosen, tried, candidates, z, model, seconds=0.0)
     eb, er = _errors(obs, base.predicted), _errors(obs, chosen.predicted)
@@ -235,7 +235,3 @@ def _choose(base: Fitted, tried: list[Fitted], cfg: DiagnoseConfig) -> Fitted:
     the held-out misfit; the initial model if none does."""
     good = [f for f in tried[1:] if f.bic < base.bic - cfg.bic_margin and f.chi2_holdout < base.chi2_holdout]
     return min(good, key=lambda f: f.bic) if good else base
-
-
-def _refit(model, chosen: Fitted, guide, hold, sigma) -> Fitted:
-    return refit(chosen, guide, hold, sigma)

@@ -275,8 +275,7 @@ def levenberg_marquardt(compiled: Compiled, points, sigma: float, z0=None, max_s
         if rel < rtol or np.max(np.abs(dz)) < 1e-8:
             ok = True
             break
-    n_frames = obs.n_frames
     return RefineResult(values={"z": z, **compiled.param.values(z)}, error=0.5 * cost,
-                        n_forward=n_fwd * n_frames, n_gradient=n_jac, seconds=time.perf_counter() - t0,
+                        n_forward=n_fwd, n_gradient=n_jac, seconds=time.perf_counter() - t0,
                         history=history, method="levenberg-marquardt", converged=ok,
                         message="converged" if ok else f"stopped after {max_steps} steps")

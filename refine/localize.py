@@ -13,7 +13,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from .fit import Objective
+from .fit import Objective, lbfgsb
 from .parametrize import ModulusField, cell_adjacency
 
 
@@ -40,31 +40,14 @@ class Candidate:
 
 
 def fit_field(model, weight: float, sigma: float, points=None, maxiter: int = 80, kind: str = "tv"):
-    """Fit a per-cell log-modulus field to the matched points (bounded L-BFGS, adjoint gradients).
+    """Fit a per-cell log-modulus field to the matched points (bounded L-BFGS, adjoint gradients:
+    each iteration costs one forward and one adjoint solve per frame).
 
-    The optimiser is SciPy's L-BFGS-B (the reference Fortran code) around one compiled
-    value-and-gradient: each iteration costs one forward and one adjoint solve per frame, and
-    nothing is compiled twice (jaxopt's jitted update would compile the model once more for every
-    line-search evaluation inside it). Returns ``(z (n_cells,), info dict)``: z is
-    log(E / E_initial) per cell.
+    Returns ``(z (n_cells,), RefineResult)``: z is log(E / E_initial) per cell.
     """
-    import jax
-    from scipy.optimize import minimize
-
     param = ModulusField(model.mesh, model.experiment.E, weight=weight, kind=kind, eps=0.05)
-    obj = Objective(model, param, points=points, noise_std=sigma)
-    vg = jax.jit(jax.value_and_grad(obj.value))
-    calls = []
-
-    def fun(z):
-        v, g = vg(z)
-        calls.append(float(v))
-        return float(v), np.asarray(g, dtype=np.float64)
-
-    res = minimize(fun, np.zeros(param.size), jac=True, method="L-BFGS-B", bounds=[(-4.0, 4.0)] * param.size,
-                   options={"maxiter": maxiter, "ftol": 1e-7})
-    return np.asarray(res.x), {"iterations": int(res.nit), "evaluations": len(calls), "value": float(res.fun),
-                               "message": str(res.message)}
+    res = lbfgsb(Objective(model, param, points=points, noise_std=sigma), bounds=(-4.0, 4.0), maxiter=maxiter)
+    return np.asarray(res.values["z"]), res
 
 
 def segment(mesh, z: np.ndarray, threshold: float | None = None, min_area: float = 0.0,

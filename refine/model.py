@@ -172,10 +172,3 @@ class MeasuredModel:
         if self.mesh.element in ("tri3", "tet4"):  # follow a geometry morph of the reference nodes
             probe = probe.moved(theta["X"], self.obs.reference)
         return jax.vmap(probe)(U)
-
-    def check(self, U) -> None:
-        """Raise a clear error if a solve failed (NaN displacements)."""
-        if not np.all(np.isfinite(np.asarray(U))):
-            raise jf.SolverError("the model could not be solved for some frame (NaN displacements); "
-                                 "run Solver.solve on that frame for the detailed reason", step=0,
-                                 load_factor=0.0, reason="no-convergence")
