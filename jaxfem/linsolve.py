@@ -5,19 +5,23 @@ A solver is made for a :class:`~jaxfem.assembly.Pattern` and called as
 The matrices jaxfem hands over are symmetric (Dirichlet rows and columns are replaced by the
 identity), so a symmetric factorisation is valid.
 
-- ``"pardiso"``: Intel MKL PARDISO via pypardiso (host callback); fastest here from ~50k unknowns.
+- ``"pardiso"``: Intel MKL PARDISO (the MKL that pypardiso installs), host callback; symbolic
+  analysis once per pattern, then only numeric factorisation and substitution per matrix.
 - ``"superlu"``: SciPy's SuperLU with a symmetric-mode ordering (host callback); always available.
 - ``"klu"``: KLU via klujax, an XLA custom call (no callback); good for small systems.
 - ``"cg"``: Jacobi-preconditioned conjugate gradients in pure JAX (runs on a GPU; iterative).
 - ``"dense"``: LAPACK on the dense matrix, for toy sizes and tests only.
-- ``"auto"``: measured choice (see ``benchmarks/forward.py``): PARDISO where installed and the
-  system has more than 50k unknowns, else SuperLU.
+- ``"auto"``: measured choice (see ``benchmarks/forward.py``): PARDISO where installed (with its
+  analysis reused it was the fastest per Newton iteration at every size from 2k unknowns, 2D and
+  3D); without it KLU for small 2D systems (< 8k unknowns) and SuperLU otherwise (KLU's fill
+  grows badly in 3D).
 """
 
 from __future__ import annotations
 
-import hashlib
+import ctypes
 import importlib.util
+import weakref
 from typing import Callable
 
 import jax
@@ -28,7 +32,7 @@ import scipy.sparse.linalg as spla
 
 from .assembly import Pattern, matvec
 
-AUTO_PARDISO_MIN_DOFS = 50_000
+AUTO_KLU_MAX_DOFS_2D = 8_000
 
 
 def available() -> list[str]:
@@ -52,22 +56,22 @@ def _csr(pattern: Pattern, vals) -> sp.csr_matrix:
 
 
 class _FactorCache:
-    """Keeps the last factorisation, keyed by a hash of the matrix values: repeated solves with
-    the same tangent (tangent and adjoint solves after Newton, a Jacobian's many directions) cost
-    one factorisation and many cheap triangular solves."""
+    """Keeps the last factorisation and the matrix values it belongs to: repeated solves with the
+    same tangent (tangent and adjoint solves after Newton, a Jacobian's many directions) cost one
+    factorisation and many cheap triangular solves. Comparing the values costs one pass over them
+    (cheaper than hashing them)."""
 
     def __init__(self, factor: Callable):
         self.factor = factor
-        self.key = None
+        self.vals = None
         self.solve = None
 
     def __call__(self, vals, rhs):
-        v = np.ascontiguousarray(vals)
-        key = hashlib.blake2b(v.view(np.uint8), digest_size=16).digest()
-        if key != self.key:
-            self.key, self.solve = None, None
+        v = np.asarray(vals, dtype=np.float64)
+        if self.vals is None or not np.array_equal(v, self.vals):
+            self.vals, self.solve = None, None
             self.solve = self.factor(v)
-            self.key = key
+            self.vals = v.copy()
         return self.solve(np.asarray(rhs, dtype=np.float64))
 
 
@@ -86,49 +90,115 @@ def superlu(pattern: Pattern) -> Callable:
     return lambda vals, rhs, arrays: _host_callback(cache, vals, rhs)
 
 
+def _mkl_pardiso():
+    """MKL's ``pardiso`` entry point (ctypes), loaded once per process.
+
+    The library is the MKL runtime that pypardiso depends on; constructing a ``PyPardisoSolver``
+    searches the environment for it (0.6 s with a large site-packages), so it is done only once.
+    """
+    global _PARDISO_FN
+    if _PARDISO_FN is None:
+        import pypardiso
+
+        fn = pypardiso.PyPardisoSolver().libmkl.pardiso
+        p_i32, p_void = ctypes.POINTER(ctypes.c_int32), ctypes.c_void_p
+        fn.argtypes = [ctypes.POINTER(ctypes.c_int64), p_i32, p_i32, p_i32, p_i32, p_i32, p_void, p_void,
+                       p_void, p_void, p_i32, p_void, p_i32, p_void, p_void, p_i32]
+        fn.restype = None
+        _PARDISO_FN = fn
+    return _PARDISO_FN
+
+
+_PARDISO_FN = None
+
+
+class PardisoHandle:
+    """One MKL PARDISO instance for one sparsity pattern (real symmetric indefinite, upper triangle).
+
+    The symbolic analysis (fill-reducing METIS ordering, phase 11) depends only on the pattern,
+    because scaling and weighted matching are off; it is done once, on the first matrix. Every
+    later matrix costs a numeric factorisation (phase 22) and each right-hand side a forward and
+    backward substitution (phase 33). Index arrays are zero-based int32 made once, so a call does
+    no conversion. The factors live in MKL's memory and are released with the handle.
+
+    Args:
+        indptr, indices: CSR structure of the upper triangle (sorted column indices), ``(n + 1,)``
+            and ``(nnz_upper,)``.
+    """
+
+    def __init__(self, indptr, indices):
+        self.n = len(indptr) - 1
+        self.ia = np.ascontiguousarray(indptr, dtype=np.int32)
+        self.ja = np.ascontiguousarray(indices, dtype=np.int32)
+        self.pt = np.zeros(64, np.int64)
+        self.iparm = np.zeros(64, np.int32)
+        ip = self.iparm  # zero-based; the MKL manual numbers them from 1
+        ip[0] = 1    # use the values below, not MKL's defaults
+        ip[1] = 2    # nested dissection (METIS) ordering
+        ip[9] = 8    # pivot perturbation 1e-8
+        ip[10] = 0   # no scaling and
+        ip[12] = 0   # no weighted matching: the analysis then depends on the pattern only
+        ip[34] = 1   # zero-based indices
+        self.analysed = False
+        self.a = None
+        self.factorisations = 0
+        fn, pt, n = _mkl_pardiso(), self.pt, self.n
+        weakref.finalize(self, PardisoHandle._release, fn, pt, self.iparm.copy(), n)
+
+    def _call(self, phase, a, b=None, x=None):
+        err = ctypes.c_int32(0)
+        one, i32 = ctypes.c_int32(1), ctypes.c_int32
+        ptr = lambda arr: None if arr is None else arr.ctypes.data  # noqa: E731
+        _mkl_pardiso()(self.pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(one),
+                       ctypes.byref(i32(1)), ctypes.byref(i32(-2)), ctypes.byref(i32(phase)),
+                       ctypes.byref(i32(self.n)), ptr(a), ptr(self.ia), ptr(self.ja), None,
+                       ctypes.byref(i32(1)), ptr(self.iparm), ctypes.byref(i32(0)), ptr(b), ptr(x),
+                       ctypes.byref(err))
+        return err.value
+
+    @staticmethod
+    def _release(fn, pt, iparm, n):
+        err, i32 = ctypes.c_int32(0), ctypes.c_int32
+        fn(pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(i32(1)), ctypes.byref(i32(1)),
+           ctypes.byref(i32(-2)), ctypes.byref(i32(-1)), ctypes.byref(i32(n)), None, None, None, None,
+           ctypes.byref(i32(1)), iparm.ctypes.data, ctypes.byref(i32(0)), None, None, ctypes.byref(err))
+
+    def factor(self, a) -> bool:
+        """Numeric factorisation of the matrix with upper-triangle values ``a``; False if it failed."""
+        a = np.ascontiguousarray(a, dtype=np.float64)
+        if not self.analysed:
+            if self._call(11, a) != 0:
+                return False
+            self.analysed = True
+        self.factorisations += 1
+        self.a = a  # kept: the substitutions' iterative refinement reads the matrix
+        return self._call(22, a) == 0
+
+    def solve(self, b):
+        """x with A x = b for the last factorised A; NaN if the substitution failed."""
+        b = np.ascontiguousarray(b, dtype=np.float64)
+        x = np.empty_like(b)
+        if self._call(33, self.a, b, x) != 0:
+            x[:] = np.nan
+        return x
+
+
 def pardiso(pattern: Pattern) -> Callable:
-    """MKL PARDISO (pypardiso), real symmetric indefinite mode on the upper triangle."""
-    import pypardiso
-
+    """MKL PARDISO, real symmetric indefinite mode on the upper triangle, symbolic analysis once."""
     upper = np.flatnonzero(pattern.cols >= pattern.rows)
-    r, c = pattern.rows[upper], pattern.cols[upper]
     indptr = np.zeros(pattern.n_dofs + 1, np.int64)
-    np.add.at(indptr, r + 1, 1)
-    indptr = np.cumsum(indptr)
-    n = pattern.n_dofs
-
-    holder = {}
-
-    def make():
-        # Constructing a PyPardisoSolver searches the environment for MKL's runtime (0.6 s with a
-        # large site-packages): make one per pattern and refactorise it.
-        solver = pypardiso.PyPardisoSolver(mtype=-2)
-        solver.set_iparm(1, 1)  # use the parameters below rather than MKL defaults
-        solver.set_iparm(2, 2)  # nested dissection (METIS) ordering
-        solver.set_iparm(10, 8)  # pivot perturbation 1e-8
-        solver.set_iparm(11, 0)  # no scaling (symmetric indefinite default would need weighted matching)
-        solver.set_iparm(13, 0)
-        return solver
+    np.add.at(indptr, pattern.rows[upper] + 1, 1)
+    handle = PardisoHandle(np.cumsum(indptr), pattern.cols[upper])
 
     def factor(vals):
-        A = sp.csr_matrix((np.asarray(vals)[upper], c, indptr), shape=(n, n))
-        A.has_sorted_indices = True
-        solver = holder.get("solver") or holder.setdefault("solver", make())
-        try:
-            solver.factorize(A)
-        except Exception:  # noqa: BLE001 - pardiso reports a singular matrix as a generic error
+        if not handle.factor(vals[upper]):  # pardiso reports a singular matrix as an error code
             return lambda b: np.full(b.shape, np.nan)
-
-        def solve(b):
-            try:
-                return solver.solve(A, b)
-            except Exception:  # noqa: BLE001
-                return np.full(b.shape, np.nan)
-
-        return solve
+        return handle.solve
 
     cache = _FactorCache(factor)
-    return lambda vals, rhs, arrays: _host_callback(cache, vals, rhs)
+    solve = lambda vals, rhs, arrays: _host_callback(cache, vals, rhs)  # noqa: E731
+    solve.handle = handle
+    return solve
 
 
 def klu(pattern: Pattern) -> Callable:
@@ -168,11 +238,25 @@ def dense(pattern: Pattern) -> Callable:
 SOLVERS = {"pardiso": pardiso, "superlu": superlu, "klu": klu, "cg": cg, "dense": dense}
 
 
-def make_linear_solver(name: str, pattern: Pattern) -> tuple[str, Callable]:
-    """The solver called ``name`` (or the ``"auto"`` choice) for ``pattern``; returns (name, solve)."""
+def auto_choice(n_dofs: int, dim: int) -> str:
+    """The solver ``"auto"`` picks for ``n_dofs`` unknowns of a ``dim``-dimensional mesh."""
+    have = available()
+    if "pardiso" in have:
+        return "pardiso"
+    if dim == 2 and n_dofs < AUTO_KLU_MAX_DOFS_2D and "klu" in have:
+        return "klu"
+    return "superlu"
+
+
+def make_linear_solver(name: str, pattern: Pattern, dim: int | None = None) -> tuple[str, Callable]:
+    """The solver called ``name`` (or the ``"auto"`` choice) for ``pattern``; returns (name, solve).
+
+    ``dim`` (the mesh dimension, 2 or 3) informs the ``"auto"`` choice; by default it is read off
+    the pattern's element dofs where that is unambiguous and taken as 3 otherwise."""
     if name == "auto":
-        big = pattern.n_dofs > AUTO_PARDISO_MIN_DOFS
-        name = "pardiso" if big and "pardiso" in available() else "superlu"
+        if dim is None:
+            dim = 2 if pattern.edofs.shape[1] in (6, 8, 12) else 3  # tri3, quad4, tri6 in 2D
+        name = auto_choice(pattern.n_dofs, dim)
     if name not in SOLVERS:
         raise ValueError(f"unknown linear solver {name!r}; known: {', '.join(SOLVERS)}, auto")
     if name not in available():

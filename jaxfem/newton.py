@@ -6,7 +6,10 @@ prescribed increment pushed through the tangent, so boundary elements are not to
 corrections with a back-tracking guard against inverted elements. A step that fails is cut in half
 and retried; a step that converged quickly lets the next one grow. Convergence needs both the free
 residual (relative to the reaction and load scale) and the last increment (relative to the
-displacement) to be small.
+displacement) to be small. An attempt that is going nowhere is abandoned early: when
+``diverge_after`` corrections in a row fail to reduce the free residual by ``progress`` (Newton near
+a solution reduces it by orders of magnitude), the step is cut back at once instead of running to
+``max_iter``; a failed attempt then costs a few linear solves, not twenty.
 
 The outcome is data (``status``, the failing step, the residual log), because nothing can be raised
 inside ``jit``; :class:`~jaxfem.solver.Solver` turns a failure into a :class:`SolverError`.
@@ -39,6 +42,10 @@ class NewtonOptions:
         max_steps: attempted load steps in all (accepted and cut back).
         grow_below: a step that converged in at most this many corrections doubles the next one.
         line_search: halvings allowed when a Newton update would invert an element.
+        diverge_after: consecutive corrections without progress that end a load step attempt
+            (0: never end early, run to ``max_iter``).
+        progress: a correction makes progress when it multiplies the free residual by at most
+            this factor (or the residual is already within 100 x ``rtol``).
         log_size: residual norms kept for the solver log.
     """
 
@@ -50,6 +57,8 @@ class NewtonOptions:
     max_steps: int = 100
     grow_below: int = 5
     line_search: int = 8
+    diverge_after: int = 2
+    progress: float = 0.7
     log_size: int = 256
 
 
@@ -130,8 +139,9 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
         u1 = jnp.where(ok, u1, u + du_c)  # no valid predictor: start from the prescribed jump
 
         def body(c):
-            u1, it, _, _, reason, stl = c
+            u1, it, _, _, reason, stl, bad = c
             R, vals = assemble(u1, loads)
+            res0, _ = norms(R, loads)
             # any part of the prescribed jump a damped update left out is imposed again here
             gap = jnp.zeros(n).at[fixed].set(loads["u_D"] - u1[fixed])
             rhs = -(R + matvec(vals, arrays["rows"], arrays["cols"], gap)) * free + gap
@@ -148,14 +158,17 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
                     & (miss <= 1e-10 * jnp.maximum(jnp.linalg.norm(loads["u_D"]), unorm)))
             reason = jnp.where(bad_solve, SINGULAR, jnp.where(~ok, INVERTED,
                                jnp.where(~jnp.isfinite(res), NAN, reason)))
-            return u2, it + 1, conv, (reason != OK) | bad_solve | ~ok, reason, stl
+            stalled = (res > opts.progress * res0) & (res > 100 * opts.rtol * scale)
+            bad = jnp.where(stalled, bad + 1, 0)
+            hopeless = (opts.diverge_after > 0) & (bad >= opts.diverge_after) & ~conv
+            return u2, it + 1, conv, (reason != OK) | bad_solve | ~ok | hopeless, reason, stl, bad
 
         def cond(c):
-            _, it, conv, failed, _, _ = c
+            _, it, conv, failed, _, _, _ = c
             return (~conv) & (~failed) & (it < opts.max_iter)
 
-        init = (u1, 0, False, False, jnp.array(OK), st)
-        u1, it, conv, failed, reason, st = jax.lax.while_loop(cond, body, init)
+        init = (u1, 0, False, False, jnp.array(OK), st, 0)
+        u1, it, conv, failed, reason, st, _ = jax.lax.while_loop(cond, body, init)
         reason = jnp.where(conv, OK, jnp.where(reason == OK, NO_CONVERGENCE, reason))
         return u1, s_new, it, conv, reason, st
 

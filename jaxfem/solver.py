@@ -87,7 +87,7 @@ class Solver:
             "free": jnp.asarray(free, jnp.float64), "keep": jnp.asarray(keep, jnp.float64),
             "diag_fixed": jnp.asarray(diag_fixed), "tfacets": jnp.asarray(problem.traction_facets, jnp.int32),
         }
-        self.linear_solver, self._lin = make_linear_solver(linear_solver, pat)
+        self.linear_solver, self._lin = make_linear_solver(linear_solver, pat, mesh.dim)
         self._facet_element = mesh.el.facet
         self._newton = jax.jit(partial(
             newton_solve, asm=self.assembler, lin=self._lin, nnz=pat.nnz, opts=self.options,
@@ -182,8 +182,8 @@ class Solver:
         status = int(info["status"])
         if status != 0:
             step, s = int(info["fail_step"]), float(info["fail_load_factor"])
-            why = {"no-convergence": "Newton did not converge within the iteration limit even after "
-                                     "cutting the load increment back",
+            why = {"no-convergence": "Newton did not converge (it stopped reducing the residual, or "
+                                     "reached the iteration limit) even after cutting the load increment back",
                    "inverted-element": "an element inverted (det F <= 0) and cutting the load step back "
                                        "did not avoid it",
                    "singular-tangent": "the tangent matrix is singular (is the body unconstrained, or "
