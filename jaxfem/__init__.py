@@ -30,7 +30,8 @@ from .problem import Problem, dofs
 from .results import (cauchy_stress, deformation_gradient, equivalent_strain, first_piola_stress,
                       green_lagrange_strain, principal_strains, second_piola_stress, strain_energy,
                       von_mises_stress)
-from .shapes import Ellipse, Rect, curve_nodes, morph, plate
+from .mesher import domain, plate
+from .shapes import Ellipse, Polygon, Rect, curve_nodes, morph
 from .solver import Solution, Solver
 from . import plot
 
@@ -41,7 +42,7 @@ __all__ = [
     "to_quadratic", "NewtonOptions", "Probe", "boundary_interpolation", "boundary_loop", "locate",
     "Problem", "dofs", "cauchy_stress", "deformation_gradient", "equivalent_strain",
     "first_piola_stress", "green_lagrange_strain", "principal_strains", "second_piola_stress",
-    "strain_energy", "von_mises_stress", "Ellipse", "Rect", "curve_nodes", "morph", "plate",
+    "strain_energy", "von_mises_stress", "Ellipse", "Polygon", "Rect", "curve_nodes", "morph", "plate", "domain",
     "Solution", "Solver", "taylor_test", "batch_displacement", "stack_params", "check_geometry",
     "with_geometry",
 ]

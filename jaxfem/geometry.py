@@ -1,6 +1,6 @@
 """Geometry as a parameter: holes and inclusions moved by a smooth mesh morph, never remeshed.
 
-A plate is meshed once around its holes and inclusions (:func:`~jaxfem.shapes.plate`), and
+A plate is meshed once around its holes and inclusions (:func:`~jaxfem.mesher.plate`), and
 :func:`~jaxfem.shapes.morph` turns the mesh into a pure JAX map from shape parameters
 ``(n_shapes, 5)`` = ``(cx, cy, a, b, angle)`` per shape to node coordinates. Putting those nodes
 into ``theta["X"]`` makes the geometry one more differentiable parameter of

@@ -42,7 +42,8 @@ def domain_mesh(experiment: Experiment, h: float, element: str = "tri3", inclusi
         return jf.plate(dom.xmin, dom.ymin, dom.xmax, dom.ymax, h, holes=holes, inclusions=inclusions,
                         element=element)
     if isinstance(dom, Polygon):
-        from jaxfem.shapes import Polygon as Outline, domain
+        from jaxfem.mesher import domain
+        from jaxfem.shapes import Polygon as Outline
 
         return domain(Outline(np.asarray(dom.vertices)), h, holes=holes, inclusions=inclusions, element=element)
     path = dom.path if root is None else f"{root}/{dom.path}"

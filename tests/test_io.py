@@ -7,7 +7,8 @@ import pytest
 from jaxfem.errors import MeshError
 from jaxfem.io import read_mesh, to_meshio, write_vtu
 from jaxfem.mesh import box, rectangle
-from jaxfem.shapes import Ellipse, plate
+from jaxfem.mesher import plate
+from jaxfem.shapes import Ellipse
 
 MESHES = {
     "tri3": lambda: rectangle(0, 0, 2, 1, 4, 2, "tri3"),

@@ -9,8 +9,8 @@ import pytest
 
 from jaxfem.errors import InvertedElementError, MeshError
 from jaxfem.mesh import check_orientation
-from jaxfem.shapes import (Ellipse, Polygon, Rect, check_morph, curve_nodes, domain, min_angles, morph,
-                           plate)
+from jaxfem.mesher import domain, plate
+from jaxfem.shapes import Ellipse, Polygon, Rect, check_morph, curve_nodes, min_angles, morph
 
 W, H = 40.0, 30.0
 HOLE = Ellipse(12, 15, 6, 4, 0.3)
