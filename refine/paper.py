@@ -171,11 +171,15 @@ class PaperExperiment:
     # ------------------------------------------------------------------ gradients
     def least_squares(self, method: str = "lm", start: float | None = None, rtol: float = 1e-5,
                       atol: float = 1e-4, progress: bool = False) -> RefineResult:
-        """Levenberg-Marquardt (``"lm"``) or Gauss-Newton (``"gn"``) on the log ratio, exact
-        Jacobians, started from ``start`` kPa (default: the uniform model). ``values`` and every
+        """Levenberg-Marquardt (``"lm"``), Gauss-Newton (``"gn"``) or the third-order tensor method
+        (``"tensor"``, :func:`~refine.fit.tensor_least_squares`) on the log ratio, exact
+        derivatives, started from ``start`` kPa (default: the uniform model). ``values`` and every
         history row carry the modulus under ``E_inclusion`` and the misfit under ``error``."""
         z0 = self.z(self.E0 if start is None else start)
-        r = fit.least_squares(self.objective, z0, method=method, rtol=rtol, atol=atol, progress=progress)
+        if method == "tensor":
+            r = fit.tensor_least_squares(self.objective, z0, order=3, rtol=rtol, progress=progress)
+        else:
+            r = fit.least_squares(self.objective, z0, method=method, rtol=rtol, atol=atol, progress=progress)
         return self._in_kpa(r, "misfit")
 
     def lbfgsb(self, start: float | None = None, tol: float = 1e-6, maxiter: int = 60,
