@@ -72,9 +72,9 @@ def score(truth, d) -> dict:
         cands = [f for f in found if f["region"]]
         if not cands:
             continue
-        f = min(cands, key=lambda f: np.hypot(f["region"]["centroid"][0] - shape.cx, f["region"]["centroid"][1] - shape.cy))
-        c = f["region"]["centroid"]
-        row["centroid_error"].append(float(np.hypot(c[0] - shape.cx, c[1] - shape.cy) / DIAGONAL))
+        centre = np.asarray(shape.params[:2])  # Ellipse and Rect alike
+        f = min(cands, key=lambda f: np.hypot(*(np.asarray(f["region"]["centroid"]) - centre)))
+        row["centroid_error"].append(float(np.hypot(*(np.asarray(f["region"]["centroid"]) - centre)) / DIAGONAL))
         row["truth_size"].append(float(np.sqrt(shape.area)))
         area = f["region"]["area"] / shape.area - 1
         if ratio > 0:
@@ -106,7 +106,14 @@ def run_case(case: dict) -> dict:
     t0 = time.perf_counter()
     bundle = synthetic_bundle(truth, seed=case["seed"], spacing=case["spacing"], noise=case["noise"],
                               fractions=fractions)
-    d = diagnose(bundle, log=lambda m: None)
+    try:
+        d = diagnose(bundle, log=lambda m: None)
+    except Exception as e:  # noqa: BLE001 - a failed diagnosis is a failed case, recorded as such
+        return {**case, "error": f"{type(e).__name__}: {e}", "passed": False, "right_cause": False,
+                "false_alarm": False, "missed": True, "found": [], "truth": sorted(truth.causes), "gain": None,
+                "seconds": time.perf_counter() - t0, "centroid_error": [], "ratio_error": [],
+                "signed_ratio_error": [], "area_error": [], "signed_area_error": [], "truth_ratio": [],
+                "truth_size": [], "load_average": [round(x, 2) for x in os.getloadavg()], "chosen": ""}
     row = {**case, **score(truth, d)}
     row["points"] = int(bundle.observations.n_points)
     row["data_seconds"] = time.perf_counter() - t0 - d.seconds
@@ -135,7 +142,7 @@ def summarise(rows) -> dict:
     """Counts, rates and medians of one cell's rows."""
     flat = lambda key: [x for r in rows for x in r[key]]  # noqa: E731
     gains = [r["gain"] for r in rows if r["gain"]]
-    return {"cases": len(rows), "pass_rate": float(np.mean([r["passed"] for r in rows])),
+    return {"cases": len(rows), "errors": sum("error" in r for r in rows), "pass_rate": float(np.mean([r["passed"] for r in rows])),
             "right_cause_rate": float(np.mean([r["right_cause"] for r in rows])),
             "false_alarm_rate": float(np.mean([r["false_alarm"] for r in rows])),
             "missed_rate": float(np.mean([r["missed"] for r in rows])),

@@ -50,6 +50,7 @@ class Fitted:
     z: object = None
     shapes_from: object = None
     z_std: object = None
+    remesh: object = None
 
     def describe(self) -> str:
         parts = [f"{s[0]} at ({s[1]:.1f}, {s[2]:.1f}) axes ({s[3]:.1f}, {s[4]:.1f}) ratio {s[6]:.2f}"
@@ -79,10 +80,27 @@ def _fit(cause, compiled: Compiled, fit_mask, hold_mask, sigma, z0=None, shapes_
                   shapes_from=shapes_from, **kw)
 
 
-def refit(f: Fitted, points, hold_mask, sigma) -> Fitted:
-    """The same hypothesis refitted on other points (e.g. all guide points), from its solution,
-    reusing its compiled model; with the standard errors of its unknowns."""
-    g = _fit(f.cause, f.compiled, points, hold_mask, sigma, z0=f.z, shapes_from=f.shapes_from, law=f.law)
+def refit(f: Fitted, points, hold_mask, sigma, max_remesh: int = 2) -> Fitted:
+    """The same hypothesis refitted on other points (e.g. all guide points), with the standard
+    errors of its unknowns.
+
+    A hypothesis with fitted shapes is remeshed at them first and refitted from there, again
+    while its shapes still move by more than a fifth of the element size: a morph of the first
+    mesh can only take a shape so far (its cells distort, then invert), which leaves a region
+    fitted too small with too large a ratio, or a hole too small. Without shapes the compiled
+    model is reused."""
+    if f.remesh is None or not f.shapes:
+        g = _fit(f.cause, f.compiled, points, hold_mask, sigma, z0=f.z, shapes_from=f.shapes_from, law=f.law)
+    else:
+        g, start = None, f
+        for _ in range(max(1, max_remesh)):
+            h = f.remesh(start.shapes, points, hold_mask)
+            if g is None or h.chi2_fit < g.chi2_fit:
+                g = h
+            moved = max(np.max(np.abs(np.subtract(a[1:5], b[1:5]))) for a, b in zip(start.shapes, h.shapes))
+            if moved < 0.2 * f.model.h:
+                break
+            start = h
     g.z_std = standard_errors(g, points, sigma)
     return g
 
@@ -139,9 +157,10 @@ def _disjoint(ells, gap):
 
 
 def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, geometry: bool = True,
-                h: float | None = None) -> Fitted:
+                h: float | None = None, ratios=None) -> Fitted:
     """Regions of other stiffness: ellipses ``shapes [(cx, cy, a, b, angle)]`` with fitted log
-    moduli (start: x3 for stiffer, /3 for softer) and, with ``geometry``, fitted centres and axes."""
+    moduli (start: ``ratios``, default x3 for stiffer, /3 for softer) and, with ``geometry``,
+    fitted centres and axes."""
     ex, obs = base.experiment, base.obs
     ells = _disjoint([jf.Ellipse(*_clamp_shape(s, ex, base.spacing)) for s in shapes], base.spacing)
     mesh = domain_mesh(ex, h or base.h, inclusions=ells)
@@ -153,7 +172,7 @@ def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, 
         parts.append(ShapeGeometry(jf.morph(mesh, ells), np.stack([e.params for e in ells]), scale=base.spacing))
     param = Combined(tuple(parts))
     z0 = np.zeros(param.size)
-    z0[: len(ells)] = np.log(3.0) * np.asarray(signs, float)
+    z0[: len(ells)] = np.log(3.0) * np.asarray(signs, float) if ratios is None else np.log(ratios)
     n = len(ells)
 
     def shapes_from(z):
@@ -165,6 +184,9 @@ def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, 
                law=ex.law)
     causes = {"stiffer-region" if s[6] > 1 else "softer-region" for s in out.shapes}
     out.cause = causes.pop() if len(causes) == 1 and n == 1 else "regions"
+    if geometry:
+        out.remesh = lambda fitted, pts, hold: fit_regions(base, [f[1:6] for f in fitted], signs, pts, hold, sigma,
+                                                           h=h, ratios=[f[6] for f in fitted])
     return out
 
 
@@ -188,7 +210,9 @@ def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | 
         g = np.asarray(param.shape_params(z))[0]
         return [("hole", *g[:4], g[4], 0.0)]
 
-    return _fit("hole", Compiled(model, param), fit_mask, hold_mask, sigma, shapes_from=shapes_from, law=ex.law)
+    out = _fit("hole", Compiled(model, param), fit_mask, hold_mask, sigma, shapes_from=shapes_from, law=ex.law)
+    out.remesh = lambda fitted, pts, hold: fit_hole(base, fitted[0][1:6], pts, hold, sigma, h=h)
+    return out
 
 
 ALTERNATIVE_LAWS = {"neo-hookean": ("mooney-rivlin", "saint-venant-kirchhoff"),
