@@ -66,7 +66,7 @@ def score(truth, d) -> dict:
            "false_alarm": bool(found) and not want, "missed": bool(want) and not found,
            "gain": d.errors["gain"], "seconds": d.seconds,
            "centroid_error": [], "ratio_error": [], "signed_ratio_error": [], "area_error": [],
-           "signed_area_error": [], "truth_ratio": [], "truth_size": []}
+           "signed_area_error": [], "truth_ratio": [], "truth_size": [], "ratio_std": []}
     shapes = [(inc.shape, inc.ratio) for inc in truth.inclusions] + [(h, 0.0) for h in truth.holes]
     for shape, ratio in shapes:
         cands = [f for f in found if f["region"]]
@@ -78,6 +78,7 @@ def score(truth, d) -> dict:
         row["truth_size"].append(float(np.sqrt(shape.area)))
         area = f["region"]["area"] / shape.area - 1
         if ratio > 0:
+            row["ratio_std"].append(f.get("relative_elasticity_std"))
             row["ratio_error"].append(float(abs(f["relative_elasticity"] / ratio - 1)))
             row["signed_ratio_error"].append(float(f["relative_elasticity"] / ratio - 1))
             row["truth_ratio"].append(float(ratio))
@@ -138,6 +139,13 @@ def _med(v):
     return float(np.median(v)) if v else None
 
 
+def _within_3_std(rows):
+    """Share of fitted ratios whose reported standard error (x3) covers the truth."""
+    hits = [abs(e) * t < 3 * s for r in rows for e, t, s in zip(r["signed_ratio_error"], r["truth_ratio"],
+                                                                  r.get("ratio_std", [])) if s is not None]
+    return float(np.mean(hits)) if hits else None
+
+
 def summarise(rows) -> dict:
     """Counts, rates and medians of one cell's rows."""
     flat = lambda key: [x for r in rows for x in r[key]]  # noqa: E731
@@ -153,6 +161,7 @@ def summarise(rows) -> dict:
             "median_signed_ratio_error": _med(flat("signed_ratio_error")),
             "ratio_within_10pct_rate": float(np.mean([e < RATIO_TOL for e in flat("ratio_error")]))
             if flat("ratio_error") else None,
+            "ratio_within_3_std_rate": _within_3_std(rows),
             "median_hole_area_error": _med(flat("area_error")),
             "median_signed_area_error": _med(flat("signed_area_error")),
             "median_gain": _med(gains), "gain_2x_rate": float(np.mean([g >= GAIN_MIN for g in gains])) if gains else None,
