@@ -44,6 +44,8 @@ class GridTracker:
         max_jump: largest difference, in pitches, between a crossing's motion in one frame and
             its neighbours' before it is declared lost (an identity swap guard).
         min_quality: refiner quality under which a crossing is lost (None: the refiner's own).
+        line_shape: centre lines of the "lines" refiner: "adaptive" (a parabola per line where
+            the data ask for it, e.g. at a stiff inclusion's edge), "straight" or "curved".
     """
 
     refiner: str = "lines"
@@ -52,14 +54,16 @@ class GridTracker:
     snake: SnakeOptions = field(default_factory=SnakeOptions)
     max_jump: float = 0.3
     min_quality: float | None = None
+    line_shape: str = "adaptive"
 
     def _refiner(self):
         if self.refiner not in REFINERS:
             raise TrackingError(f"unknown grid refiner {self.refiner!r}; use one of {sorted(REFINERS)}")
         kind = REFINERS[self.refiner]
-        if self.min_quality is None or kind is SnakeOnlyRefiner:
-            return kind()
-        return kind(min_quality=self.min_quality)
+        options = {} if self.min_quality is None or kind is SnakeOnlyRefiner else {"min_quality": self.min_quality}
+        if kind is LineFitRefiner:
+            options["shape"] = self.line_shape
+        return kind(**options)
 
     def track(self, images, roi=None) -> Tracks:
         """Track the grid crossings through ``images`` (sequence of (rows, cols) or paths).
@@ -153,6 +157,7 @@ class GridTracker:
         kind = {"lines": "symmetry", "hessian": "peak-sharpness", "snake": "snake"}[self.refiner]
         meta = {"tracker": "grid", "refiner": self.refiner, "pitch_px": geometry.pitch,
                 "line_width_px": geometry.line_width, "dark_lines": geometry.dark_lines,
+                **({"line_shape": self.line_shape} if self.refiner == "lines" else {}),
                 "col_step_px": tuple(geometry.col_step), "row_step_px": tuple(geometry.row_step)}
         return Tracks(ids=ids, reference=positions[0], positions=positions, lost=lost, quality=quality,
                       grid_index=np.stack([ii, jj], axis=1), quality_kind=kind, meta=meta)
