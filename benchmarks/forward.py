@@ -8,7 +8,9 @@ For a sweep of mesh sizes it measures, on this machine and in one run:
 - one factor + solve of the same tangent (jaxfem's tangent at the solution, constrained as the
   solver does) by every sparse direct solver installed here: SciPy SuperLU (its default COLAMD, and
   jaxfem's symmetric-mode options), KLU (klujax), MKL PARDISO (pypardiso, fresh solver object each
-  time), CHOLMOD (scikit-sparse, when importable);
+  time), CHOLMOD (scikit-sparse, when importable); each row's ``per_iteration_ratio`` spells out
+  the ratio of the target (best jaxfem seconds per Newton iteration over the fastest of these
+  complete factor + solves) and, for reference, the same over the numeric phases alone;
 - where the time of one Newton iteration goes (the jitted residual + tangent assembly alone);
 - peers: scikit-fem on the same triangle mesh in plane strain (against jaxfem in plane strain),
   and torch-fem on the same hexahedral block and on its own neo-Hookean benchmark
@@ -439,7 +441,7 @@ def sweep_block(args, mode):
                "constraints": cons, "u_D": np.asarray(theta["u_D"]), "right": rmask,
                "increments": np.array([0.0, 1.0]), "repeats": args.repeats, "budget": args.peer_budget}
         tfr = {}
-        for threads in ((1, 2) if n == SIZES_3D[mode][0] else (1,)):
+        for threads in (args.torchfem_threads if n == SIZES_3D[mode][0] else (1,)):
             pred = ext_tf.predict(("torchfem", threads), pb.n_dofs)
             if pred is not None and pred > args.peer_budget:
                 tfr[f"threads_{threads}"] = {"skipped": f"predicted {pred:.0f} s > {args.peer_budget:.0f} s"}
@@ -501,7 +503,7 @@ def sweep_documented(args, mode):
                                                                "steps": len(incs) - 1, "load": loadavg()}
         log(f"torch-fem benchmark N={N}: jaxfem with torch-fem's increments {t:.3f} s, {its} its")
         tfr = {}
-        for threads in ((1, 2) if N == DOC_N[mode][0] else (1,)):
+        for threads in (args.torchfem_threads if N == DOC_N[mode][0] else (1,)):
             job = {"kind": "documented", "N": N, "U": DOC["U"], "n_inc": DOC["n_inc"], "E": DOC["E"],
                    "nu": DOC["nu"], "repeats": 1 if N > 5 or threads > 1 else args.repeats,
                    "budget": args.peer_budget}
@@ -608,7 +610,14 @@ def seed(ext, row):
 
 
 def write_partial(args):
-    RESULTS["meta"]["load_now"] = loadavg()
+    meta = RESULTS["meta"]
+    meta["load_now"] = loadavg()
+    meta["max_load_seen"] = max(meta.get("max_load_seen", 0.0), meta["load_now"], meta["load_start"])
+    meta["machine_loaded"] = meta["max_load_seen"] > 3.0
+    if meta["machine_loaded"]:
+        meta["load_note"] = (f"1-min load average up to {meta['max_load_seen']:.1f} on {os.cpu_count()} cores during "
+                             "this run: other jobs shared the CPUs, so every timing is inflated and noisier than "
+                             "on an idle machine (each carries its own load figure)")
     RESULTS["targets"] = targets(RESULTS)
     Path(args.out).write_text(json.dumps(RESULTS, indent=1, default=_json_default))
     try:
@@ -724,6 +733,9 @@ def main():
     ap.add_argument("--budget", type=float, default=60.0, help="skip a jaxfem solve predicted over this (s)")
     ap.add_argument("--peer-budget", type=float, default=None, help="same for one peer solve (s)")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--torchfem-threads", default="1,2",
+                    help="thread counts for torch-fem at the smallest size (larger sizes: 1); on a loaded "
+                         "machine a 2-thread run mostly measures the contention")
     ap.add_argument("--only", choices=["sheet", "block", "documented"], action="append")
     ap.add_argument("--out", default=str(HERE / "results" / "forward.json"))
     ap.add_argument("--max-dofs", type=int, default=10**9, help="leave out the sheet and block sizes above this")
@@ -733,6 +745,7 @@ def main():
     ap.add_argument("--reuse", default=None, help="an earlier forward.json: keep its rows of the same sizes "
                     "and measure only the others (e.g. --full after a default run)")
     args = ap.parse_args()
+    args.torchfem_threads = tuple(int(t) for t in args.torchfem_threads.split(","))
     if args.reuse:
         REUSE.update(json.loads(Path(args.reuse).read_text()))
     memory_watchdog(args.max_memory_gb or min(0.75 * mem_available_gb(), 12.0))
@@ -753,6 +766,7 @@ def main():
         "platform": platform.platform(), "python": platform.python_version(), "versions": versions(),
         "jax_devices": [str(d) for d in jax.devices()], "load_start": loadavg(),
         "budget_s": args.budget, "peer_budget_s": args.peer_budget, "repeats": args.repeats,
+        "command_line": sys.argv[1:], "torchfem_threads": list(args.torchfem_threads),
         "reused_rows_from": None if not args.reuse else {"file": args.reuse, "date": REUSE.get("meta", {}).get("date"),
                                                           "load_start": REUSE.get("meta", {}).get("load_start")},
         "auto_klu_max_dofs_2d_without_pardiso": AUTO_KLU_MAX_DOFS_2D, "linear_solvers_available": available(),

@@ -91,9 +91,10 @@ class Reduced:
 def reduce(energy: Callable, kind: str) -> Reduced:
     """Specialise a 3D energy psi(F3, p) to the kinematic ``kind``.
 
-    For plane stress the in-plane tangent is the Hessian of psi condensed on the out-of-plane
-    stretch (a Schur complement, exact because d psi/d F33 = 0 there); every derivative still
-    comes from JAX, and derivatives through the stretch use its implicit ``custom_jvp``.
+    For plane stress the in-plane tangent is the derivative of the in-plane stress with the
+    out-of-plane stretch following F (the Hessian of psi condensed on the stretch, exact because
+    d psi/d F33 = 0 there); every derivative comes from JAX, and derivatives through the stretch
+    use its implicit ``custom_jvp``.
     """
     if kind not in KINDS:
         raise ValueError(f"unknown kinematics {kind!r}; known: {', '.join(KINDS)}")
@@ -113,17 +114,17 @@ def reduce(energy: Callable, kind: str) -> Reduced:
         return jax.grad(energy)(full(F, p), p)[:d, :d]
 
     def stress_and_tangent(F, p):
+        if kind == "plane-stress":
+            # The condensed tangent is the derivative of the in-plane stress with the stretch
+            # following F (its implicit custom_jvp): four forward directions through one Newton
+            # solve for the stretch. Measured 2.6x faster on CPU than condensing the 9x9 Hessian
+            # (a Schur complement), which XLA fuses badly, and equal to it to rounding.
+            A, P = jax.jacfwd(lambda G: (stress(G, p),) * 2, has_aux=True)(F)  # A[i, K, j, L]
+            return P, jnp.moveaxis(A.reshape(d, d, d * d), -1, 0)
         F3 = full(F, p)
         P3 = jax.grad(energy)(F3, p)
         H = jax.hessian(energy)(F3, p)  # H[i, K, j, L] = d2 psi / dF_iK dF_jL
-        if kind == "plane-stress":  # condense the out-of-plane stretch (static condensation)
-            # Multiplying by the identity through a dot materialises H: on CPU, plain slicing lets
-            # XLA fuse (and recompute) the whole Hessian into every entry of A, ~8x slower.
-            H = jnp.dot(H.reshape(9, 9), jnp.eye(9, dtype=H.dtype),
-                        precision=jax.lax.Precision.HIGHEST).reshape(3, 3, 3, 3)
-            A = H[:d, :d, :d, :d] - H[:d, :d, 2, 2][:, :, None, None] * H[2, 2, :d, :d] / H[2, 2, 2, 2]
-        else:
-            A = H[:d, :d, :d, :d]
+        A = H[:d, :d, :d, :d]
         # A[m] = dP/dF_m with m the flattened (j, L): symmetric, so transpose by reshape
         return P3[:d, :d], A.reshape(d * d, d, d)
 
