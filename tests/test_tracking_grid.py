@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from tracking import (GridNotFoundError, GridTracker, ImageError, RoiError, TrackingError, deformed_points,
-                      grid_truth, render_grid, scaled, smooth_displacement, track_images)
+from tracking import (GridNotFoundError, GridTracker, ImageError, RoiError, TrackingError, creased_displacement,
+                      deformed_points, grid_truth, render_grid, scaled, smooth_displacement, track_images)
 
 SHAPE = (200, 220)
 ROI = (14, 14, 206, 186)
@@ -86,36 +86,8 @@ def test_line_fit_refinement_beats_hessian_and_snake_alone():
     assert rms["lines"] < 0.7 * rms["snake"], rms
 
 
-def kinked_displacement(seed: int):
-    """A stretch plus three creases: across each of three seeded random lines the displacement
-    gradient jumps by 8-15 % (continuous displacement), as at the edge of a stiff inclusion.
-    Returns u(X, Y) and a function giving each point's distance (px) to the nearest crease."""
-    rng = np.random.default_rng(seed)
-    centre = np.array([(SHAPE[1] - 1) / 2, (SHAPE[0] - 1) / 2])
-    stretch = rng.uniform(0.1, 0.15)
-    angles = rng.uniform(0, np.pi, 3)
-    normals = np.stack([np.cos(angles), np.sin(angles)], axis=1)
-    offsets = rng.uniform(-50, 50, 3)
-    jumps = rng.uniform(0.08, 0.15, 3) * rng.choice([-1, 1], 3)
-    directions = rng.normal(size=(3, 2))
-    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-
-    def displacement(x, y):
-        dx, dy = np.asarray(x) - centre[0], np.asarray(y) - centre[1]
-        ux, uy = stretch * dx, -0.3 * stretch * dy
-        for n, c, j, d in zip(normals, offsets, jumps, directions):
-            crease = j * np.maximum(n[0] * dx + n[1] * dy - c, 0.0)
-            ux, uy = ux + crease * d[0], uy + crease * d[1]
-        return ux, uy
-
-    def distance(xy):
-        return np.min(np.abs((xy - centre) @ normals.T - offsets), axis=1)
-
-    return displacement, distance
-
-
 def test_adaptive_line_shape_follows_creases_and_keeps_straight_accuracy():
-    field, distance = kinked_displacement(seed=5)
+    field, distance = creased_displacement(SHAPE, seed=5)
     images = [render_grid(SHAPE, 12.0, 2.0, scaled(field, s), noise_sigma=2.0, seed=20 + k)
               for k, s in enumerate([0.0, 0.5, 1.0])]
     rms = {}

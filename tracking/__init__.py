@@ -17,15 +17,16 @@ from ._range import points_3d, range_lookup
 from ._roles import ROLES, assign_roles
 from ._snake import SnakeOptions
 from ._speckle_tracker import SpeckleTracker
-from ._synthetic import (GridPattern, SpecklePattern, deformed_points, grid_truth, render_grid,
-                         render_pattern, render_range, render_speckle, scaled, smooth_displacement)
+from ._synthetic import (GridPattern, SpecklePattern, creased_displacement, deformed_points, grid_truth,
+                         render_grid, render_pattern, render_range, render_speckle, scaled,
+                         smooth_displacement)
 from ._tracks import Tracks, scale_from_grid
 
 __all__ = [
     "Tracks", "track_images", "make_tracker", "TRACKERS", "GridTracker", "SpeckleTracker",
     "SnakeOptions", "REFINERS", "load_images", "roi_mask", "range_lookup", "points_3d",
     "assign_roles", "ROLES", "scale_from_grid", "render_grid", "render_speckle", "render_range",
-    "render_pattern", "grid_truth", "deformed_points", "smooth_displacement", "scaled",
+    "render_pattern", "grid_truth", "deformed_points", "smooth_displacement", "creased_displacement", "scaled",
     "GridPattern", "SpecklePattern",
     "TrackingError", "ImageError", "RoiError", "GridNotFoundError",
 ]

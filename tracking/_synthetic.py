@@ -281,6 +281,44 @@ def smooth_displacement(shape: tuple[int, int], stretch: float = 0.2, seed: int 
     return displacement
 
 
+def creased_displacement(shape: tuple[int, int], stretch: float = 0.12, jump: float = 0.12, seed: int = 0,
+                         creases: int = 3):
+    """A stretch plus ``creases`` seeded random straight creases, for tests of crossings where the
+    strain changes abruptly (as at the edge of a stiff inclusion).
+
+    Across each crease the displacement gradient jumps by ``jump`` times a random unit vector
+    (its size drawn in 2/3-1 x ``jump``, the displacement stays continuous); the creases pass
+    within 50 px of the image centre. The stretch is ``stretch`` along x with 30 % lateral
+    contraction, about the centre.
+
+    Returns:
+        ``(displacement, distance)``: u(X, Y) -> (ux, uy) in pixels, and ``distance(xy (n, 2))``,
+        each point's distance (px) to the nearest crease in the reference image.
+    """
+    rng = np.random.default_rng(seed)
+    rows, cols = shape
+    centre = np.array([(cols - 1) / 2.0, (rows - 1) / 2.0])
+    angles = rng.uniform(0, np.pi, creases)
+    normals = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    offsets = rng.uniform(-50, 50, creases)
+    jumps = jump * rng.uniform(2 / 3, 1.0, creases) * rng.choice([-1, 1], creases)
+    directions = rng.normal(size=(creases, 2))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+
+    def displacement(x, y):
+        dx, dy = np.asarray(x) - centre[0], np.asarray(y) - centre[1]
+        ux, uy = stretch * dx, -0.3 * stretch * dy
+        for n, c, j, d in zip(normals, offsets, jumps, directions):
+            crease = j * np.maximum(n[0] * dx + n[1] * dy - c, 0.0)
+            ux, uy = ux + crease * d[0], uy + crease * d[1]
+        return ux, uy
+
+    def distance(xy):
+        return np.min(np.abs((np.asarray(xy, float) - centre) @ normals.T - offsets), axis=1)
+
+    return displacement, distance
+
+
 def scaled(displacement: Displacement, factor: float) -> Displacement:
     """The displacement field ``factor`` * u (a frame part-way through a loading sequence)."""
     return lambda x, y: tuple(factor * np.asarray(c) for c in displacement(x, y))
