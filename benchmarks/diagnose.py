@@ -149,7 +149,7 @@ def _within_3_std(rows):
 def summarise(rows) -> dict:
     """Counts, rates and medians of one cell's rows."""
     flat = lambda key: [x for r in rows for x in r[key]]  # noqa: E731
-    gains = [r["gain"] for r in rows if r["gain"]]
+    gains = [r["gain"] for r in rows if r["gain"] and r["truth"]]  # homogeneous cases have nothing to gain
     return {"cases": len(rows), "errors": sum("error" in r for r in rows), "pass_rate": float(np.mean([r["passed"] for r in rows])),
             "right_cause_rate": float(np.mean([r["right_cause"] for r in rows])),
             "false_alarm_rate": float(np.mean([r["false_alarm"] for r in rows])),
@@ -175,7 +175,7 @@ def write_results(rows, machine: dict, settings: dict) -> dict:
         cells.setdefault((r["spacing"], r["noise"], r["cause"]), []).append(r)
     groups = [{"spacing": s, "noise": n, "cause": c, **summarise(rs), "rows": sorted(rs, key=lambda r: r["k"])}
               for (s, n, c), rs in sorted(cells.items(), key=lambda kv: (kv[0][0], kv[0][1], CAUSES.index(kv[0][2])))]
-    results = {"settings": settings, "machine": machine,
+    results = {"settings": settings, "machine": machine, "run_note": settings.get("note", ""),
                "note": ("seconds: wall seconds of one diagnosis (data generation excluded, JIT compilation "
                         "included) in one single-threaded worker process on the machine below, at the load "
                         "average stored in each row"),
@@ -198,6 +198,7 @@ def main():
     ap.add_argument("--shard", default="0/1", help="i/n: run every n-th case starting at the i-th")
     ap.add_argument("--rows", default=str(OUT / "diagnose_rows.jsonl"), help="JSONL of finished cases (resumed)")
     ap.add_argument("--merge", nargs="*", default=None, help="only summarise these rows files")
+    ap.add_argument("--note", default="", help="what the reader must know about this run (stored in the JSON)")
     args = ap.parse_args()
     machine = {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
                "cpu_count": os.cpu_count(), "workers": args.workers, "threads_per_worker": 1}
