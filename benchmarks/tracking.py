@@ -1,7 +1,8 @@
 """Benchmark of the tracking package: accuracy and speed of the grid and speckle trackers.
 
 Sweeps noise and strain on synthetic images (ground truth known analytically), compares the grid
-refiners (symmetric line fitting, Hessian extremum, snake crossings alone) and both trackers with
+refiners (symmetric line fitting, Hessian extremum, snake crossings alone) and the line fit's
+centre-line shapes on fields with creases (straight, curved, adaptive), and both trackers with
 OpenCV's pyramidal Lucas-Kanade and scikit-image's upsampled phase correlation on the same 8-bit
 images and points, measures points per second, and runs the DIC Challenge Sample 3 images when
 ../shared/ holds them. Writes benchmarks/results/tracking.json and tracking.png.
@@ -35,8 +36,8 @@ import cv2  # noqa: E402
 from scipy.spatial import cKDTree  # noqa: E402
 from skimage.registration import phase_cross_correlation  # noqa: E402
 
-from tracking import (GridTracker, SpeckleTracker, deformed_points, grid_truth, load_images,  # noqa: E402
-                      render_grid, render_speckle, scaled, smooth_displacement)
+from tracking import (GridTracker, SpeckleTracker, creased_displacement, deformed_points, grid_truth,  # noqa: E402
+                      load_images, render_grid, render_speckle, scaled, smooth_displacement)
 
 SHAPE = (256, 256)
 ROI = (16, 16, 240, 240)
@@ -136,6 +137,24 @@ def _grid_case(field, noise, seed, refiners=("lines", "hessian", "snake"), pitch
         result[name] = {"deformed_rms_px": _rms(error), "deformed_max_px": float(np.nanmax(error)),
                         "lost_last_frame": int(np.isnan(error).sum()), "points": len(points),
                         "points_per_second": len(points) / seconds}
+    return result
+
+
+def _crease_case(jump, seed, shapes=("straight", "curved", "adaptive")):
+    """Grid crossings on a field with creases (the strain jumps by ``jump``, as at a stiff
+    inclusion's edge): RMS error within 4 px of a crease and elsewhere, per centre-line shape."""
+    field, distance = creased_displacement(SHAPE, jump=jump, seed=seed)
+    images = _sequence(lambda u, n, k: _grid_image(u, n, k), field, 2.0, seed)
+    truth_ref, _, _ = grid_truth(SHAPE, PITCH, margin=-120)
+    result = {}
+    for shape in shapes:
+        tracks = GridTracker(line_shape=shape).track(images, roi=ROI)
+        reference = truth_ref[cKDTree(truth_ref).query(tracks.reference)[1]]
+        error = np.linalg.norm(tracks.positions[-1] - deformed_points(reference, field), axis=1)
+        near = distance(reference) < 4.0
+        result[shape] = {"near_crease_rms_px": _rms(error[near]), "elsewhere_rms_px": _rms(error[~near]),
+                         "reference_rms_px": _rms(np.linalg.norm(tracks.reference - reference, axis=1)),
+                         "near_points": int(near.sum()), "lost_last_frame": int(tracks.lost[-1].sum())}
     return result
 
 
@@ -242,12 +261,15 @@ def main(argv=None):
     report["pitch_vs"] = [{"pitch_px": p, **_grid_case(smooth_displacement(SHAPE, 0.2, seed=3), 2.0, seed=9,
                                                        pitch=p, competitors=False)}
                           for p in ([10.0, 20.0] if args.quick else [10.0, 15.0, 20.0])]
+    report["crease_vs"] = [{"jump": j, **_crease_case(j, seed=5)}
+                           for j in ([0.0, 0.15] if args.quick else [0.0, 0.05, 0.1, 0.15, 0.2])]
     report["speed"] = _speed()
     print(f"pitch and speed: done at {time.perf_counter() - t_start:.0f} s", flush=True)
     shared = Path(os.environ.get("NONRIGID_SHARED", ROOT.parent / "shared"))
     folder = shared / "data" / "dic-challenge-sample3"
     report["dic_challenge_sample3"] = dic_challenge(folder) if folder.is_dir() else None
     report["seconds"] = time.perf_counter() - t_start
+    report["load_average_1_5_15min"] = os.getloadavg()
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "tracking.json").write_text(json.dumps(report, indent=1))
     _plot(report, args.out / "tracking.png")
@@ -258,7 +280,7 @@ def _plot(report, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 4, figsize=(20, 4.5))
+    fig, axes = plt.subplots(1, 5, figsize=(25, 4.5))
     panels = [("noise_vs", "grid", "noise_sigma", "noise sigma (grey levels)"),
               ("strain_vs", "grid", "stretch", "stretch"),
               ("noise_vs", "speckle", "noise_sigma", "noise sigma (grey levels)"),
@@ -275,6 +297,17 @@ def _plot(report, path):
         ax.set_title(f"{pattern}: error vs {key}")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
+    ax, rows = axes[-1], report["crease_vs"]
+    for shape in [m for m in rows[0] if isinstance(rows[0][m], dict)]:
+        for key, style in (("near_crease_rms_px", "o-"), ("elsewhere_rms_px", "s--")):
+            ax.plot([r["jump"] for r in rows], [r[shape][key] for r in rows], style,
+                    label=f"{shape}, {key.replace('_rms_px', '').replace('_', ' ')}")
+    ax.set_yscale("log")
+    ax.set_xlabel("jump of the strain across a crease")
+    ax.set_ylabel("RMS error in the last frame (px)")
+    ax.set_title("grid line shapes at creases")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 
@@ -286,6 +319,10 @@ def _summary(report):
                 key = "noise_sigma" if sweep == "noise_vs" else "stretch"
                 parts = [f"{m}={v['deformed_rms_px']:.4f}" for m, v in r.items() if isinstance(v, dict)]
                 print(f"{pattern:8s} {key}={r[key]:<5} " + " ".join(parts))
+    for r in report["crease_vs"]:
+        parts = [f"{m}: near {v['near_crease_rms_px']:.4f} elsewhere {v['elsewhere_rms_px']:.4f}"
+                 for m, v in r.items() if isinstance(v, dict)]
+        print(f"creases jump={r['jump']:<5} " + " | ".join(parts))
     dic = report["dic_challenge_sample3"]
     if dic:
         for m in ("dic_icgn", "opencv_lk", "phase_correlation"):
