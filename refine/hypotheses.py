@@ -138,6 +138,16 @@ def _clamp_shape(shape, ex, spacing):
     return cx, cy, a, b, shape[4]
 
 
+def _mesh_size(base: MeasuredModel, ells) -> float:
+    """Element size of a hypothesis' mesh: the base model's (half the grid spacing), but fine
+    enough to resolve each shape (its smaller semi-axis over 2.5), and not below a quarter of
+    the spacing. Linear triangles too coarse around a hole or a region are too stiff there, and
+    the fit makes up for it with a larger hole or a softer region (+21 % hole area at 5 mm
+    elements, +12 % at 2.5 mm, on one 10 mm-grid bundle)."""
+    smallest = min(min(e.params[2], e.params[3]) for e in ells)
+    return float(min(base.h, max(smallest / 2.5, 0.25 * base.spacing)))
+
+
 def _disjoint(ells, gap):
     """Shrink ellipses that overlap (or nearly touch) until they are ``gap`` apart."""
     ells = list(ells)
@@ -163,8 +173,9 @@ def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, 
     fitted centres and axes."""
     ex, obs = base.experiment, base.obs
     ells = _disjoint([jf.Ellipse(*_clamp_shape(s, ex, base.spacing)) for s in shapes], base.spacing)
-    mesh = domain_mesh(ex, h or base.h, inclusions=ells)
-    model = MeasuredModel(ex, obs, mesh=mesh, h=h or base.h)
+    size = h or _mesh_size(base, ells)
+    mesh = domain_mesh(ex, size, inclusions=ells)
+    model = MeasuredModel(ex, obs, mesh=mesh, h=size)
     masks = np.stack([(mesh.regions == k + 1).astype(float) for k in range(len(ells))])
     moduli = RegionModuli(masks, ex.E, names=tuple(f"region{k + 1}" for k in range(len(ells))))
     parts = [moduli]
@@ -202,8 +213,9 @@ def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | 
             break
         a, b = 0.9 * a, 0.9 * b
     hole = jf.Ellipse(cx, cy, a, b, ang)
-    mesh = domain_mesh(ex, h or base.h, holes=[hole])
-    model = MeasuredModel(ex, obs, mesh=mesh, h=h or base.h)
+    size = h or _mesh_size(base, [hole])
+    mesh = domain_mesh(ex, size, holes=[hole])
+    model = MeasuredModel(ex, obs, mesh=mesh, h=size)
     param = ShapeGeometry(jf.morph(mesh, [hole]), hole.params[None], scale=0.5 * base.spacing)
 
     def shapes_from(z):
