@@ -3,10 +3,16 @@
 
 Nothing crosses from the simulation to the analysis but 8-bit PNG images: the images come from a
 fine quadratic solution of a larger sheet (refine.render), the bundle from the grid tracker.
+
+The grid is 12 px at 0.25 mm/px, 3 mm on the 100 x 60 mm region (714 points). At 5-6 mm (pitch
+10-12 px at 0.5 mm/px) the diagnosis misses the ratio of a disc 12-16 mm across by 12-29 % even
+when given the exact crossing positions (seed 1, measured): the disc spans too few points of the
+model's mesh (half the point spacing). At 3 mm exact positions give 1.8 %.
 """
 
 import argparse
 import dataclasses
+import os
 
 import cv2
 import numpy as np
@@ -28,11 +34,11 @@ def hidden_stiff_disc(seed: int):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [1])
+@pytest.mark.parametrize("seed", [1, 2, 3])
 def test_a_stiff_disc_is_found_from_tracked_grid_images(tmp_path, seed):
     truth = hidden_stiff_disc(seed)
     disc = truth.inclusions[0]
-    images, roi, scale = render_sheet_images(truth, (0.5, 1.0), pitch_px=12.0, scale_mm_per_px=0.5, seed=seed)
+    images, roi, scale = render_sheet_images(truth, (0.5, 1.0), pitch_px=12.0, scale_mm_per_px=0.25, seed=seed)
     paths = []
     for k, image in enumerate(images):
         paths.append(tmp_path / f"frame_{k}.png")
@@ -54,11 +60,12 @@ def test_a_stiff_disc_is_found_from_tracked_grid_images(tmp_path, seed):
             c = f["region"]["centroid"]
             print(f"found: {f['cause']} at ({c[0]:.2f}, {c[1]:.2f}) area {f['region']['area']:.1f}, ratio "
                   f"{f['relative_elasticity']:.2f}; centroid off "
-                  f"{100 * np.hypot(c[0] - disc.shape.cx, c[1] - disc.shape.cy) / diagonal:.2f} % of the diagonal")
-    print(d.report()["baseline"], d.report()["refined"], f"{d.seconds:.0f} s")
+                  f"{100 * np.hypot(c[0] - disc.shape.cx, c[1] - disc.shape.cy) / diagonal:.2f} % of the diagonal, "
+                  f"ratio off {100 * (f['relative_elasticity'] / disc.ratio - 1):+.1f} %")
+    print(d.report()["baseline"], d.report()["refined"], d.report()["gain"],
+          f"{d.seconds:.0f} s at load {os.getloadavg()[0]:.1f}")
     assert [f["cause"] for f in found] == ["stiffer-region"]
     cx, cy = found[0]["region"]["centroid"]
     assert np.hypot(cx - disc.shape.cx, cy - disc.shape.cy) < 0.03 * diagonal
-    # a disc a few grid points across: its stiffness is identified only roughly (see the report)
-    assert 0.5 * disc.ratio < found[0]["relative_elasticity"] < 2.0 * disc.ratio
-    assert d.report()["gain"]["validation_error"] > 1.5
+    assert abs(found[0]["relative_elasticity"] / disc.ratio - 1.0) < 0.10
+    assert d.report()["gain"]["validation_error"] >= 2.0
