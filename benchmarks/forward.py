@@ -201,7 +201,7 @@ def measure_size(pb, theta, right, args, ext: Extrapolator, label, extra_solvers
     n = pb.n_dofs
     row = {"dofs": n, "cells": pb.mesh.n_cells, "nodes": pb.mesh.n_nodes}
     solvers = ["superlu", "klu", "pardiso", *extra_solvers]
-    solvers = [s for s in solvers if s in available()]
+    solvers = [s for s in solvers if s in available() and (not args.solvers or s in args.solvers)]
     jax_rows, skipped, sols = {}, {}, {}
 
     # 1. the primary solve (gives the state whose tangent the direct solvers factor)
@@ -609,15 +609,29 @@ def seed(ext, row):
             ext.add(("direct", name), row["dofs"], r["seconds"])
 
 
-def write_partial(args):
-    meta = RESULTS["meta"]
-    meta["load_now"] = loadavg()
-    meta["max_load_seen"] = max(meta.get("max_load_seen", 0.0), meta["load_now"], meta["load_start"])
+def _loads(obj):
+    """Every load average recorded anywhere in ``obj`` (rows reused from earlier runs included)."""
+    if isinstance(obj, dict):
+        return [v for k, v in obj.items() if k in ("load", "load_start", "load_now") and isinstance(v, (int, float))] + \
+            [x for k, v in obj.items() if k != "meta" for x in _loads(v)]
+    if isinstance(obj, list):
+        return [x for v in obj for x in _loads(v)]
+    return []
+
+
+def flag_load(results):
+    meta = results["meta"]
+    meta["max_load_seen"] = max([meta.get("max_load_seen", 0.0), meta["load_now"], meta["load_start"], *_loads(results)])
     meta["machine_loaded"] = meta["max_load_seen"] > 3.0
     if meta["machine_loaded"]:
-        meta["load_note"] = (f"1-min load average up to {meta['max_load_seen']:.1f} on {os.cpu_count()} cores during "
-                             "this run: other jobs shared the CPUs, so every timing is inflated and noisier than "
-                             "on an idle machine (each carries its own load figure)")
+        meta["load_note"] = (f"1-min load average up to {meta['max_load_seen']:.1f} on {os.cpu_count()} cores while "
+                             "these timings were taken (reused rows included): other jobs shared the CPUs, so every "
+                             "timing is inflated and noisier than on an idle machine (each carries its own load figure)")
+
+
+def write_partial(args):
+    RESULTS["meta"]["load_now"] = loadavg()
+    flag_load(RESULTS)
     RESULTS["targets"] = targets(RESULTS)
     Path(args.out).write_text(json.dumps(RESULTS, indent=1, default=_json_default))
     try:
@@ -733,6 +747,7 @@ def main():
     ap.add_argument("--budget", type=float, default=60.0, help="skip a jaxfem solve predicted over this (s)")
     ap.add_argument("--peer-budget", type=float, default=None, help="same for one peer solve (s)")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--solvers", default=None, help="comma-separated jaxfem linear solvers to run (default: all)")
     ap.add_argument("--torchfem-threads", default="1,2",
                     help="thread counts for torch-fem at the smallest size (larger sizes: 1); on a loaded "
                          "machine a 2-thread run mostly measures the contention")
@@ -746,6 +761,7 @@ def main():
                     "and measure only the others (e.g. --full after a default run)")
     args = ap.parse_args()
     args.torchfem_threads = tuple(int(t) for t in args.torchfem_threads.split(","))
+    args.solvers = args.solvers.split(",") if args.solvers else None
     if args.reuse:
         REUSE.update(json.loads(Path(args.reuse).read_text()))
     memory_watchdog(args.max_memory_gb or min(0.75 * mem_available_gb(), 12.0))
@@ -768,7 +784,9 @@ def main():
         "budget_s": args.budget, "peer_budget_s": args.peer_budget, "repeats": args.repeats,
         "command_line": sys.argv[1:], "torchfem_threads": list(args.torchfem_threads),
         "reused_rows_from": None if not args.reuse else {"file": args.reuse, "date": REUSE.get("meta", {}).get("date"),
-                                                          "load_start": REUSE.get("meta", {}).get("load_start")},
+                                                          "load_start": REUSE.get("meta", {}).get("load_start"),
+                                                          "command_line": REUSE.get("meta", {}).get("command_line"),
+                                                          "reused_rows_from": REUSE.get("meta", {}).get("reused_rows_from")},
         "auto_klu_max_dofs_2d_without_pardiso": AUTO_KLU_MAX_DOFS_2D, "linear_solvers_available": available(),
         "direct_solvers_available": _peers.available_direct(),
         "problems": {
