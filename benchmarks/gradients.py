@@ -59,13 +59,8 @@ FACTORISATIONS = {"n": 0}
 
 
 def _install_counters():
-    """Count the host-side factorisations of SuperLU and PARDISO; free superseded PARDISO factors.
-
-    jaxfem.linsolve keeps the last factorisation and drops the one before without calling
-    ``free_memory``; PARDISO's factors live outside Python, so each new matrix leaked them (about
-    45 MB per factorisation at 10k DOFs in 3D, far more at 50k). The cache only ever uses its
-    last solver, so freeing the previous one here is safe and keeps this benchmark in memory.
-    """
+    """Count the host-side factorisations of SuperLU and PARDISO (numeric factorisations of
+    :class:`jaxfem.linsolve.PardisoHandle`, whose symbolic analysis runs once per pattern)."""
     splu = linsolve.spla.splu
 
     def counted_splu(*a, **kw):
@@ -73,20 +68,13 @@ def _install_counters():
         return splu(*a, **kw)
 
     linsolve.spla.splu = counted_splu
-    try:
-        import pypardiso
-    except ImportError:
-        return
-    factorize, live = pypardiso.PyPardisoSolver.factorize, []
+    factor = linsolve.PardisoHandle.factor
 
-    def counted_factorize(self, A):
+    def counted_factor(self, a):
         FACTORISATIONS["n"] += 1
-        while live:
-            live.pop().free_memory(everything=True)
-        live.append(self)
-        return factorize(self, A)
+        return factor(self, a)
 
-    pypardiso.PyPardisoSolver.factorize = counted_factorize
+    linsolve.PardisoHandle.factor = counted_factor
 
 
 # ---------------------------------------------------------------- problems
