@@ -28,7 +28,7 @@ from .experiment import LAWS, Experiment, Polygon, Rectangle
 from .observations import Observations
 
 RECTANGLE_TOLERANCE = 0.02  # of the point spacing: how far ring points may stray from a rectangle
-TRACKER_FLAGS = ("spacing", "subset", "search", "min_zncc", "refiner", "max_jump", "min_quality")
+TRACKER_FLAGS = ("spacing", "subset", "search", "min_zncc", "refiner", "line_shape", "max_jump", "min_quality")
 
 
 class TrackCommandError(RefineError, ValueError):
@@ -78,6 +78,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     t.add_argument("--search", type=int, help="speckle: integer search half-range, px")
     t.add_argument("--min-zncc", type=float, help="speckle: correlation under which a point is lost")
     t.add_argument("--refiner", help="grid: sub-pixel refiner (lines, hessian, snake)")
+    t.add_argument("--line-shape", choices=("adaptive", "straight", "curved"),
+                   help="grid, lines refiner: centre lines straight, parabolic, or chosen per line (default adaptive)")
     t.add_argument("--max-jump", type=float, help="grid: largest motion difference to neighbours, pitches")
     t.add_argument("--min-quality", type=float, help="grid: refiner quality under which a crossing is lost")
     t.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="any other tracker field")

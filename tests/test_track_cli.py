@@ -249,3 +249,17 @@ def test_a_rotated_grid_gets_a_polygon_through_its_outer_ring(tmp_path):
     boundary = obs.reference[obs.roles == "boundary"]
     assert len(boundary) == len(vertices)
     assert np.abs(boundary[:, None] - vertices[None]).sum(-1).min(axis=1).max() < 1e-12
+
+
+def test_line_shape_flag_reaches_the_grid_tracker_and_is_refused_for_speckle():
+    parser = argparse.ArgumentParser()
+    track_cmd.add_parser(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["track", "a.png", "b.png", "--out", "x", "--scale", "0.5", "--line-shape", "curved"])
+    assert track_cmd._tracker_options(args)["line_shape"] == "curved"
+    with pytest.raises(SystemExit):  # argparse names the allowed shapes
+        parser.parse_args(["track", "a.png", "--out", "x", "--scale", "0.5", "--line-shape", "wavy"])
+    from tracking import TrackingError
+
+    frames = np.zeros((2, 32, 32))
+    with pytest.raises(TrackingError, match="line_shape"):
+        track_images(frames, "speckle", line_shape="curved")
