@@ -183,7 +183,7 @@ def test_tensor_method_derivatives_and_minimum(seed):
     import jax
     import jax.numpy as jnp
 
-    from refine.fit import _taylor_function, tensor_least_squares
+    from refine.tensor import _taylor_function, tensor_least_squares
 
     toy = _Toy(seed)
     z = jnp.asarray([0.3, -0.2])
@@ -206,7 +206,7 @@ def test_tensor_method_derivatives_and_minimum(seed):
 
 
 def test_tensor_method_refuses_what_it_cannot_do():
-    from refine.fit import tensor_least_squares
+    from refine.tensor import tensor_least_squares
 
     toy = _Toy(0)
     with pytest.raises(ValueError, match="unknowns"):
