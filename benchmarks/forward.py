@@ -67,7 +67,7 @@ SIZES_3D = {"quick": [3, 6], "default": [6, 11], "full": [6, 11, 16, 20, 25]}
 DOC_N = {"quick": [5], "default": [5, 9], "full": [5, 9, 13]}   # torch-fem's own benchmark sizes
 DOC = {"E": 1000.0, "nu": 0.3, "U": 19.0, "n_inc": 21}          # as in torch-fem's benchmark
 
-DIRECT_FOR = {"superlu": "superlu_jaxfem", "klu": "klu", "pardiso": "pardiso_jaxfem"}
+DIRECT_FOR = {"superlu": "superlu_jaxfem", "klu": "klu", "pardiso": "pardiso_jaxfem", "cholmod": "cholmod"}
 
 
 def log(*a):
@@ -200,7 +200,7 @@ class Extrapolator:
 def measure_size(pb, theta, right, args, ext: Extrapolator, label, extra_solvers=()):
     n = pb.n_dofs
     row = {"dofs": n, "cells": pb.mesh.n_cells, "nodes": pb.mesh.n_nodes}
-    solvers = ["superlu", "klu", "pardiso", *extra_solvers]
+    solvers = ["superlu", "klu", "pardiso", "cholmod", *extra_solvers]
     solvers = [s for s in solvers if s in available() and (not args.solvers or s in args.solvers)]
     jax_rows, skipped, sols = {}, {}, {}
 

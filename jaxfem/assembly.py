@@ -137,6 +137,16 @@ class Assembler:
         Re = self.element_residuals(u, X, p, t, arrays["cells"])
         return jnp.zeros(u.size, u.dtype).at[arrays["edofs"].ravel()].add(Re.ravel())
 
+    def residual_and_min_det(self, u, X, p, t, arrays):
+        """Internal force vector and the smallest det F (one pass over the cells: what a Newton
+        update needs to check the new state)."""
+        cells = arrays["cells"]
+        dNdX, dV = shape_gradients(X, cells, self.el)
+        F = deformation_gradients(u, cells, dNdX)
+        P = _per_qp(self.law.stress, F, p)
+        Re = jnp.einsum("cqiK,cqaK,cq->cai", P, dNdX, dV * t[:, None]).reshape(len(cells), -1)
+        return jnp.zeros(u.size, u.dtype).at[arrays["edofs"].ravel()].add(Re.ravel()), jnp.min(det(F))
+
     def residual_and_tangent(self, u, X, p, t, arrays, nnz: int):
         """Internal force vector ``(n_dofs,)`` and tangent values on the pattern ``(nnz,)``."""
         cells = arrays["cells"]

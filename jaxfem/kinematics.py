@@ -21,6 +21,7 @@ from . import _config  # noqa: F401
 
 KINDS = ("plane-stress", "plane-strain", "solid")
 _NEWTON_ITERS = 30
+_UNROLLED = 3  # enough from the small-strain start up to ~20 % strain
 
 
 def embed(F2, f33):
@@ -50,10 +51,18 @@ def _plane_stress_stretch(energy: Callable) -> Callable:
             return new, jnp.abs(new - l), k + 1
 
         def cond(c):
+            # Newton converges quadratically here: after a step below 1e-8 of the stretch the
+            # error left is ~1e-16 (measured: steps 8.5e-3, 6.9e-5, 4.6e-9, then 2.3e-16 at
+            # 20 % stretch), so that step is the last one needed.
             l, step, k = c
-            return (step > 1e-15 * l) & (k < _NEWTON_ITERS)
+            return (step > 1e-8 * l) & (k < _NEWTON_ITERS)
 
-        return jax.lax.while_loop(cond, body, (l0, jnp.ones_like(l0), 0))[0]
+        # The first iterations unrolled (XLA fuses them into one pass over the quadrature points;
+        # a loop iteration is a pass of its own), the rest only where a point still needs them.
+        c = (l0, jnp.ones_like(l0), 0)
+        for _ in range(_UNROLLED):
+            c = body(c)
+        return jax.lax.while_loop(cond, body, c)[0]
 
     @jax.custom_jvp
     def stretch(F2, p):

@@ -95,9 +95,9 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
         R, vals = asm.residual_and_tangent(u.reshape(-1, dim), X, p, t, arrays, nnz)
         return R - external_force(theta, loads, arrays, facet_element, n), vals
 
-    def residual(u, loads):
-        R = asm.residual(u.reshape(-1, dim), X, p, t, arrays)
-        return R - external_force(theta, loads, arrays, facet_element, n)
+    def residual_det(u, loads):
+        R, d = asm.residual_and_min_det(u.reshape(-1, dim), X, p, t, arrays)
+        return R - external_force(theta, loads, arrays, facet_element, n), d if finite else jnp.array(1.0)
 
     def constrained(vals):
         return vals * arrays["keep"] + arrays["diag_fixed"]
@@ -110,15 +110,36 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
         scale = jnp.maximum(jnp.linalg.norm(R * (1 - free)), jnp.linalg.norm(f_ext * free))
         return jnp.linalg.norm(R * free), jnp.maximum(scale, 1e-300)
 
-    def guarded_update(u, du):
-        """Halve the update while it would invert an element."""
+    def halved(u, du):
+        """Halve the update while it would invert an element (the full update already did)."""
 
         def cond(c):
             a, k = c
             return (min_det(u + a * du) <= 0) & (k < opts.line_search)
 
-        a, k = jax.lax.while_loop(cond, lambda c: (0.5 * c[0], c[1] + 1), (jnp.array(1.0), 0))
-        return u + a * du, min_det(u + a * du) > 0
+        a, _ = jax.lax.while_loop(cond, lambda c: (0.5 * c[0], c[1] + 1), (jnp.array(0.5), 1))
+        return u + a * du
+
+    def guarded_update(u, du):
+        """The update, halved while it would invert an element; (new u, valid)."""
+        d = min_det(u + du)
+
+        def fallback():
+            u1 = halved(u, du)
+            return u1, min_det(u1) > 0
+
+        return jax.lax.cond(d > 0, lambda: (u + du, d > 0), fallback)
+
+    def guarded_update_residual(u, du, loads):
+        """The same, also returning the residual at the new state (with det F from the same pass)."""
+        R, d = residual_det(u + du, loads)
+
+        def fallback():
+            u1 = halved(u, du)
+            R1, d1 = residual_det(u1, loads)
+            return u1, d1 > 0, R1
+
+        return jax.lax.cond(d > 0, lambda: (u + du, d > 0, R), fallback)
 
     def log(st, value):
         i = jnp.minimum(st["n_log"], opts.log_size - 1)
@@ -147,8 +168,7 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
             rhs = -(R + matvec(vals, arrays["rows"], arrays["cols"], gap)) * free + gap
             du = lin(constrained(vals), rhs, arrays)
             bad_solve = ~jnp.all(jnp.isfinite(du))
-            u2, ok = guarded_update(u1, jnp.where(bad_solve, 0.0, du))
-            R2 = residual(u2, loads)
+            u2, ok, R2 = guarded_update_residual(u1, jnp.where(bad_solve, 0.0, du), loads)
             res, scale = norms(R2, loads)
             stl = log(stl, res / scale)
             dun = jnp.linalg.norm(du)

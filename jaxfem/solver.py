@@ -156,9 +156,9 @@ class Solver:
 
     def _start(self, theta, start):
         n = self.problem.n_dofs
-        if start is None:
-            zeros = {k: jnp.zeros_like(theta[k]) for k in LOAD_KEYS}
-            return jnp.zeros(n), zeros
+        if start is None:  # host zeros: no device dispatch per call
+            zeros = {k: np.zeros(np.shape(theta[k])) for k in LOAD_KEYS}
+            return np.zeros(n), zeros
         u0, loads0 = start
         return jnp.asarray(u0).reshape(n), {k: jnp.asarray(loads0[k]) for k in LOAD_KEYS}
 
@@ -179,6 +179,7 @@ class Solver:
         """Solve and return a :class:`Solution`; raise :class:`SolverError` if Newton fails."""
         u0, loads0 = self._start(theta, start)
         u, info = self._newton(theta, u0, loads0, self.arrays)
+        info = jax.device_get(info)  # one transfer for all counters
         status = int(info["status"])
         if status != 0:
             step, s = int(info["fail_step"]), float(info["fail_load_factor"])

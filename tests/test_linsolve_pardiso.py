@@ -77,3 +77,28 @@ def test_unknown_solver_is_a_clear_error():
     pat = jf.assembly.make_pattern(jf.rectangle(0, 0, 1, 1, 2, 2))
     with pytest.raises(ValueError, match="unknown linear solver"):
         linsolve.make_linear_solver("mumps", pat, 2)
+
+
+def test_cholmod_matches_superlu_and_solves_an_indefinite_matrix():
+    pytest.importorskip("sksparse.cholmod", reason="scikit-sparse (CHOLMOD) is not installed")
+    import jax.numpy as jnp
+
+    mesh = jf.rectangle(0, 0, 10, 6, 10, 6)
+    fixed = np.concatenate([jf.dofs(mesh, mesh.side("left")), jf.dofs(mesh, mesh.side("right"))])
+    pb = jf.Problem(mesh, "neo-hookean", "plane-stress", fixed=fixed)
+    theta = pb.params(E=10.0, nu=0.3, u_D=pb.prescribe(lambda X: 0.2 * X * [1.0, 0.0]))
+    sc, su = jf.Solver(pb, linear_solver="cholmod"), jf.Solver(pb, linear_solver="superlu")
+    a, b = sc.solve(theta), su.solve(theta)
+    assert np.abs(np.asarray(a.u) - np.asarray(b.u)).max() <= 1e-9 * np.abs(np.asarray(b.u)).max()
+    # an indefinite matrix on the same pattern (CHOLMOD's LDL^T, or SuperLU where CHOLMOD refuses)
+    pat = sc.pattern
+    rng = np.random.default_rng(0)
+    vals = np.array(sc._constrained(sc.tangent_values(a.u.reshape(-1), theta)))
+    vals[pat.diag[: pat.n_dofs // 2]] *= -1.0
+    vals[pat.diag[: pat.n_dofs // 2]] -= 1e3
+    A = sp.csr_matrix((vals, pat.cols, pat.indptr), shape=(pat.n_dofs,) * 2)
+    assert np.allclose(A.toarray(), A.toarray().T)
+    rhs = rng.standard_normal(pat.n_dofs)
+    _, solve = linsolve.make_linear_solver("cholmod", pat)
+    x = np.asarray(solve(jnp.asarray(vals), jnp.asarray(rhs), sc.arrays))
+    assert np.linalg.norm(A @ x - rhs) <= 1e-8 * np.linalg.norm(rhs)
