@@ -117,39 +117,24 @@ def torchfem_cube(N):
 
 
 # ====================================================================== jaxfem measurements
-def run_jaxfem(solver, theta, repeats=3, env=None, budget=None):
+def run_jaxfem(solver, theta, repeats=3, budget=None):
     """First call, then best of ``repeats`` warm calls of ``solver.solve(theta)``."""
     t = time.perf_counter()
     sol = solver.solve(theta)
     jax.block_until_ready(sol.u)
     first = time.perf_counter() - t
-    out = {}
-    if env is None:
-        envs = {"": None}
-    else:
-        envs = env
-    for tag, value in envs.items():
-        old = os.environ.pop("PYPARDISO_MKL_RT", None)
-        if value:
-            os.environ["PYPARDISO_MKL_RT"] = value
-        try:
-            def once():
-                s = solver.solve(theta)
-                jax.block_until_ready(s.u)
-                return s
-            warm, times, sol = best_of(once, repeats, budget=budget)
-        finally:
-            os.environ.pop("PYPARDISO_MKL_RT", None)
-            if old is not None:
-                os.environ["PYPARDISO_MKL_RT"] = old
-        info = sol.info
-        it = int(info["iterations"])
-        # the first call ran without PYPARDISO_MKL_RT: its compile time is that of the plain row
-        compile_s = first - (out[""]["warm_s"] if tag and "" in out else warm)
-        out[tag] = {"first_s": first, "warm_s": warm, "compile_s": compile_s, "all_warm_s": times,
-                    "iterations": it, "steps": int(info["steps"]), "cutbacks": int(info["cutbacks"]),
-                    "attempts": int(info["attempts"]), "per_iteration_s": warm / it, "load": loadavg()}
-    return out, sol
+
+    def once():
+        s = solver.solve(theta)
+        jax.block_until_ready(s.u)
+        return s
+
+    warm, times, sol = best_of(once, repeats, budget=budget)
+    info = sol.info
+    it = int(info["iterations"])
+    return {"first_s": first, "warm_s": warm, "compile_s": first - warm, "all_warm_s": times,
+            "iterations": it, "steps": int(info["steps"]), "cutbacks": int(info["cutbacks"]),
+            "attempts": int(info["attempts"]), "per_iteration_s": warm / it, "load": loadavg()}, sol
 
 
 def assembly_times(solver, u, theta, repeats=5):
@@ -200,7 +185,10 @@ class Extrapolator:
 def measure_size(pb, theta, right, args, ext: Extrapolator, label, extra_solvers=()):
     n = pb.n_dofs
     row = {"dofs": n, "cells": pb.mesh.n_cells, "nodes": pb.mesh.n_nodes}
-    solvers = ["superlu", "klu", "pardiso", "cholmod", *extra_solvers]
+    # jaxfem with CHOLMOD only in 2D: on the 3D block its factorisation was 7-9x slower than
+    # PARDISO's, and at 28.6k DOFs it declared the tangent not positive definite (SuperLU took over
+    # and ran out of memory)
+    solvers = ["superlu", "klu", "pardiso", *(("cholmod",) if pb.mesh.dim == 2 else ()), *extra_solvers]
     solvers = [s for s in solvers if s in available() and (not args.solvers or s in args.solvers)]
     jax_rows, skipped, sols = {}, {}, {}
 
@@ -227,21 +215,18 @@ def measure_size(pb, theta, right, args, ext: Extrapolator, label, extra_solvers
         t0 = time.perf_counter()
         solver = jf.Solver(pb, linear_solver=name)
         setup = time.perf_counter() - t0
-        env = None  # jaxfem loads MKL once per process (PYPARDISO_MKL_RT no longer matters)
         try:
-            res, sol = run_jaxfem(solver, theta, args.repeats, env=env, budget=args.budget)
+            r, sol = run_jaxfem(solver, theta, args.repeats, budget=args.budget)
         except jf.SolverError as e:
             skipped[name] = f"SolverError: {e}"[:300]
             continue
-        for tag, r in res.items():
-            key = name if not tag else f"{name}+PYPARDISO_MKL_RT"
-            r["setup_s"] = setup
-            jax_rows[key] = r
-            log(f"{label} {n} dofs: jaxfem {key:24s} warm {r['warm_s']:.3f} s, compile {r['compile_s']:.1f} s, "
-                f"{r['iterations']} its / {r['steps']} steps, {r['per_iteration_s']:.4f} s/it")
-        ext.add(("jaxfem", name), n, res[""]["warm_s"])
+        r["setup_s"] = setup
+        jax_rows[name] = r
+        log(f"{label} {n} dofs: jaxfem {name:24s} warm {r['warm_s']:.3f} s, compile {r['compile_s']:.1f} s, "
+            f"{r['iterations']} its / {r['steps']} steps, {r['per_iteration_s']:.4f} s/it")
+        ext.add(("jaxfem", name), n, r["warm_s"])
         if name == primary:
-            iters = res[""]["iterations"]
+            iters = r["iterations"]
             row["newton_log"] = sol.newton_log()
             row["nnz"] = solver.pattern.nnz
             row["auto_resolves_to"] = auto_choice(n, pb.mesh.dim)
@@ -340,8 +325,8 @@ def sweep_sheet(args, mode):
     rows, rows_ps = RESULTS["sheet_plane_stress"], RESULTS["sheet_plane_strain"]
     ext, ext_sk = Extrapolator(1.5), Extrapolator(1.3)
     for k, (nx, ny) in enumerate(SIZES_2D[mode]):
-        old = reused("sheet_plane_stress", nx=nx, ny=ny)
-        old_ps = reused("sheet_plane_strain", nx=nx, ny=ny)
+        old = reused("sheet_plane_stress", args, 2 * (nx + 1) * (ny + 1), nx=nx, ny=ny)
+        old_ps = reused("sheet_plane_strain", args, 2 * (nx + 1) * (ny + 1), nx=nx, ny=ny)
         if old is not None and old_ps is not None:
             rows.append(old)
             rows_ps.append(old_ps)
@@ -373,14 +358,11 @@ def sweep_sheet(args, mode):
                 ps["jaxfem"][name] = {"skipped": f"predicted {pred:.0f} s > {args.budget:.0f} s"}
                 continue
             solver = jf.Solver(pbs, linear_solver=name)
-            env = None
-            res, sol = run_jaxfem(solver, ths, args.repeats, env=env, budget=args.budget)
-            r = next(iter(res.values()))
-            key = name
-            ps["jaxfem"][key] = r
+            r, sol = run_jaxfem(solver, ths, args.repeats, budget=args.budget)
+            ps["jaxfem"][name] = r
             u_ref, steps = np.asarray(sol.u), r["steps"]
             ps["reaction_x"] = float(solver.reactions(sol.u, ths, rights)[0])
-            log(f"plane strain {pbs.n_dofs} dofs: jaxfem {key} warm {r['warm_s']:.3f} s "
+            log(f"plane strain {pbs.n_dofs} dofs: jaxfem {name} warm {r['warm_s']:.3f} s "
                 f"({r['iterations']} its, compile {r['compile_s']:.1f} s)")
         pred = ext_sk.predict("skfem", pbs.n_dofs)
         if pred is not None and pred > args.peer_budget:
@@ -416,7 +398,7 @@ def sweep_block(args, mode):
     rows = RESULTS["block"]
     ext, ext_tf = Extrapolator(2.0), Extrapolator(1.5)
     for n in SIZES_3D[mode]:
-        old = reused("block", n=n)
+        old = reused("block", args, 3 * (2 * n + 1) * (n + 1) ** 2, n=n)
         if old is not None:
             rows.append(old)
             seed(ext, old)
@@ -476,8 +458,7 @@ def sweep_documented(args, mode):
         pb, theta, right = torchfem_cube(N)
         row = {"N": N, "dofs": pb.n_dofs, "jaxfem": {}}
         solver = jf.Solver(pb)  # the default ("auto") linear solver
-        res, sol = run_jaxfem(solver, theta, args.repeats, budget=args.budget)
-        r = res[""]
+        r, sol = run_jaxfem(solver, theta, args.repeats, budget=args.budget)
         row["jaxfem"][f"{solver.linear_solver} (auto; own load stepping)"] = r
         row["jaxfem_reaction_x"] = float(solver.reactions(sol.u, theta, right)[0])
         log(f"torch-fem benchmark N={N} ({pb.n_dofs} dofs): jaxfem {r['warm_s']:.3f} s, {r['iterations']} its, "
@@ -591,8 +572,11 @@ RESULTS: dict = {}
 REUSE: dict = {}
 
 
-def reused(kind, **key):
-    """The row of an earlier run (--reuse) with the same size, or None."""
+def reused(kind, args=None, dofs=None, **key):
+    """The row of an earlier run (--reuse) with the same size, or None (also with --remeasure for
+    a size within --min-dofs .. --max-dofs)."""
+    if args is not None and args.remeasure and args.min_dofs <= dofs <= args.max_dofs:
+        return None
     for r in REUSE.get(kind, []):
         if all(r.get(k) == v for k, v in key.items()):
             return r
@@ -654,7 +638,7 @@ def plot(res, path):
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(2, 2, figsize=(13, 10))
-    styles = {"superlu": "o-", "klu": "s-", "pardiso": "^-", "pardiso+PYPARDISO_MKL_RT": "v-", "cg": "x", "dense": "+"}
+    styles = {"superlu": "o-", "klu": "s-", "pardiso": "^-", "cholmod": "v-", "cg": "x", "dense": "+"}
 
     def lines(ax, rows, title, peers):
         names = sorted({k for r in rows for k in r.get("jaxfem", {}) if "warm_s" in r["jaxfem"][k]})
@@ -759,6 +743,8 @@ def main():
                     help="abort past this resident memory (default: 75 %% of what is available at the start)")
     ap.add_argument("--reuse", default=None, help="an earlier forward.json: keep its rows of the same sizes "
                     "and measure only the others (e.g. --full after a default run)")
+    ap.add_argument("--remeasure", action="store_true", help="with --reuse: measure the sizes within "
+                    "--min-dofs .. --max-dofs again, keep the reused rows of the others")
     args = ap.parse_args()
     args.torchfem_threads = tuple(int(t) for t in args.torchfem_threads.split(","))
     args.solvers = args.solvers.split(",") if args.solvers else None
