@@ -125,12 +125,15 @@ class Assembler:
         F = deformation_gradients(u, cells, dNdX)
         return jnp.sum(_per_qp(self.law.energy, F, p) * dV * t[:, None])
 
-    def element_residuals(self, u, X, p, t, cells):
-        """Internal nodal forces of each cell, ``(n_cells, n_per_cell * dim)``."""
+    def _forces_and_F(self, u, X, p, t, cells):
         dNdX, dV = shape_gradients(X, cells, self.el)
         F = deformation_gradients(u, cells, dNdX)
         P = _per_qp(self.law.stress, F, p)
-        return jnp.einsum("cqiK,cqaK,cq->cai", P, dNdX, dV * t[:, None]).reshape(len(cells), -1)
+        return jnp.einsum("cqiK,cqaK,cq->cai", P, dNdX, dV * t[:, None]).reshape(len(cells), -1), F
+
+    def element_residuals(self, u, X, p, t, cells):
+        """Internal nodal forces of each cell, ``(n_cells, n_per_cell * dim)``."""
+        return self._forces_and_F(u, X, p, t, cells)[0]
 
     def residual(self, u, X, p, t, arrays):
         """Internal force vector, ``(n_dofs,)``."""
@@ -140,11 +143,7 @@ class Assembler:
     def residual_and_min_det(self, u, X, p, t, arrays):
         """Internal force vector and the smallest det F (one pass over the cells: what a Newton
         update needs to check the new state)."""
-        cells = arrays["cells"]
-        dNdX, dV = shape_gradients(X, cells, self.el)
-        F = deformation_gradients(u, cells, dNdX)
-        P = _per_qp(self.law.stress, F, p)
-        Re = jnp.einsum("cqiK,cqaK,cq->cai", P, dNdX, dV * t[:, None]).reshape(len(cells), -1)
+        Re, F = self._forces_and_F(u, X, p, t, arrays["cells"])
         return jnp.zeros(u.size, u.dtype).at[arrays["edofs"].ravel()].add(Re.ravel()), jnp.min(det(F))
 
     def residual_and_tangent(self, u, X, p, t, arrays, nnz: int):

@@ -112,6 +112,8 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
 
     def halved(u, du):
         """Halve the update while it would invert an element (the full update already did)."""
+        if not opts.line_search:
+            return u + du
 
         def cond(c):
             a, k = c
