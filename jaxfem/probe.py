@@ -41,14 +41,46 @@ class Probe:
     def moved(self, X, points):
         """The same probe after the mesh nodes moved to ``X (n_nodes, dim)`` (a geometry morph),
         for the same physical ``points``: each point keeps its cell, its weights are recomputed
-        (differentiably; linear simplices only, where they are the barycentric coordinates)."""
-        if self.nodes.shape[1] != X.shape[1] + 1:
-            raise MeshError("Probe.moved() supports linear triangles and tetrahedra only")
-        Xe = jnp.asarray(X)[self.nodes]  # (p, d+1, d)
-        T = jnp.swapaxes(Xe[:, 1:] - Xe[:, :1], 1, 2)  # (p, d, d)
-        lam = jnp.linalg.solve(T, (jnp.asarray(points) - Xe[:, 0])[..., None])[..., 0]
-        w = jnp.concatenate([1.0 - lam.sum(axis=1, keepdims=True), lam], axis=1)
-        return Probe(self.cells, self.nodes, w)
+        (differentiably). Linear simplices: the barycentric coordinates. Quadratic triangles
+        (whose morphed edges may bend): Newton on the isoparametric map from the barycentric
+        coordinates of the corners, a fixed number of steps (quadratic convergence from there)."""
+        dim, k = X.shape[1], self.nodes.shape[1]
+        if k != dim + 1 and not (dim == 2 and k == 6):
+            raise MeshError("Probe.moved() supports linear triangles and tetrahedra and quadratic triangles only")
+        Xe = jnp.asarray(X)[self.nodes]  # (p, k, d)
+        pts = jnp.asarray(points)
+        T = jnp.swapaxes(Xe[:, 1:dim + 1] - Xe[:, :1], 1, 2)  # (p, d, d): the corners' affine map
+        lam = jnp.linalg.solve(T, (pts - Xe[:, 0])[..., None])[..., 0]
+        if k == dim + 1:
+            w = jnp.concatenate([1.0 - lam.sum(axis=1, keepdims=True), lam], axis=1)
+            return Probe(self.cells, self.nodes, w)
+        xi = lam
+        for _ in range(_TRI6_NEWTON):
+            N, dN = _tri6_shape(xi), _tri6_grad(xi)
+            r = jnp.einsum("pk,pki->pi", N, Xe) - pts
+            J = jnp.einsum("pki,pkj->pij", Xe, dN)
+            xi = xi - jnp.linalg.solve(J, r[..., None])[..., 0]
+        return Probe(self.cells, self.nodes, _tri6_shape(xi))
+
+
+_TRI6_NEWTON = 4
+
+
+def _tri6_shape(xi):
+    """Quadratic triangle shape functions in JAX (node order of :mod:`jaxfem.elements`)."""
+    r, s = xi[..., 0], xi[..., 1]
+    t = 1 - r - s
+    return jnp.stack([t * (2 * t - 1), r * (2 * r - 1), s * (2 * s - 1), 4 * r * t, 4 * r * s, 4 * s * t], -1)
+
+
+def _tri6_grad(xi):
+    """``(..., 6, 2)`` reference gradients of :func:`_tri6_shape`."""
+    r, s = xi[..., 0], xi[..., 1]
+    t = 1 - r - s
+    z = jnp.zeros_like(r)
+    dr = jnp.stack([1 - 4 * t, 4 * r - 1, z, 4 * (t - r), 4 * s, -4 * s], -1)
+    ds = jnp.stack([1 - 4 * t, z, 4 * s - 1, -4 * r, 4 * r, 4 * (t - s)], -1)
+    return jnp.stack([dr, ds], -1)
 
 
 def locate(mesh: Mesh, points, tol: float = 1e-6, names=None) -> Probe:

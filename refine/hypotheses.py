@@ -80,21 +80,22 @@ def _fit(cause, compiled: Compiled, fit_mask, hold_mask, sigma, z0=None, shapes_
                   shapes_from=shapes_from, **kw)
 
 
-def refit(f: Fitted, points, hold_mask, sigma, max_remesh: int = 2) -> Fitted:
+def refit(f: Fitted, points, hold_mask, sigma, max_remesh: int = 2, element: str = "tri3") -> Fitted:
     """The same hypothesis refitted on other points (e.g. all guide points), with the standard
     errors of its unknowns.
 
     A hypothesis with fitted shapes is remeshed at them first and refitted from there, again
     while its shapes still move by more than a fifth of the element size: a morph of the first
     mesh can only take a shape so far (its cells distort, then invert), which leaves a region
-    fitted too small with too large a ratio, or a hole too small. Without shapes the compiled
-    model is reused."""
+    fitted too small with too large a ratio, or a hole too small. The new meshes use ``element``
+    (quadratic triangles are far less stiff in a strongly strained region than linear ones at
+    the same size). Without shapes the compiled model is reused."""
     if f.remesh is None or not f.shapes:
         g = _fit(f.cause, f.compiled, points, hold_mask, sigma, z0=f.z, shapes_from=f.shapes_from, law=f.law)
     else:
         g, start = None, f
         for _ in range(max(1, max_remesh)):
-            h = f.remesh(start.shapes, points, hold_mask)
+            h = f.remesh(start.shapes, points, hold_mask, element)
             if g is None or h.chi2_fit < g.chi2_fit:
                 g = h
             moved = max(np.max(np.abs(np.subtract(a[1:5], b[1:5]))) for a, b in zip(start.shapes, h.shapes))
@@ -167,14 +168,14 @@ def _disjoint(ells, gap):
 
 
 def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, geometry: bool = True,
-                h: float | None = None, ratios=None) -> Fitted:
+                h: float | None = None, ratios=None, element: str = "tri3") -> Fitted:
     """Regions of other stiffness: ellipses ``shapes [(cx, cy, a, b, angle)]`` with fitted log
     moduli (start: ``ratios``, default x3 for stiffer, /3 for softer) and, with ``geometry``,
     fitted centres and axes."""
     ex, obs = base.experiment, base.obs
     ells = _disjoint([jf.Ellipse(*_clamp_shape(s, ex, base.spacing)) for s in shapes], base.spacing)
     size = h or _mesh_size(base, ells)
-    mesh = domain_mesh(ex, size, inclusions=ells)
+    mesh = domain_mesh(ex, size, element, inclusions=ells)
     model = MeasuredModel(ex, obs, mesh=mesh, h=size)
     masks = np.stack([(mesh.regions == k + 1).astype(float) for k in range(len(ells))])
     moduli = RegionModuli(masks, ex.E, names=tuple(f"region{k + 1}" for k in range(len(ells))))
@@ -196,12 +197,13 @@ def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, 
     causes = {"stiffer-region" if s[6] > 1 else "softer-region" for s in out.shapes}
     out.cause = causes.pop() if len(causes) == 1 and n == 1 else "regions"
     if geometry:
-        out.remesh = lambda fitted, pts, hold: fit_regions(base, [f[1:6] for f in fitted], signs, pts, hold, sigma,
-                                                           h=h, ratios=[f[6] for f in fitted])
+        out.remesh = lambda fitted, pts, hold, el: fit_regions(base, [f[1:6] for f in fitted], signs, pts, hold,
+                                                               sigma, h=h, ratios=[f[6] for f in fitted], element=el)
     return out
 
 
-def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | None = None) -> Fitted:
+def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | None = None,
+             element: str = "tri3") -> Fitted:
     """A hole: an ellipse removed from the domain, centre and axes fitted. The starting ellipse is
     shrunk until no tracked point lies inside it (material was seen there)."""
     ex, obs = base.experiment, base.obs
@@ -214,7 +216,7 @@ def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | 
         a, b = 0.9 * a, 0.9 * b
     hole = jf.Ellipse(cx, cy, a, b, ang)
     size = h or _mesh_size(base, [hole])
-    mesh = domain_mesh(ex, size, holes=[hole])
+    mesh = domain_mesh(ex, size, element, holes=[hole])
     model = MeasuredModel(ex, obs, mesh=mesh, h=size)
     param = ShapeGeometry(jf.morph(mesh, [hole]), hole.params[None], scale=0.5 * base.spacing)
 
@@ -223,7 +225,7 @@ def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | 
         return [("hole", *g[:4], g[4], 0.0)]
 
     out = _fit("hole", Compiled(model, param), fit_mask, hold_mask, sigma, shapes_from=shapes_from, law=ex.law)
-    out.remesh = lambda fitted, pts, hold: fit_hole(base, fitted[0][1:6], pts, hold, sigma, h=h)
+    out.remesh = lambda fitted, pts, hold, el: fit_hole(base, fitted[0][1:6], pts, hold, sigma, h=h, element=el)
     return out
 
 

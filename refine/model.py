@@ -170,6 +170,6 @@ class MeasuredModel:
         tracked point, ``(n_frames, n_points, dim)``: for callers that also need the nodal
         solution (reaction forces in :mod:`refine.forces`, strain maps), so they solve once."""
         probe = self.probe
-        if self.mesh.element in ("tri3", "tet4"):  # follow a geometry morph of the reference nodes
+        if self.mesh.element in ("tri3", "tet4", "tri6"):  # follow a geometry morph of the reference nodes
             probe = probe.moved(theta["X"], self.obs.reference)
         return jax.vmap(probe)(U)

@@ -185,3 +185,30 @@ def test_morph_band_limits_its_reach():
     assert d.max() < 3.0 + 1e-9
     with pytest.raises(MeshError, match="no curve"):
         morph(mesh, [Ellipse(30, 5, 2, 1)])
+
+
+@pytest.mark.parametrize("element", ["tri3", "tri6"])
+def test_moved_probe_follows_a_morph_and_differentiates(element):
+    """A probe located on the reference mesh, moved with the morphed nodes, still points at the
+    same physical points (it interpolates the moved coordinates back to them), and its
+    derivative in the shape parameters matches central differences."""
+    from jaxfem.probe import locate
+    from jaxfem.shapes import morph_nodes
+
+    rng = np.random.default_rng(4)
+    e = Ellipse(*rng.uniform([40, 25], [60, 35]), *rng.uniform(6, 10, 2), rng.uniform(0, np.pi))
+    m = plate(0, 0, 100, 60, 4.0, inclusions=[e], element=element)
+    mo = morph(m, [e])
+    pts = rng.uniform([5, 5], [95, 55], (200, 2))
+    probe = locate(m, pts)
+    new = jnp.asarray(e.params[None] + rng.uniform(-1, 1, (1, 5)) * [1.5, 1.5, 1.0, 1.0, 0.1])
+    X = morph_nodes(mo.nodes0, new, mo.params0, mo.weights)
+    assert float(jnp.abs(probe.moved(X, pts)(X) - pts).max()) < 1e-9
+    field = jnp.asarray(np.sin(m.nodes[:, :1] / 7.0))  # a field carried by the moving nodes
+
+    def f(q):
+        return jnp.sum(probe.moved(morph_nodes(mo.nodes0, q, mo.params0, mo.weights), pts)(field))
+
+    d, h = jnp.asarray(rng.standard_normal((1, 5)) * [1, 1, 1, 1, 0.05]), 1e-5
+    fd = (f(new + h * d) - f(new - h * d)) / (2 * h)
+    assert abs(float(jnp.sum(jax.grad(f)(new) * d)) - float(fd)) <= 1e-6 * max(1.0, abs(float(fd)))
