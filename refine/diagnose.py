@@ -8,8 +8,9 @@ name the cause, extend the model, and measure the gain on held-out points.
 3. Name: a regularised modulus field fitted by adjoint gradients shows where; its segmentation
    proposes regions; stiffer/softer regions, holes and other material laws are fitted by exact
    gradients and compared on held-out guide points and by BIC, never by training error alone.
-4. Extend and measure: the chosen model is refitted on all guide points; validation points, held
-   out of every fit, measure the gain.
+4. Extend and measure: the chosen model is refitted on all guide points, remeshed at its fitted
+   shapes with quadratic triangles (linear ones bias a strained soft region's modulus low);
+   validation points, held out of every fit, measure the gain.
 """
 
 from __future__ import annotations
