@@ -8,7 +8,7 @@ gain and seconds, over random hidden cases per cause, at two grid densities and 
 
 Each case draws its hidden effect (location, size, ratio) under its own seed; data come from a
 finer quadratic mesh of a larger sheet, with noise; the inversion uses linear triangles on the
-tracked region. Cases run in ``--workers`` single-threaded processes; each finished case is
+tracked region (and quadratic ones for the chosen model's final refit). Cases run in ``--workers`` single-threaded processes; each finished case is
 appended to the rows file (JSONL) at once, so a run stopped early keeps what finished and a
 second run with the same rows file resumes (cases already there are skipped). Cases are ordered
 case index first, so a run stopped early has about as many cases in every cell.
