@@ -14,6 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 from .errors import MeshError
@@ -81,42 +83,50 @@ def _num_grad(shape: Callable, dim: int) -> Callable:
 
 
 # ---------------------------------------------------------------- shape functions (xi, eta, zeta)
+def _stack(parts, axis):
+    """``np.stack``, or ``jnp.stack`` for JAX arrays: the shape functions below then serve both the
+    numpy reference data and differentiable interpolation inside JAX (e.g. ``Probe.moved``)."""
+    if any(isinstance(q, jax.Array) for q in parts):
+        return jnp.stack(parts, axis)
+    return np.stack(parts, axis)
+
+
 def _line2(x):
     s = x[..., 0]
-    return np.stack([(1 - s) / 2, (1 + s) / 2], -1)
+    return _stack([(1 - s) / 2, (1 + s) / 2], -1)
 
 
 def _line3(x):
     s = x[..., 0]
-    return np.stack([s * (s - 1) / 2, s * (s + 1) / 2, 1 - s * s], -1)
+    return _stack([s * (s - 1) / 2, s * (s + 1) / 2, 1 - s * s], -1)
 
 
 def _tri3(x):
     r, s = x[..., 0], x[..., 1]
-    return np.stack([1 - r - s, r, s], -1)
+    return _stack([1 - r - s, r, s], -1)
 
 
 def _tri6(x):
     r, s = x[..., 0], x[..., 1]
     t = 1 - r - s
-    return np.stack([t * (2 * t - 1), r * (2 * r - 1), s * (2 * s - 1), 4 * r * t, 4 * r * s, 4 * s * t], -1)
+    return _stack([t * (2 * t - 1), r * (2 * r - 1), s * (2 * s - 1), 4 * r * t, 4 * r * s, 4 * s * t], -1)
 
 
 def _quad4(x):
     r, s = x[..., 0], x[..., 1]
-    return np.stack([(1 - r) * (1 - s), (1 + r) * (1 - s), (1 + r) * (1 + s), (1 - r) * (1 + s)], -1) / 4
+    return _stack([(1 - r) * (1 - s), (1 + r) * (1 - s), (1 + r) * (1 + s), (1 - r) * (1 + s)], -1) / 4
 
 
 def _tet4(x):
     r, s, t = x[..., 0], x[..., 1], x[..., 2]
-    return np.stack([1 - r - s - t, r, s, t], -1)
+    return _stack([1 - r - s - t, r, s, t], -1)
 
 
 def _tet10(x):
     r, s, t = x[..., 0], x[..., 1], x[..., 2]
     u = 1 - r - s - t
     # vtk / meshio ordering: vertices 0-3, then edges 01, 12, 20, 03, 13, 23
-    return np.stack([u * (2 * u - 1), r * (2 * r - 1), s * (2 * s - 1), t * (2 * t - 1),
+    return _stack([u * (2 * u - 1), r * (2 * r - 1), s * (2 * s - 1), t * (2 * t - 1),
                      4 * u * r, 4 * r * s, 4 * s * u, 4 * u * t, 4 * r * t, 4 * s * t], -1)
 
 
@@ -124,7 +134,7 @@ def _hex8(x):
     r, s, t = x[..., 0], x[..., 1], x[..., 2]
     sg = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
                    [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], dtype=float)
-    return np.stack([(1 + a * r) * (1 + b * s) * (1 + c * t) / 8 for a, b, c in sg], -1)
+    return _stack([(1 + a * r) * (1 + b * s) * (1 + c * t) / 8 for a, b, c in sg], -1)
 
 
 # ---------------------------------------------------------------- quadrature rules

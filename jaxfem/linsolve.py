@@ -82,21 +82,20 @@ class _FactorCache:
         return self.solve(np.asarray(rhs, dtype=np.float64))
 
 
+def _superlu_factor(pattern: Pattern, vals) -> Callable:
+    """SuperLU factorisation of the matrix with values ``vals``; its solve (NaN if singular)."""
+    A = _csr(pattern, vals).tocsc()
+    try:
+        return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                         options={"SymmetricMode": True}).solve
+    except RuntimeError:  # exactly singular
+        return lambda b: np.full(b.shape, np.nan)
+
+
 def superlu(pattern: Pattern) -> Callable:
     """SuperLU (scipy) with a symmetric ordering and diagonal pivoting preference."""
-
-    def factor(vals):
-        A = _csr(pattern, vals).tocsc()
-        try:
-            return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                             options={"SymmetricMode": True}).solve
-        except RuntimeError:  # exactly singular
-            return lambda b: np.full(b.shape, np.nan)
-
-    cache = _FactorCache(factor)
-    solve = lambda vals, rhs, arrays: _host_callback(cache, vals, rhs)  # noqa: E731
-    solve.factor = factor
-    return solve
+    cache = _FactorCache(lambda vals: _superlu_factor(pattern, vals))
+    return lambda vals, rhs, arrays: _host_callback(cache, vals, rhs)
 
 
 def _mkl_pardiso():
@@ -221,7 +220,6 @@ def cholmod(pattern: Pattern) -> Callable:
 
     n = pattern.n_dofs
     state = {"factor": None}
-    fallback = superlu(pattern).factor
 
     def factor(vals):
         A = sp.csc_matrix((vals, pattern.cols, pattern.indptr), shape=(n, n))
@@ -230,7 +228,7 @@ def cholmod(pattern: Pattern) -> Callable:
                 state["factor"] = analyze(A, mode="auto")
             state["factor"].cholesky_inplace(A)
         except CholmodNotPositiveDefiniteError:
-            return fallback(vals)
+            return _superlu_factor(pattern, vals)
         return state["factor"].solve_A
 
     cache = _FactorCache(factor)

@@ -95,9 +95,10 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
         R, vals = asm.residual_and_tangent(u.reshape(-1, dim), X, p, t, arrays, nnz)
         return R - external_force(theta, loads, arrays, facet_element, n), vals
 
-    def residual_det(u, loads):
+    def det_and_residual(u, loads):
+        """Smallest det F and the residual at ``u``, from one pass over the cells."""
         R, d = asm.residual_and_min_det(u.reshape(-1, dim), X, p, t, arrays)
-        return R - external_force(theta, loads, arrays, facet_element, n), d if finite else jnp.array(1.0)
+        return d if finite else jnp.array(1.0), R - external_force(theta, loads, arrays, facet_element, n)
 
     def constrained(vals):
         return vals * arrays["keep"] + arrays["diag_fixed"]
@@ -122,26 +123,18 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
         a, _ = jax.lax.while_loop(cond, lambda c: (0.5 * c[0], c[1] + 1), (jnp.array(0.5), 1))
         return u + a * du
 
-    def guarded_update(u, du):
-        """The update, halved while it would invert an element; (new u, valid)."""
-        d = min_det(u + du)
+    def guarded_update(u, du, state_at):
+        """The update, halved while it would invert an element: ``(new u, valid, extra)``, where
+        ``state_at(u) -> (min det F, extra)`` evaluates the new state (once, in the usual case
+        that the full update is valid)."""
+        d, extra = state_at(u + du)
 
         def fallback():
             u1 = halved(u, du)
-            return u1, min_det(u1) > 0
+            d1, extra1 = state_at(u1)
+            return u1, d1 > 0, extra1
 
-        return jax.lax.cond(d > 0, lambda: (u + du, d > 0), fallback)
-
-    def guarded_update_residual(u, du, loads):
-        """The same, also returning the residual at the new state (with det F from the same pass)."""
-        R, d = residual_det(u + du, loads)
-
-        def fallback():
-            u1 = halved(u, du)
-            R1, d1 = residual_det(u1, loads)
-            return u1, d1 > 0, R1
-
-        return jax.lax.cond(d > 0, lambda: (u + du, d > 0, R), fallback)
+        return jax.lax.cond(d > 0, lambda: (u + du, d > 0, extra), fallback)
 
     def log(st, value):
         i = jnp.minimum(st["n_log"], opts.log_size - 1)
@@ -158,7 +151,7 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
         du_c = jnp.zeros(n).at[fixed].set(loads["u_D"] - u[fixed])
         rhs = -(R + matvec(vals, arrays["rows"], arrays["cols"], du_c)) * free + du_c
         du = lin(constrained(vals), rhs, arrays)
-        u1, ok = guarded_update(u, du)
+        u1, ok, _ = guarded_update(u, du, lambda v: (min_det(v), ()))
         u1 = jnp.where(ok, u1, u + du_c)  # no valid predictor: start from the prescribed jump
 
         def body(c):
@@ -170,7 +163,7 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
             rhs = -(R + matvec(vals, arrays["rows"], arrays["cols"], gap)) * free + gap
             du = lin(constrained(vals), rhs, arrays)
             bad_solve = ~jnp.all(jnp.isfinite(du))
-            u2, ok, R2 = guarded_update_residual(u1, jnp.where(bad_solve, 0.0, du), loads)
+            u2, ok, R2 = guarded_update(u1, jnp.where(bad_solve, 0.0, du), lambda v: det_and_residual(v, loads))
             res, scale = norms(R2, loads)
             stl = log(stl, res / scale)
             dun = jnp.linalg.norm(du)

@@ -11,11 +11,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from scipy.spatial import cKDTree
 
 from . import _config  # noqa: F401
+from .elements import get_element
 from .errors import MeshError
 from .mesh import Mesh
 
@@ -55,32 +57,16 @@ class Probe:
             w = jnp.concatenate([1.0 - lam.sum(axis=1, keepdims=True), lam], axis=1)
             return Probe(self.cells, self.nodes, w)
         xi = lam
+        shape = get_element("tri6").shape
+        grad = jax.vmap(jax.jacfwd(shape))  # (p, 6, 2)
         for _ in range(_TRI6_NEWTON):
-            N, dN = _tri6_shape(xi), _tri6_grad(xi)
-            r = jnp.einsum("pk,pki->pi", N, Xe) - pts
-            J = jnp.einsum("pki,pkj->pij", Xe, dN)
+            r = jnp.einsum("pk,pki->pi", shape(xi), Xe) - pts
+            J = jnp.einsum("pki,pkj->pij", Xe, grad(xi))
             xi = xi - jnp.linalg.solve(J, r[..., None])[..., 0]
-        return Probe(self.cells, self.nodes, _tri6_shape(xi))
+        return Probe(self.cells, self.nodes, shape(xi))
 
 
 _TRI6_NEWTON = 4
-
-
-def _tri6_shape(xi):
-    """Quadratic triangle shape functions in JAX (node order of :mod:`jaxfem.elements`)."""
-    r, s = xi[..., 0], xi[..., 1]
-    t = 1 - r - s
-    return jnp.stack([t * (2 * t - 1), r * (2 * r - 1), s * (2 * s - 1), 4 * r * t, 4 * r * s, 4 * s * t], -1)
-
-
-def _tri6_grad(xi):
-    """``(..., 6, 2)`` reference gradients of :func:`_tri6_shape`."""
-    r, s = xi[..., 0], xi[..., 1]
-    t = 1 - r - s
-    z = jnp.zeros_like(r)
-    dr = jnp.stack([1 - 4 * t, 4 * r - 1, z, 4 * (t - r), 4 * s, -4 * s], -1)
-    ds = jnp.stack([1 - 4 * t, z, 4 * s - 1, -4 * r, 4 * r, 4 * (t - s)], -1)
-    return jnp.stack([dr, ds], -1)
 
 
 def locate(mesh: Mesh, points, tol: float = 1e-6, names=None) -> Probe:
