@@ -100,6 +100,52 @@ def _per_qp(fn, F, p):
     return jax.vmap(lambda Fc, pc: jax.vmap(lambda Fq: fn(Fq, pc))(Fc))(F, p)
 
 
+def _per_qp_state(fn, F, p, state):
+    """Apply ``fn(F, p, s)`` at each quadrature point with a per-point ``state (n_cells, n_qp)``;
+    ``None`` is no state (NaN everywhere)."""
+    if state is None:
+        state = jnp.full(F.shape[:2], jnp.nan, F.dtype)
+    return jax.vmap(lambda Fc, pc, sc: jax.vmap(lambda Fq, sq: fn(Fq, pc, sq))(Fc, sc))(F, p, state)
+
+
+def _materialized(a):
+    """The arrays ``a``, computed once into memory: every element-matrix term reads them, and XLA
+    would otherwise fuse their whole computation into each read (measured: the tri3 pass took twice
+    as long). On CPU an optimisation barrier does not stop that fusion; a conditional does (its
+    predicate is never true for finite data, and either branch returns the same values)."""
+    flag = jnp.isnan(jax.tree.leaves(a)[0].reshape(-1)[0])
+    return jax.lax.cond(flag, lambda x: jax.tree.map(lambda y: y + 0.0, x), lambda x: x, a)
+
+
+def element_matrices(dNdX, A, w):
+    """Element tangent matrices ``Ke[c, a, i, b, j] = sum_q w dN_a/dX_K A[j, L, i, K] dN_b/dX_L``.
+
+    Args:
+        dNdX: ``(n_cells, n_qp, n_per_cell, dim)``; A: ``(n_cells, n_qp, dim, dim, dim, dim)`` with
+        ``A[c, q, j, L, i, K] = dP_iK / dF_jL``; w: ``(n_cells, n_qp)``.
+
+    With few terms (n_qp x dim^2 <= 16: tri3, tri6, quad4, tet4) the sum is written term by term
+    with the cells on the minor axis, which XLA turns into one vectorised loop over the cells;
+    measured on 2 cores 4.1x faster than ``einsum`` for tri3 (1,920 cells: 0.062 vs 0.258 ms),
+    4.4x for quad4, 2.0x for tri6, 3.0x for tet4. ``einsum`` (batched small matrix products) stays
+    for hex8 (72 terms), where the term-by-term form was 4x slower. Inside the whole residual and
+    tangent pass of the 2k-unknown sheet (tri3, plane stress) the pass went from 0.87 to 0.72 ms.
+    """
+    nq, dim = dNdX.shape[1], dNdX.shape[3]
+    if nq * dim * dim > 16:
+        return jnp.einsum("cqaK,cqjLiK,cqbL,cq->caibj", dNdX, A, dNdX, w)
+    dNdX, A, w = _materialized((dNdX, A, w))
+    dN, At, wt = jnp.moveaxis(dNdX, 0, -1), jnp.moveaxis(A, 0, -1), jnp.moveaxis(w, 0, -1)
+    Ke = 0.0
+    for q in range(nq):
+        for K in range(dim):
+            left = dN[q, :, K, None, None, None, :] * wt[q]                                  # a . . . c
+            for L in range(dim):
+                Aq = jnp.transpose(At[q, :, L, :, K, :], (1, 0, 2))[None, :, None, :, :]     # . i . j c
+                Ke = Ke + left * Aq * dN[q, None, None, :, L, None, :]                        # a i b j c
+    return jnp.moveaxis(Ke, -1, 0)
+
+
 # ====================================================================== global quantities
 @dataclass(frozen=True, eq=False)
 class Assembler:
@@ -125,41 +171,47 @@ class Assembler:
         F = deformation_gradients(u, cells, dNdX)
         return jnp.sum(_per_qp(self.law.energy, F, p) * dV * t[:, None])
 
-    def _forces_and_F(self, u, X, p, t, cells):
+    def _forces(self, u, X, p, t, cells, state=None):
         dNdX, dV = shape_gradients(X, cells, self.el)
         F = deformation_gradients(u, cells, dNdX)
-        P = _per_qp(self.law.stress, F, p)
-        return jnp.einsum("cqiK,cqaK,cq->cai", P, dNdX, dV * t[:, None]).reshape(len(cells), -1), F
+        P, state = _per_qp_state(self.law.stress_state, F, p, state)
+        return jnp.einsum("cqiK,cqaK,cq->cai", P, dNdX, dV * t[:, None]).reshape(len(cells), -1), F, state
 
     def element_residuals(self, u, X, p, t, cells):
         """Internal nodal forces of each cell, ``(n_cells, n_per_cell * dim)``."""
-        return self._forces_and_F(u, X, p, t, cells)[0]
+        return self._forces(u, X, p, t, cells)[0]
 
     def residual(self, u, X, p, t, arrays):
         """Internal force vector, ``(n_dofs,)``."""
         Re = self.element_residuals(u, X, p, t, arrays["cells"])
         return jnp.zeros(u.size, u.dtype).at[arrays["edofs"].ravel()].add(Re.ravel())
 
-    def residual_and_min_det(self, u, X, p, t, arrays):
-        """Internal force vector and the smallest det F (one pass over the cells: what a Newton
-        update needs to check the new state)."""
-        Re, F = self._forces_and_F(u, X, p, t, arrays["cells"])
-        return jnp.zeros(u.size, u.dtype).at[arrays["edofs"].ravel()].add(Re.ravel()), jnp.min(det(F))
+    def residual_and_min_det(self, u, X, p, t, arrays, state=None):
+        """Internal force vector, the smallest det F and the material state (one pass over the
+        cells: what a Newton update needs to check the new state).
 
-    def residual_and_tangent(self, u, X, p, t, arrays, nnz: int):
-        """Internal force vector ``(n_dofs,)`` and tangent values on the pattern ``(nnz,)``."""
+        ``state (n_cells, n_qp)`` is where the material's inner iteration starts (the out-of-plane
+        stretch under plane stress; ``None``: its own estimate), and the state returned is where
+        it converged, for the next call at a nearby ``u``."""
+        Re, F, state = self._forces(u, X, p, t, arrays["cells"], state)
+        R = jnp.zeros(u.size, u.dtype).at[arrays["edofs"].ravel()].add(Re.ravel())
+        return R, jnp.min(det(F)), state
+
+    def residual_and_tangent(self, u, X, p, t, arrays, nnz: int, state=None):
+        """Internal force vector ``(n_dofs,)``, tangent values on the pattern ``(nnz,)`` and the
+        material state (see :meth:`residual_and_min_det`)."""
         cells = arrays["cells"]
         dNdX, dV = shape_gradients(X, cells, self.el)
         F = deformation_gradients(u, cells, dNdX)
-        P, A = _per_qp(self.law.stress_and_tangent, F, p)
+        P, A, state = _per_qp_state(self.law.stress_and_tangent_state, F, p, state)
         dim = u.shape[1]
         w = dV * t[:, None]
         Re = jnp.einsum("cqiK,cqaK,cq->cai", P, dNdX, w).reshape(len(cells), -1)
         A = A.reshape(A.shape[:2] + (dim, dim, dim, dim))  # (c, q, j, L, i, K) = dP_iK / dF_jL
-        Ke = jnp.einsum("cqaK,cqjLiK,cqbL,cq->caibj", dNdX, A, dNdX, w)
+        Ke = element_matrices(dNdX, A, w)
         R = jnp.zeros(u.size, u.dtype).at[arrays["edofs"].ravel()].add(Re.ravel())
         vals = jnp.zeros(nnz, u.dtype).at[arrays["slots"]].add(Ke.ravel())
-        return R, vals
+        return R, vals, state
 
     def min_jacobian(self, u, X, cells):
         """Smallest det F over all quadrature points (<= 0 means an inverted element)."""

@@ -7,6 +7,12 @@ F that a material's energy takes.
   quadrature point, d psi / d F33 = 0, solved by Newton's method. Its derivatives come from the
   implicit function theorem (a ``custom_jvp``), so residuals, tangents and every higher derivative
   of the reduced energy are exact. This is what a thin sheet needs; it is not the plane-strain law.
+
+The out-of-plane stretch is also a state the caller may keep: the ``*_state`` functions of
+:class:`Reduced` take a start ``l0`` for the stretch's Newton iteration (NaN: none, start from the
+small-strain estimate) and return the converged stretch, so that a Newton solve over the whole body
+restarts each quadrature point's stretch from the last iterate (one or two iterations instead of
+three or four) and a tangent at a state whose stretch is known costs a single check iteration.
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ from . import _config  # noqa: F401
 
 KINDS = ("plane-stress", "plane-strain", "solid")
 _NEWTON_ITERS = 30
-_UNROLLED = 3  # enough from the small-strain start up to ~20 % strain
+_UNROLLED = 1  # the rest in a loop that stops where every point has converged
 
 
 def embed(F2, f33):
@@ -36,12 +42,13 @@ def _plane_stress_stretch(energy: Callable) -> Callable:
     def h(l, F2, p):
         return jax.grad(lambda s: energy(embed(F2, s), p))(l)
 
-    def newton(F2, p):
+    def newton(F2, p, l0):
         nu = p["nu"]
-        # Start from the small-strain plane-stress estimate eps33 = -nu/(1-nu) (eps11 + eps22);
-        # Newton then converges quadratically (4-5 iterations at 20 % strain).
-        l0 = 1.0 - nu / (1.0 - nu) * (F2[0, 0] + F2[1, 1] - 2.0)
-        l0 = jnp.clip(l0, 0.2, 5.0)
+        # Without a start (NaN), the small-strain plane-stress estimate eps33 = -nu/(1-nu) (eps11 +
+        # eps22); Newton then converges quadratically (3-4 iterations at 20 % strain; 1-2 from the
+        # stretch of a nearby state, 1 from the converged stretch of the same state).
+        est = jnp.clip(1.0 - nu / (1.0 - nu) * (F2[0, 0] + F2[1, 1] - 2.0), 0.2, 5.0)
+        l0 = jnp.where(jnp.isfinite(l0) & (l0 > 0), l0, est)
 
         def body(c):
             l, _, k = c
@@ -57,23 +64,23 @@ def _plane_stress_stretch(energy: Callable) -> Callable:
             l, step, k = c
             return (step > 1e-8 * l) & (k < _NEWTON_ITERS)
 
-        # The first iterations unrolled (XLA fuses them into one pass over the quadrature points;
-        # a loop iteration is a pass of its own), the rest only where a point still needs them.
+        # The first iteration unrolled (XLA fuses it into the pass over the quadrature points;
+        # a loop iteration is a pass of its own), the rest only while a point still needs them.
         c = (l0, jnp.ones_like(l0), 0)
         for _ in range(_UNROLLED):
             c = body(c)
         return jax.lax.while_loop(cond, body, c)[0]
 
     @jax.custom_jvp
-    def stretch(F2, p):
-        return newton(jax.lax.stop_gradient(F2), jax.lax.stop_gradient(p))
+    def stretch(F2, p, l0):
+        return newton(jax.lax.stop_gradient(F2), jax.lax.stop_gradient(p), jax.lax.stop_gradient(l0))
 
     @stretch.defjvp
     def _stretch_jvp(primals, tangents):
-        F2, p = primals
-        l = stretch(F2, p)
+        F2, p, l0 = primals  # the start does not change the root: its tangent is ignored
+        l = stretch(F2, p, l0)
         hl = jax.grad(h)(l, F2, p)
-        _, hdot = jax.jvp(lambda a, b: h(l, a, b), (F2, p), tangents)
+        _, hdot = jax.jvp(lambda a, b: h(l, a, b), (F2, p), tangents[:2])
         return l, -hdot / hl
 
     return stretch
@@ -89,12 +96,17 @@ class Reduced:
         stress: ``P(F, p) = dW/dF`` (first Piola-Kirchhoff, in-plane block in 2D).
         stress_and_tangent: ``(P, A)`` with ``A[m] = dP/dF_m`` for each flattened component m.
         full_F: the 3x3 deformation gradient (with the out-of-plane stretch in 2D).
+        stress_state, stress_and_tangent_state: the same with a start ``l0`` for the out-of-plane
+            stretch (NaN: none), returning ``(P, l)`` and ``(P, A, l)`` with ``l`` the converged
+            stretch, the start for a nearby state (F33 under the other kinematics, unused there).
     """
 
     energy: Callable
     stress: Callable
     stress_and_tangent: Callable
     full_F: Callable
+    stress_state: Callable
+    stress_and_tangent_state: Callable
 
 
 def reduce(energy: Callable, kind: str) -> Reduced:
@@ -110,31 +122,45 @@ def reduce(energy: Callable, kind: str) -> Reduced:
     d = 3 if kind == "solid" else 2
     if kind == "plane-stress":
         stretch = _plane_stress_stretch(energy)
-        full = lambda F, p: embed(F, stretch(F, p))  # noqa: E731
+        full3 = lambda F, p, l0: embed(F, stretch(F, p, l0))  # noqa: E731
     elif kind == "plane-strain":
-        full = lambda F, p: embed(F, 1.0)  # noqa: E731
+        full3 = lambda F, p, l0: embed(F, 1.0)  # noqa: E731
     else:
-        full = lambda F, p: F  # noqa: E731
+        full3 = lambda F, p, l0: F  # noqa: E731
+
+    def full(F, p):
+        return full3(F, p, jnp.nan)
 
     def W(F, p):
         return energy(full(F, p), p)
 
-    def stress(F, p):
-        return jax.grad(energy)(full(F, p), p)[:d, :d]
+    def stress_state(F, p, l0):
+        F3 = full3(F, p, l0)
+        return jax.grad(energy)(F3, p)[:d, :d], F3[2, 2]
 
-    def stress_and_tangent(F, p):
+    def stress(F, p):
+        return stress_state(F, p, jnp.nan)[0]
+
+    def stress_and_tangent_state(F, p, l0):
         if kind == "plane-stress":
             # The condensed tangent is the derivative of the in-plane stress with the stretch
             # following F (its implicit custom_jvp): four forward directions through one Newton
             # solve for the stretch. Measured 2.6x faster on CPU than condensing the 9x9 Hessian
             # (a Schur complement), which XLA fuses badly, and equal to it to rounding.
-            A, P = jax.jacfwd(lambda G: (stress(G, p),) * 2, has_aux=True)(F)  # A[i, K, j, L]
-            return P, jnp.moveaxis(A.reshape(d, d, d * d), -1, 0)
-        F3 = full(F, p)
+            def f(G):
+                P, l = stress_state(G, p, l0)
+                return P, (P, l)
+
+            A, (P, l) = jax.jacfwd(f, has_aux=True)(F)  # A[i, K, j, L]
+            return P, jnp.moveaxis(A.reshape(d, d, d * d), -1, 0), l
+        F3 = full3(F, p, l0)
         P3 = jax.grad(energy)(F3, p)
         H = jax.hessian(energy)(F3, p)  # H[i, K, j, L] = d2 psi / dF_iK dF_jL
         A = H[:d, :d, :d, :d]
         # A[m] = dP/dF_m with m the flattened (j, L): symmetric, so transpose by reshape
-        return P3[:d, :d], A.reshape(d * d, d, d)
+        return P3[:d, :d], A.reshape(d * d, d, d), F3[2, 2]
 
-    return Reduced(W, stress, stress_and_tangent, full)
+    def stress_and_tangent(F, p):
+        return stress_and_tangent_state(F, p, jnp.nan)[:2]
+
+    return Reduced(W, stress, stress_and_tangent, full, stress_state, stress_and_tangent_state)

@@ -11,6 +11,13 @@ displacement) to be small. An attempt that is going nowhere is abandoned early: 
 a solution reduces it by orders of magnitude), the step is cut back at once instead of running to
 ``max_iter``; a failed attempt then costs a few linear solves, not twenty.
 
+The material's inner state (the out-of-plane stretch of plane stress, solved per quadrature point)
+travels with the iterate: the check of an update returns the stretch where it converged, the
+tangent at that state starts from it (one iteration), and the next check starts from it too.
+Measured on the 2k-unknown sheet, interleaved in one process: 8.3 vs 9.6 ms for the whole solve
+(best of 300), median 10.3 vs 11.7 ms, with the element-matrix kernel of
+:func:`~jaxfem.assembly.element_matrices`.
+
 The outcome is data (``status``, the failing step, the residual log), because nothing can be raised
 inside ``jit``; :class:`~jaxfem.solver.Solver` turns a failure into a :class:`SolverError`.
 """
@@ -91,14 +98,17 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
     p = {k: theta[k] for k in theta if k not in ("X", "thickness", "u_D", "f", "traction")}
     X, t = theta["X"], theta["thickness"]
 
-    def assemble(u, loads):
-        R, vals = asm.residual_and_tangent(u.reshape(-1, dim), X, p, t, arrays, nnz)
-        return R - external_force(theta, loads, arrays, facet_element, n), vals
+    # ``lam`` is the material's inner state at each quadrature point (the out-of-plane stretch
+    # under plane stress): each evaluation starts it from the last one (NaN: no start) and returns
+    # where it converged, so a state evaluated by the update check costs the tangent one iteration.
+    def assemble(u, loads, lam):
+        R, vals, lam = asm.residual_and_tangent(u.reshape(-1, dim), X, p, t, arrays, nnz, lam)
+        return R - external_force(theta, loads, arrays, facet_element, n), vals, lam
 
-    def det_and_residual(u, loads):
-        """Smallest det F and the residual at ``u``, from one pass over the cells."""
-        R, d = asm.residual_and_min_det(u.reshape(-1, dim), X, p, t, arrays)
-        return d if finite else jnp.array(1.0), R - external_force(theta, loads, arrays, facet_element, n)
+    def det_and_residual(u, loads, lam):
+        """Smallest det F, the residual and the material state at ``u``, from one pass over the cells."""
+        R, d, lam = asm.residual_and_min_det(u.reshape(-1, dim), X, p, t, arrays, lam)
+        return d if finite else jnp.array(1.0), (R - external_force(theta, loads, arrays, facet_element, n), lam)
 
     def constrained(vals):
         return vals * arrays["keep"] + arrays["diag_fixed"]
@@ -147,7 +157,7 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
         loads = loads_at(theta, loads0, s_new)
         u = st["u"]
         # predictor: prescribed increment through the tangent at the last equilibrium
-        R, vals = assemble(u, loads)
+        R, vals, _ = assemble(u, loads, st["lam"])
         du_c = jnp.zeros(n).at[fixed].set(loads["u_D"] - u[fixed])
         rhs = -(R + matvec(vals, arrays["rows"], arrays["cols"], du_c)) * free + du_c
         du = lin(constrained(vals), rhs, arrays)
@@ -155,15 +165,16 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
         u1 = jnp.where(ok, u1, u + du_c)  # no valid predictor: start from the prescribed jump
 
         def body(c):
-            u1, it, _, _, reason, stl, bad = c
-            R, vals = assemble(u1, loads)
+            u1, lam, it, _, _, reason, stl, bad = c
+            R, vals, lam = assemble(u1, loads, lam)
             res0, _ = norms(R, loads)
             # any part of the prescribed jump a damped update left out is imposed again here
             gap = jnp.zeros(n).at[fixed].set(loads["u_D"] - u1[fixed])
             rhs = -(R + matvec(vals, arrays["rows"], arrays["cols"], gap)) * free + gap
             du = lin(constrained(vals), rhs, arrays)
             bad_solve = ~jnp.all(jnp.isfinite(du))
-            u2, ok, R2 = guarded_update(u1, jnp.where(bad_solve, 0.0, du), lambda v: det_and_residual(v, loads))
+            u2, ok, (R2, lam) = guarded_update(u1, jnp.where(bad_solve, 0.0, du),
+                                               lambda v: det_and_residual(v, loads, lam))
             res, scale = norms(R2, loads)
             stl = log(stl, res / scale)
             dun = jnp.linalg.norm(du)
@@ -176,21 +187,22 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
             stalled = (res > opts.progress * res0) & (res > 100 * opts.rtol * scale)
             bad = jnp.where(stalled, bad + 1, 0)
             hopeless = (opts.diverge_after > 0) & (bad >= opts.diverge_after) & ~conv
-            return u2, it + 1, conv, (reason != OK) | bad_solve | ~ok | hopeless, reason, stl, bad
+            return u2, lam, it + 1, conv, (reason != OK) | bad_solve | ~ok | hopeless, reason, stl, bad
 
         def cond(c):
-            _, it, conv, failed, _, _, _ = c
+            _, _, it, conv, failed, _, _, _ = c
             return (~conv) & (~failed) & (it < opts.max_iter)
 
-        init = (u1, 0, False, False, jnp.array(OK), st, 0)
-        u1, it, conv, failed, reason, st, _ = jax.lax.while_loop(cond, body, init)
+        # after the predictor's jump the stretch starts from its own estimate (NaN), not the old one
+        init = (u1, jnp.full_like(st["lam"], jnp.nan), 0, False, False, jnp.array(OK), st, 0)
+        u1, lam, it, conv, failed, reason, st, _ = jax.lax.while_loop(cond, body, init)
         reason = jnp.where(conv, OK, jnp.where(reason == OK, NO_CONVERGENCE, reason))
-        return u1, s_new, it, conv, reason, st
+        return u1, lam, s_new, it, conv, reason, st
 
     def step_body(st):
-        u1, s_new, it, conv, reason, st = attempt(st)
+        u1, lam, s_new, it, conv, reason, st = attempt(st)
         grow = jnp.where(it <= opts.grow_below, 2.0, 1.0)
-        accepted = {**st, "u": u1, "s": s_new, "ds": jnp.minimum(st["ds"] * grow, 1.0),
+        accepted = {**st, "u": u1, "lam": lam, "s": s_new, "ds": jnp.minimum(st["ds"] * grow, 1.0),
                     "accepted": st["accepted"] + 1}
         cut = {**st, "ds": 0.5 * st["ds"], "cutbacks": st["cutbacks"] + 1, "reason": reason,
                "fail_s": st["s"], "fail_step": st["accepted"]}
@@ -201,7 +213,8 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
     def step_cond(st):
         return (st["s"] < 1.0) & (st["ds"] >= opts.min_step) & (st["steps"] < opts.max_steps)
 
-    st0 = {"u": u0, "s": jnp.array(0.0), "ds": jnp.array(opts.initial_step), "steps": 0, "accepted": 0,
+    n_qp = asm.el.weights.shape[0]
+    st0 = {"u": u0, "lam": jnp.full((arrays["cells"].shape[0], n_qp), jnp.nan), "s": jnp.array(0.0), "ds": jnp.array(opts.initial_step), "steps": 0, "accepted": 0,
            "cutbacks": 0, "iterations": 0, "reason": jnp.array(OK), "fail_s": jnp.array(0.0), "fail_step": 0,
            "log": jnp.full(opts.log_size, jnp.nan), "log_step": jnp.full(opts.log_size, -1), "n_log": 0,
            "iters_log": jnp.zeros(opts.max_steps, jnp.int32)}

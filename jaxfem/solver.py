@@ -116,7 +116,7 @@ class Solver:
     def tangent_values(self, u, theta):
         """Tangent matrix values on the pattern, ``(nnz,)`` (unconstrained)."""
         p, X, t = self._split(theta)
-        _, vals = self.assembler.residual_and_tangent(u.reshape(-1, X.shape[1]), X, p, t, self.arrays,
+        _, vals, _ = self.assembler.residual_and_tangent(u.reshape(-1, X.shape[1]), X, p, t, self.arrays,
                                                       self.pattern.nnz)
         return vals
 
