@@ -214,7 +214,8 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
         return (st["s"] < 1.0) & (st["ds"] >= opts.min_step) & (st["steps"] < opts.max_steps)
 
     n_qp = asm.el.weights.shape[0]
-    st0 = {"u": u0, "lam": jnp.full((arrays["cells"].shape[0], n_qp), jnp.nan), "s": jnp.array(0.0), "ds": jnp.array(opts.initial_step), "steps": 0, "accepted": 0,
+    st0 = {"u": u0, "lam": jnp.full((arrays["cells"].shape[0], n_qp), jnp.nan), "s": jnp.array(0.0),
+           "ds": jnp.array(opts.initial_step), "steps": 0, "accepted": 0,
            "cutbacks": 0, "iterations": 0, "reason": jnp.array(OK), "fail_s": jnp.array(0.0), "fail_step": 0,
            "log": jnp.full(opts.log_size, jnp.nan), "log_step": jnp.full(opts.log_size, -1), "n_log": 0,
            "iters_log": jnp.zeros(opts.max_steps, jnp.int32)}
