@@ -120,6 +120,8 @@ def run_case(case: dict) -> dict:
     row["data_seconds"] = time.perf_counter() - t0 - d.seconds
     row["load_average"] = [round(x, 2) for x in os.getloadavg()]
     row["chosen"] = d.chosen.describe()
+    row["hypotheses"] = [{"hypothesis": f.describe(), "k": f.k, "bic": round(f.bic, 2), "chi2_fit": round(f.chi2_fit, 2),
+                          "chi2_holdout": round(f.chi2_holdout, 2)} for f in d.tried]
     return row
 
 

@@ -17,6 +17,7 @@ three or four) and a tangent at a state whose stretch is known costs a single ch
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Callable
 
@@ -109,6 +110,7 @@ class Reduced:
     stress_and_tangent_state: Callable
 
 
+@functools.lru_cache(maxsize=None)
 def reduce(energy: Callable, kind: str) -> Reduced:
     """Specialise a 3D energy psi(F3, p) to the kinematic ``kind``.
 
@@ -163,4 +165,4 @@ def reduce(energy: Callable, kind: str) -> Reduced:
     def stress_and_tangent(F, p):
         return stress_and_tangent_state(F, p, jnp.nan)[:2]
 
-    return Reduced(W, stress, stress_and_tangent, full, stress_state, stress_and_tangent_state)
+    return Reduced(W, stress, stress_and_tangent, full, jax.jit(stress_state), jax.jit(stress_and_tangent_state))

@@ -211,3 +211,51 @@ def test_tensor_method_refuses_what_it_cannot_do():
     toy = _Toy(0)
     with pytest.raises(ValueError, match="unknowns"):
         tensor_least_squares(toy, z0=np.zeros(7), order=3)
+
+
+def test_compiled_model_gives_prediction_and_jacobian_from_one_program(stiff_region):
+    """:class:`refine.fit.Compiled` evaluates the prediction and its forward-mode Jacobian in one
+    compiled call; the Jacobian matches central differences of the prediction, and a repeated
+    point is not solved again."""
+    from refine.fit import Compiled
+
+    truth, model, masks = stiff_region
+    c = Compiled(model, RegionModuli(masks, model.experiment.E))
+    z = np.array([np.log(2.0)])
+    pred, J = c.evaluate(z)
+    assert pred.shape == (model.obs.n_frames, model.obs.n_points, 2) and J.shape == pred.shape + (1,)
+    assert c.predict(z) is pred and c.jacobian(z) is J  # cached: the same evaluation
+    eps = 1e-5
+    fd = (c.predict(z + eps) - c.predict(z - eps)) / (2 * eps)
+    assert np.max(np.abs(fd - J[..., 0])) < 1e-6 * np.max(np.abs(J))
+
+
+def test_no_hole_is_tried_where_material_was_tracked(monkeypatch):
+    """A hole candidate with a tracked point near its middle is ruled out before any mesh is made;
+    one whose middle is free of points gets as far as meshing its start."""
+    from types import SimpleNamespace
+
+    import jaxfem as jf
+    from refine import hypotheses
+    from refine.experiment import Rectangle
+
+    xs, ys = np.meshgrid(np.arange(20.0, 121.0, 5.0), np.arange(10.0, 71.0, 5.0))
+    pts = np.c_[xs.ravel(), ys.ravel()]
+    ex = SimpleNamespace(domain=Rectangle(20.0, 10.0, 120.0, 70.0))
+
+    def base(points, spacing):
+        return SimpleNamespace(experiment=ex, obs=SimpleNamespace(reference=points), spacing=spacing, h=spacing / 2)
+
+    with pytest.raises(hypotheses.NotApplicable, match=r"tracked point at \(90.0, 45.0\)"):
+        hypotheses.fit_hole(base(pts, 5.0), (90.4, 44.6, 7.7, 7.0, 0.0), None, None, 0.02)
+
+    class Meshed(Exception):
+        pass
+
+    def stop(*args, **kwargs):
+        raise Meshed
+
+    monkeypatch.setattr(hypotheses, "domain_mesh", stop)
+    hole = jf.Ellipse(92.5, 42.5, 7.0, 6.0)  # a real hole: no tracked points inside
+    with pytest.raises(Meshed):
+        hypotheses.fit_hole(base(pts[~hole.contains(pts)], 5.0), (92.5, 42.5, 9.0, 8.0, 0.0), None, None, 0.02)
