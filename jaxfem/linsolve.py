@@ -27,6 +27,7 @@ from __future__ import annotations
 import ctypes
 import importlib.util
 import weakref
+from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
 import jax
@@ -66,20 +67,47 @@ class _FactorCache:
     """Keeps the last factorisation and the matrix values it belongs to: repeated solves with the
     same tangent (tangent and adjoint solves after Newton, a Jacobian's many directions) cost one
     factorisation and many cheap triangular solves. Comparing the values costs one pass over them
-    (cheaper than hashing them)."""
+    (cheaper than hashing them).
 
-    def __init__(self, factor: Callable):
+    With ``one_thread`` every call runs on one dedicated host thread. SciPy's SuperLU (1.17)
+    leaks a factorisation that is freed on another thread than the one that made it (it tracks
+    its allocations per thread), and XLA runs callbacks on whichever of its threads is free: a
+    diagnosis leaked ~2.7 MB per factorisation until the kernel killed it at 24 GB. On one thread
+    the memory stays flat (tests/test_linsolve.py); the hand-over costs some microseconds."""
+
+    def __init__(self, factor: Callable, one_thread: bool = False):
         self.factor = factor
         self.vals = None
-        self.solve = None
+        self._slot = [None]  # the solve of the last factorisation (a list: see the finaliser)
+        self.one_thread = one_thread
+        if one_thread:  # the last factorisation is freed on its own thread too
+            weakref.finalize(self, _clear_on_host_thread, self._slot).atexit = False
 
     def __call__(self, vals, rhs):
+        if self.one_thread:
+            return _HOST_THREAD.submit(self._call, vals, rhs).result()
+        return self._call(vals, rhs)
+
+    def _call(self, vals, rhs):
         v = np.asarray(vals, dtype=np.float64)
+        if not np.isfinite(v).all():
+            # A state that does not solve has no factorisation; Newton reads NaN as a failed solve
+            return np.full(np.shape(rhs), np.nan)
         if self.vals is None or not np.array_equal(v, self.vals):
-            self.vals, self.solve = None, None
-            self.solve = self.factor(v)
+            self.vals, self._slot[0] = None, None
+            self._slot[0] = self.factor(v)
             self.vals = v.copy()
-        return self.solve(np.asarray(rhs, dtype=np.float64))
+        return self._slot[0](np.asarray(rhs, dtype=np.float64))
+
+
+_HOST_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="jaxfem-factor")
+
+
+def _clear_on_host_thread(slot: list) -> None:
+    try:
+        _HOST_THREAD.submit(slot.clear)
+    except RuntimeError:  # the interpreter is shutting down
+        pass
 
 
 def _superlu_factor(pattern: Pattern, vals) -> Callable:
@@ -94,7 +122,7 @@ def _superlu_factor(pattern: Pattern, vals) -> Callable:
 
 def superlu(pattern: Pattern) -> Callable:
     """SuperLU (scipy) with a symmetric ordering and diagonal pivoting preference."""
-    cache = _FactorCache(lambda vals: _superlu_factor(pattern, vals))
+    cache = _FactorCache(lambda vals: _superlu_factor(pattern, vals), one_thread=True)
     return lambda vals, rhs, arrays: _host_callback(cache, vals, rhs)
 
 
@@ -233,7 +261,7 @@ def cholmod(pattern: Pattern) -> Callable:
             return _superlu_factor(pattern, vals)
         return state["factor"].solve_A
 
-    cache = _FactorCache(factor)
+    cache = _FactorCache(factor, one_thread=True)  # its fallback is SuperLU
     return lambda vals, rhs, arrays: _host_callback(cache, vals, rhs)
 
 
