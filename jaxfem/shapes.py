@@ -207,6 +207,16 @@ class Morph(eqx.Module):
     def __call__(self, params):
         return morph_nodes(self.nodes0, params, self.params0, self.weights)
 
+    def affine(self, centres, maps):
+        """Nodes after moving each shape by an affine map of its own: the points ``x`` of shape
+        ``s`` go to ``centres[s] + maps[s] @ (x - c0[s])`` (``c0`` its reference centre), others
+        by that map blended with the weights. ``centres`` ``(n_shapes, 2)``, ``maps``
+        ``(n_shapes, 2, 2)``; a map that is not a rotation times a scaling along the shape's axes
+        turns an ellipse into another ellipse (any orientation) but a rectangle into a
+        parallelogram. Differentiable in both."""
+        c0 = jnp.asarray(self.params0)[:, :2]
+        return _blend(jnp.asarray(self.nodes0), c0, jnp.asarray(centres), jnp.asarray(maps), jnp.asarray(self.weights))
+
 
 def morph(mesh: Mesh, shapes, band: float | None = None) -> Morph:
     """Prepare a differentiable morph of ``mesh`` that moves the curves of ``shapes``.
@@ -268,9 +278,13 @@ def morph_nodes(nodes0, params, params0, weights):
     (a, b), (c, d) = A0[:, 0].T, A0[:, 1].T
     inv = jnp.stack([jnp.stack([d, -b], -1), jnp.stack([-c, a], -1)], -2) / (a * d - b * c)[:, None, None]
     M = A1 @ inv  # (s, 2, 2): each reference shape onto the new one
-    x = jnp.asarray(nodes0)
+    return _blend(jnp.asarray(nodes0), c0, c1, M, jnp.asarray(weights))
+
+
+def _blend(x, c0, c1, M, weights):
+    """``x + sum_s w_s (c1_s + M_s (x - c0_s) - x)``: each shape's affine map, blended."""
     d = jnp.einsum("sij,snj->sni", M, x[None] - c0[:, None]) + c1[:, None] - x[None]
-    return x + jnp.einsum("sn,sni->ni", jnp.asarray(weights), d)
+    return x + jnp.einsum("sn,sni->ni", weights, d)
 
 
 def check_morph(mesh: Mesh, nodes) -> float:

@@ -95,7 +95,7 @@ class Diagnosis:
         std = self.chosen.z_std
         for i, (kind, cx, cy, a, b, ang, ratio) in enumerate(self.chosen.shapes):
             cause = "hole" if kind == "hole" else ("stiffer-region" if ratio > 1 else "softer-region")
-            # z holds log ratios first, then 4 geometry unknowns (cx, cy, a, b) per shape, scaled
+            # z holds log ratios first, then 5 geometry unknowns per shape (centre, shape matrix)
             unc = {}
             if std is not None and kind != "hole":
                 unc["relative_elasticity_std"] = round(float(ratio * std[i]), 4)

@@ -267,6 +267,10 @@ def levenberg_marquardt(compiled: Compiled, points, sigma: float, z0=None, max_s
     pred = compiled.predict(z)
     r = resid(pred)
     cost = float(r @ r)
+    if not np.isfinite(cost):  # the start does not solve: no step can be judged against it
+        return RefineResult(values={"z": z, **compiled.param.values(z)}, error=np.inf, n_forward=1, n_gradient=1,
+                            seconds=time.perf_counter() - t0, history=[], method="levenberg-marquardt",
+                            converged=False, message="the model does not solve at the start")
     lam, history, n_fwd, ok = 1e-3, [], 1, False
     for step in range(max_steps):
         J = compiled.jacobian(z)[:, points][valid].reshape(len(r), -1) / sigma  # came with the solve at z

@@ -1,10 +1,10 @@
 """Extended models the diagnosis tries, each fitted by exact gradients.
 
 A hypothesis is a way the initial model may be wrong: regions of other stiffness (ellipses whose
-centre, axes and moduli are fitted), a hole (an ellipse whose centre and axes are fitted), or a
-different material law. Each builds its own model (a mesh that follows the shapes), is fitted on
-the guide points chosen for fitting, and is scored on held-out guide points and by an
-information criterion.
+centre, axes, orientation and moduli are fitted), a hole (an ellipse whose centre, axes and
+orientation are fitted), or a different material law. Each builds its own model (a mesh that
+follows the shapes), is fitted on the guide points chosen for fitting, and is scored on held-out
+guide points and by an information criterion.
 """
 
 from __future__ import annotations
@@ -90,20 +90,33 @@ def refit(f: Fitted, points, hold_mask, sigma, max_remesh: int = 2, element: str
     fitted too small with too large a ratio, or a hole too small. The new meshes use ``element``
     (quadratic triangles are far less stiff in a strongly strained region than linear ones at
     the same size). Without shapes the compiled model is reused."""
-    if f.remesh is None or not f.shapes:
-        g = _fit(f.cause, f.compiled, points, hold_mask, sigma, z0=f.z, shapes_from=f.shapes_from, law=f.law)
-    else:
-        g, start = None, f
+    g = None
+    if f.remesh is not None and f.shapes:
+        start = f
         for _ in range(max(1, max_remesh)):
-            h = f.remesh(start.shapes, points, hold_mask, element)
+            try:
+                h = f.remesh(start.shapes, points, hold_mask, element)
+            except Exception:  # noqa: BLE001 - e.g. a remesh at a runaway ratio that no longer solves
+                h = None
+            if h is None or not np.isfinite(h.chi2_fit):
+                break
             if g is None or h.chi2_fit < g.chi2_fit:
                 g = h
-            moved = max(np.max(np.abs(np.subtract(a[1:5], b[1:5]))) for a, b in zip(start.shapes, h.shapes))
+            moved = max(_moved(a, b) for a, b in zip(start.shapes, h.shapes))
             if moved < 0.2 * f.model.h:
                 break
             start = h
+    if g is None:  # no shapes, or no remesh could be fitted: refit the compiled model as it is
+        g = _fit(f.cause, f.compiled, points, hold_mask, sigma, z0=f.z, shapes_from=f.shapes_from, law=f.law)
     g.z_std = standard_errors(g, points, sigma)
     return g
+
+
+def _moved(s, t) -> float:
+    """How far a fitted shape ``(kind, cx, cy, a, b, angle, ratio)`` moved: its largest change of
+    centre or axis, or of the outline by its turn (``|a - b|`` times the angle)."""
+    turn = abs(np.angle(np.exp(2j * (t[5] - s[5])))) / 2 * abs(t[3] - t[4])
+    return float(max(np.max(np.abs(np.subtract(s[1:5], t[1:5]))), turn))
 
 
 def standard_errors(f: Fitted, points, sigma) -> np.ndarray:
@@ -171,7 +184,7 @@ def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, 
                 h: float | None = None, ratios=None, element: str = "tri3") -> Fitted:
     """Regions of other stiffness: ellipses ``shapes [(cx, cy, a, b, angle)]`` with fitted log
     moduli (start: ``ratios``, default x3 for stiffer, /3 for softer) and, with ``geometry``,
-    fitted centres and axes."""
+    fitted centres, axes and orientations."""
     ex, obs = base.experiment, base.obs
     ells = _disjoint([jf.Ellipse(*_clamp_shape(s, ex, base.spacing)) for s in shapes], base.spacing)
     size = h or _mesh_size(base, ells)
@@ -181,7 +194,8 @@ def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, 
     moduli = RegionModuli(masks, ex.E, names=tuple(f"region{k + 1}" for k in range(len(ells))))
     parts = [moduli]
     if geometry:
-        parts.append(ShapeGeometry(jf.morph(mesh, ells), np.stack([e.params for e in ells]), scale=base.spacing))
+        parts.append(ShapeGeometry(jf.morph(mesh, ells), np.stack([e.params for e in ells]), scale=base.spacing,
+                                   rotate=True))
     param = Combined(tuple(parts))
     z0 = np.zeros(param.size)
     z0[: len(ells)] = np.log(3.0) * np.asarray(signs, float) if ratios is None else np.log(ratios)
@@ -213,11 +227,11 @@ centre, is free of tracked points (a true hole has none inside)."""
 
 def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | None = None,
              element: str = "tri3") -> Fitted:
-    """A hole: an ellipse removed from the domain, centre and axes fitted. The starting ellipse is
-    shrunk until no tracked point lies inside it (material was seen there); a candidate that has to
-    shrink below ``HOLE_MIN_SHRINK`` of its size has tracked material near its middle and is no
-    hole (:class:`NotApplicable`, not fitted: such a start is a pinhole that needs a very fine mesh, and its
-    fit cost minutes to lose)."""
+    """A hole: an ellipse removed from the domain, centre, axes and orientation fitted. The
+    starting ellipse is shrunk until no tracked point lies inside it (material was seen there); a
+    candidate that has to shrink below ``HOLE_MIN_SHRINK`` of its size has tracked material near
+    its middle and is no hole (:class:`NotApplicable`, not fitted: such a start is a pinhole that
+    needs a very fine mesh, and its fit cost minutes to lose)."""
     ex, obs = base.experiment, base.obs
     cx, cy, a, b, ang = _clamp_shape(shape, ex, base.spacing)
     pts = obs.reference
@@ -228,7 +242,7 @@ def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | 
             break
         a, b = 0.9 * a, 0.9 * b
     else:
-        a = 0.0
+        a = b = 0.0  # no start free of tracked points
     if max(a, b) < HOLE_MIN_SHRINK * size:
         near = pts[np.argmin(np.linalg.norm(pts - [cx, cy], axis=1))]
         raise NotApplicable(f"no hole at ({cx:.1f}, {cy:.1f}): the tracked point at ({near[0]:.1f}, {near[1]:.1f}) "
@@ -237,7 +251,7 @@ def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | 
     size = h or _mesh_size(base, [hole])
     mesh = domain_mesh(ex, size, element, holes=[hole])
     model = MeasuredModel(ex, obs, mesh=mesh, h=size)
-    param = ShapeGeometry(jf.morph(mesh, [hole]), hole.params[None], scale=0.5 * base.spacing)
+    param = ShapeGeometry(jf.morph(mesh, [hole]), hole.params[None], scale=0.5 * base.spacing, rotate=True)
 
     def shapes_from(z):
         g = np.asarray(param.shape_params(z))[0]
