@@ -69,23 +69,26 @@ class _FactorCache:
     factorisation and many cheap triangular solves. Comparing the values costs one pass over them
     (cheaper than hashing them).
 
-    With ``one_thread`` every call runs on one dedicated host thread. SciPy's SuperLU (1.17)
-    leaks a factorisation that is freed on another thread than the one that made it (it tracks
-    its allocations per thread), and XLA runs callbacks on whichever of its threads is free: a
-    diagnosis leaked ~2.7 MB per factorisation until the kernel killed it at 24 GB. On one thread
-    the memory stays flat (tests/test_linsolve.py); the hand-over costs some microseconds."""
+    With ``one_thread`` every call runs on a host thread of the cache's own. SciPy's SuperLU
+    (1.17) leaks a factorisation that is freed on another thread than the one that made it (it
+    tracks its allocations per thread), and XLA runs callbacks on whichever of its threads is
+    free: a diagnosis leaked ~2.7 MB per factorisation until the kernel killed it at 24 GB. On one
+    thread the memory stays flat (tests/test_linsolve_superlu.py); the hand-over costs some
+    microseconds. A thread per cache (per solver), not one for all: two models solved side by
+    side (the diagnosis fits hypotheses in parallel) factorise side by side."""
 
     def __init__(self, factor: Callable, one_thread: bool = False):
         self.factor = factor
         self.vals = None
         self._slot = [None]  # the solve of the last factorisation (a list: see the finaliser)
-        self.one_thread = one_thread
-        if one_thread:  # the last factorisation is freed on its own thread too
-            weakref.finalize(self, _clear_on_host_thread, self._slot).atexit = False
+        self._thread = None
+        if one_thread:  # the last factorisation is freed on its own thread too, then the thread ends
+            self._thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="jaxfem-factor")
+            weakref.finalize(self, _retire, self._slot, self._thread).atexit = False
 
     def __call__(self, vals, rhs):
-        if self.one_thread:
-            return _HOST_THREAD.submit(self._call, vals, rhs).result()
+        if self._thread is not None:
+            return self._thread.submit(self._call, vals, rhs).result()
         return self._call(vals, rhs)
 
     def _call(self, vals, rhs):
@@ -100,12 +103,11 @@ class _FactorCache:
         return self._slot[0](np.asarray(rhs, dtype=np.float64))
 
 
-_HOST_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="jaxfem-factor")
-
-
-def _clear_on_host_thread(slot: list) -> None:
+def _retire(slot: list, thread: ThreadPoolExecutor) -> None:
+    """Free the last factorisation on the thread that made it, then let that thread end."""
     try:
-        _HOST_THREAD.submit(slot.clear)
+        thread.submit(slot.clear)
+        thread.shutdown(wait=False)
     except RuntimeError:  # the interpreter is shutting down
         pass
 

@@ -17,12 +17,14 @@ name the cause, extend the model, and measure the gain on held-out points.
 from __future__ import annotations
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .bundle import Bundle
 from .errors import mean_position_error, tracking_error
+from .forces import ForceScale, force_scale
 from .hypotheses import (ALTERNATIVE_LAWS, Fitted, NotApplicable, baseline, fit_hole, fit_law, fit_regions,
                          refit)
 from .localize import Candidate, ellipse_polygon, fit_field, segment
@@ -55,6 +57,10 @@ class DiagnoseConfig:
             At 0.3: a 5 mm-grid hole with noise 0.05 mm (seed 5300) is fitted as a soft region
             of ratio 0.21 first.
         seed: seeds the holdout split.
+        workers: hypotheses (and the set-up's independent models) fitted side by side in this
+            many threads; XLA compiles and solves outside Python's lock, so on 2 cores two
+            compilations or fits take little longer than one (compilation is most of a
+            diagnosis: 55 of 71 s on one 5 mm stiffer-region bundle).
     """
 
     alpha: float = 1e-3
@@ -66,6 +72,7 @@ class DiagnoseConfig:
     refit_element: str = "tri6"
     hole_below: float = 0.3
     seed: int = 0
+    workers: int = 2
 
 
 @dataclass
@@ -82,7 +89,17 @@ class Diagnosis:
     model: MeasuredModel
     errors: dict = field(default_factory=dict)
     seconds: float = 0.0
-    absolute: bool = False
+    force: ForceScale | None = None
+
+    @property
+    def absolute(self) -> bool:
+        """Whether measured forces made the moduli absolute."""
+        return self.force is not None
+
+    @property
+    def background_modulus(self) -> float | None:
+        """The background's absolute modulus (stress units, for the assumed thickness), or None."""
+        return None if self.force is None else float(self.bundle.experiment.E * self.force.scale)
 
     @property
     def findings(self) -> list[dict]:
@@ -104,7 +121,8 @@ class Diagnosis:
                                    "area": round(float(np.pi * a * b), 4),
                                    "polygon": ellipse_polygon(cx, cy, a, b, ang),
                                    "axes": [round(float(a), 4), round(float(b), 4)], "angle": round(float(ang), 4)},
-                        "relative_elasticity": round(float(ratio), 4), "modulus": None,
+                        "relative_elasticity": round(float(ratio), 4),
+                        "modulus": None if not self.absolute else round(float(ratio) * self.background_modulus, 4),
                         **unc, "evidence": self._evidence()})
         return out
 
@@ -114,10 +132,21 @@ class Diagnosis:
                 f"{c.cause} lowers BIC by {b.bic - c.bic:.0f} and the held-out guide misfit from "
                 f"{b.chi2_holdout:.0f} to {c.chi2_holdout:.0f}")
 
+    def _modulus_note(self) -> str:
+        ex = self.bundle.experiment
+        if not self.absolute:
+            what = "E x thickness" if ex.kind == "plane-stress" else "modulus"
+            return f"moduli are relative (no measured forces): only {what} ratios are identifiable"
+        f = self.force
+        return (f"moduli are absolute: the force measured on the {', '.join(f.edges)} side fixes E x thickness; "
+                f"they assume the thickness {ex.thickness or 1.0:g} (one factor on every modulus explains the "
+                f"measured forces to {100 * f.relative_residual:.1f} %)")
+
     def report(self) -> dict:
         e = self.errors
         return {"bundle": self.bundle.experiment.name,
-                "background": {"modulus": None, "relative_elasticity": 1.0},
+                "background": {"modulus": None if not self.absolute else round(self.background_modulus, 4),
+                               "relative_elasticity": 1.0},
                 "baseline": e["baseline"], "findings": self.findings, "refined": e["refined"],
                 "gain": {"validation_error": e["gain"]},
                 "decision": {"null_statistic": self.null.statistic, "dof": self.null.dof,
@@ -127,8 +156,7 @@ class Diagnosis:
                                              "chi2_holdout": f.chi2_holdout, "law": f.law,
                                              "shapes": [list(map(float, s[1:])) for s in f.shapes]}
                                             for f in self.tried]},
-                "note": ("moduli are relative (no measured forces): only E x thickness ratios are identifiable "
-                         "for a plane-stress sheet" if not self.absolute else ""),
+                "note": self._modulus_note(),
                 "seconds": round(self.seconds, 2)}
 
 
@@ -166,8 +194,11 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
     hold[rng.choice(gidx, max(1, int(round(cfg.holdout_fraction * len(gidx)))), replace=False)] = True
     fit = guide & ~hold
 
+    pool = ThreadPoolExecutor(max(1, cfg.workers))
+    floor = pool.submit(_discretisation_floor, model, guide)  # a finer model, compiled beside the initial one
+    model.predict(model.params())
     sigma = ex.noise_std if ex.noise_std is not None else estimate_noise(obs)
-    sigma_model = _discretisation_floor(model, guide)
+    sigma_model = floor.result()
     sigma_eff = float(np.sqrt(sigma**2 + sigma_model**2)) or 1.0
     log(f"noise {sigma:.3g} ({'given' if ex.noise_std is not None else 'estimated'}), model discretisation "
         f"error {sigma_model:.3g}")
@@ -187,15 +218,21 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
         log(f"field: {len(candidates)} candidate regions " +
             ", ".join(f"{'stiffer' if c.sign > 0 else 'softer'} at ({c.centroid[0]:.1f}, {c.centroid[1]:.1f})"
                       for c in candidates))
-        tried += _try_hypotheses(model, candidates, fit, hold, sigma_eff, cfg, log, null, n_res)
+        tried += _try_hypotheses(model, candidates, fit, hold, sigma_eff, cfg, log, null, n_res, pool)
         chosen = _choose(base, tried, cfg)
         if chosen is not base:  # refit the chosen model on every guide point
             chosen = refit(chosen, guide, hold, sigma_eff, element=cfg.refit_element)
+    pool.shutdown()
     log(f"chosen: {chosen.describe()}")
     d = Diagnosis(bundle, null, base, chosen, tried, candidates, z, model, seconds=0.0)
     eb, er = _errors(obs, base.predicted), _errors(obs, chosen.predicted)
     gain = (eb["validation_error"] / er["validation_error"]) if er.get("validation_error") else None
     d.errors = {"baseline": eb, "refined": er, "gain": gain}
+    if obs.forces is not None:
+        d.force = force_scale(chosen.model, chosen.theta)
+        if d.force is not None:
+            log(f"forces: background modulus {d.background_modulus:.4g} (the force is matched to "
+                f"{100 * d.force.relative_residual:.1f} %)")
     d.seconds = time.perf_counter() - t0
     return d
 
@@ -209,17 +246,17 @@ def _explains(f: Fitted, n_fit: int, null: NullTest) -> bool:
     return f.chi2_fit / max(n_fit, 1) < 1.5 * (1.0 + null.propagation)
 
 
-def _try_hypotheses(model, candidates, fit, hold, sigma, cfg, log, null, n_fit) -> list[Fitted]:
+def _try_hypotheses(model, candidates, fit, hold, sigma, cfg, log, null, n_fit, pool) -> list[Fitted]:
     """Greedy: the strongest candidate region first (as a stiffer/softer region, and as a hole
-    when softer); add the next candidate only while the misfit is still above the null level;
-    other material laws only if no region explains the data."""
+    when softer, the two fitted side by side); add the next candidate only while the misfit is
+    still above the null level; other material laws (side by side) only if no region explains
+    the data."""
     out = []
 
     def attempt(fn, *args):
         try:
             f = fn(*args)
             log(f"  tried {f.describe()}")
-            out.append(f)
             return f
         except NotApplicable as e:
             log(f"  not tried: {e}")
@@ -228,17 +265,36 @@ def _try_hypotheses(model, candidates, fit, hold, sigma, cfg, log, null, n_fit) 
             log(f"  could not fit {fn.__name__}: {e}")
             return None
 
+    def side_by_side(*jobs):
+        """Fit ``(fn, *args)`` jobs in the pool; their results in the order given (None: not fitted)."""
+        fits = [f.result() for f in [pool.submit(attempt, *job) for job in jobs]]
+        out.extend(f for f in fits if f is not None)
+        return fits
+
     best = None
     used: list[Candidate] = []
     for c in candidates:
         trial = used + [c]
-        fits = [attempt(fit_regions, model, [_shape_of(k) for k in trial], [k.sign for k in trial], fit, hold, sigma)]
+        # the first region starts x3 or /3 at its candidate's outline; later ones start where
+        # the last fit left the others, the new one at x1.5 or /1.5, so the extended model starts
+        # close to the last one (a start at /3 sent a spurious second region's fit to chi2 1717
+        # from the single region's 302, and moved that region too)
+        shapes = [tuple(s[1:6]) for s in best.shapes] if used else []
+        ratios = [s[6] for s in best.shapes] if used else []
+        shapes.append(_shape_of(c))
+        ratios.append((1.5 if used else 3.0) ** c.sign)
+        jobs = [(fit_regions, model, shapes, [k.sign for k in trial], fit, hold, sigma, True, None, ratios)]
         if c.sign < 0 and not used:
-            fits.append(attempt(fit_hole, model, _shape_of(c), fit, hold, sigma))
-            soft = fits[0]
+            jobs.append((fit_hole, model, _shape_of(c), fit, hold, sigma))
+        fits = side_by_side(*jobs)
+        if len(fits) == 2:
+            soft, hole = fits
+            # A very soft region may be a hole whose fit from the candidate's rough outline settled
+            # badly: try the hole again from the soft region's fitted outline, unless the first
+            # hole fit was far off (over twice the soft region's misfit: the outline is not it).
             if (soft is not None and soft.cause == "softer-region" and soft.shapes[0][6] < cfg.hole_below
-                    and (fits[1] is None or soft.bic < fits[1].bic)):
-                fits.append(attempt(fit_hole, model, tuple(soft.shapes[0][1:6]), fit, hold, sigma))
+                    and (hole is None or (soft.bic < hole.bic and hole.chi2_fit < 2.0 * soft.chi2_fit))):
+                fits += side_by_side((fit_hole, model, tuple(soft.shapes[0][1:6]), fit, hold, sigma))
         fits = [f for f in fits if f is not None]
         if not fits:
             continue
@@ -249,8 +305,7 @@ def _try_hypotheses(model, candidates, fit, hold, sigma, cfg, log, null, n_fit) 
         if _explains(best, n_fit, null) or best.cause == "hole":
             break
     if cfg.try_laws and (best is None or not _explains(best, n_fit, null)):
-        for law in ALTERNATIVE_LAWS.get(model.experiment.law, ()):
-            attempt(fit_law, model, law, fit, hold, sigma)
+        side_by_side(*[(fit_law, model, law, fit, hold, sigma) for law in ALTERNATIVE_LAWS.get(model.experiment.law, ())])
     return out
 
 

@@ -152,3 +152,52 @@ def fit_region_moduli(model: MeasuredModel, masks, names=(), *, edge: str = "rig
                 f"b = {thickness:g}")
         return Elasticity(relative, float(E0 * np.exp(z[0])), thickness, note), result
     return Elasticity(relative, None, thickness, "relative: no force was measured, so " + RELATIVE_ONLY), result
+
+
+@dataclass(frozen=True)
+class ForceScale:
+    """The factor on every modulus that makes a fitted model's reactions match the measured forces.
+
+    Under measured boundary motion the displacements do not depend on a common factor s on every
+    modulus, while the reactions are proportional to it (every law here is linear in E at fixed
+    nu), so the least-squares s over every frame, side and component is one division:
+    s = sum(F_measured . F_model) / sum(F_model . F_model).
+
+    Attributes:
+        scale: s; the model's moduli times s are absolute (for the assumed thickness).
+        relative_residual: |F_measured - s F_model| / |F_measured| over everything matched: how
+            well one factor explains the forces (a large value: the model's shape of the force
+            history is wrong, e.g. the law).
+        edges: the sides that were used.
+    """
+
+    scale: float
+    relative_residual: float
+    edges: tuple
+
+
+def force_scale(model: MeasuredModel, theta) -> ForceScale | None:
+    """Fit :class:`ForceScale` for a model with parameters ``theta`` (None when the bundle has
+    no force on a side the model's boundary drives)."""
+    forces = model.obs.forces
+    if forces is None:
+        return None
+    edges = []
+    for edge in forces.edges:
+        try:
+            nodes = model.mesh.side(edge)
+        except Exception:  # noqa: BLE001 - a side the mesh cannot name (a polygon domain)
+            continue
+        if len(nodes) and np.isin(nodes, model.loop).all():
+            edges.append((edge, nodes))
+    if not edges:
+        return None
+    U = model.solve_frames(theta)
+    # one compiled function per side: called eagerly, every JAX operation compiles on its own
+    pred = np.stack([np.asarray(jax.jit(jax.vmap(lambda u, th: model.solver.reactions(u, th, nodes),
+                                                 in_axes=(0, None)))(U, theta))
+                     for _, nodes in edges], 1)  # (frames, edges, dim)
+    meas = np.stack([forces.on(e) for e, _ in edges], 1)
+    s = float(np.sum(meas * pred) / np.sum(pred * pred))
+    rel = float(np.linalg.norm(meas - s * pred) / np.linalg.norm(meas))
+    return ForceScale(s, rel, tuple(e for e, _ in edges))

@@ -180,6 +180,11 @@ def _disjoint(ells, gap):
     raise ValueError("candidate regions overlap")
 
 
+MIN_AXIS = 0.25
+"""Smallest semi-axis of a fitted region, in grid spacings: a thinner one is not resolved by the
+tracked points (a fit once flattened a spurious second region to 1.7 x 19.6 mm on an 8 mm grid)."""
+
+
 def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, geometry: bool = True,
                 h: float | None = None, ratios=None, element: str = "tri3") -> Fitted:
     """Regions of other stiffness: ellipses ``shapes [(cx, cy, a, b, angle)]`` with fitted log
@@ -195,7 +200,7 @@ def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, 
     parts = [moduli]
     if geometry:
         parts.append(ShapeGeometry(jf.morph(mesh, ells), np.stack([e.params for e in ells]), scale=base.spacing,
-                                   rotate=True))
+                                   rotate=True, mesh=mesh, min_axis=MIN_AXIS * base.spacing))
     param = Combined(tuple(parts))
     z0 = np.zeros(param.size)
     z0[: len(ells)] = np.log(3.0) * np.asarray(signs, float) if ratios is None else np.log(ratios)
@@ -251,7 +256,8 @@ def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | 
     size = h or _mesh_size(base, [hole])
     mesh = domain_mesh(ex, size, element, holes=[hole])
     model = MeasuredModel(ex, obs, mesh=mesh, h=size)
-    param = ShapeGeometry(jf.morph(mesh, [hole]), hole.params[None], scale=0.5 * base.spacing, rotate=True)
+    param = ShapeGeometry(jf.morph(mesh, [hole]), hole.params[None], scale=0.5 * base.spacing, rotate=True,
+                          mesh=mesh, outside=pts, min_axis=0.1 * base.spacing)
 
     def shapes_from(z):
         g = np.asarray(param.shape_params(z))[0]

@@ -15,6 +15,9 @@ def summary(d) -> str:
     b, f = r["baseline"], r["refined"]
     lines = [f"{r['bundle']}: initial model misfit is {d.null.ratio:.1f}x what noise and discretisation explain "
              f"(p = {d.null.p_value:.2g})."]
+    if r["background"]["modulus"] is not None:
+        lines.append(f"Background modulus {r['background']['modulus']:.4g} (from the measured force; "
+                     f"the initial model assumed {d.bundle.experiment.E:g}).")
     if not r["findings"]:
         lines.append("No finding: the initial model explains the data within its noise.")
     for k in r["findings"]:
@@ -23,7 +26,9 @@ def summary(d) -> str:
             continue
         reg = k["region"]
         pm = f" +- {k['relative_elasticity_std']:.2f}" if k.get("relative_elasticity_std") is not None else ""
-        what = "hole" if k["cause"] == "hole" else f"{k['cause']} ({k['relative_elasticity']:.2f}{pm} x the background)"
+        absolute = f", E = {k['modulus']:.4g}" if k.get("modulus") is not None else ""
+        what = ("hole" if k["cause"] == "hole"
+                else f"{k['cause']} ({k['relative_elasticity']:.2f}{pm} x the background{absolute})")
         lines.append(f"Finding: {what} centred at ({reg['centroid'][0]:.1f}, {reg['centroid'][1]:.1f}), "
                      f"area {reg['area']:.1f}, semi-axes {reg['axes'][0]:.1f} x {reg['axes'][1]:.1f}.")
     if r["findings"]:

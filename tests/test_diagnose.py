@@ -74,3 +74,20 @@ def test_finds_other_effects(cause, seed):
         _check_region(best, inc.shape, inc.ratio)
     assert d.errors["gain"] >= 2.0
 
+
+
+def test_a_measured_force_makes_the_moduli_absolute():
+    """With forces.csv the background modulus is fitted (the initial model's E is off by 40 %,
+    drawn under the seed), and the report says moduli are absolute; without, it stays null."""
+    from dataclasses import replace
+
+    rng = np.random.default_rng(23)
+    truth = random_truth(rng, "none")
+    bundle = synthetic_bundle(truth, seed=23, spacing=5.0, noise=0.02, fractions=(0.5, 1.0), forces=True)
+    wrong = truth.E * rng.choice([0.6, 1.4])
+    bundle = replace(bundle, experiment=replace(bundle.experiment, E=wrong))
+    d = diagnose(bundle, log=lambda m: None)
+    r = d.report()
+    assert d.findings == [] and d.absolute
+    assert r["background"]["modulus"] == pytest.approx(truth.E, rel=0.03), (r["background"], truth.E)
+    assert "absolute" in r["note"] and d.force.relative_residual < 0.03

@@ -347,3 +347,41 @@ def test_levenberg_marquardt_reports_a_start_that_does_not_solve():
     r = levenberg_marquardt(stub, np.ones(3, bool), 0.1, z0=np.array([1.0, 2.0]))
     assert not r.converged and "does not solve" in r.message
     np.testing.assert_array_equal(r.values["z"], [1.0, 2.0])
+
+
+def test_infeasible_shapes_are_turned_down_without_a_solve():
+    """A hole may not grow over a tracked point, no region may flatten below its smallest axis or
+    squash a cell of the morphed mesh; LM rejects such steps before solving and still converges
+    (here on a stub whose misfit pulls the hole's centre onto a tracked point)."""
+    from types import SimpleNamespace
+
+    import jaxfem as jf
+    from refine.fit import levenberg_marquardt
+    from refine.parametrize import ShapeGeometry
+
+    rng = np.random.default_rng(5)
+    hole = jf.Ellipse(*rng.uniform([45, 25], [55, 35]), 4.0, 3.0, rng.uniform(0, np.pi))
+    mesh = jf.plate(0, 0, 100, 60, 2.0, holes=[hole])
+    point = np.array([[hole.cx + 6.5, hole.cy]])  # 2.5 mm beyond the hole along x at most
+    geo = ShapeGeometry(jf.morph(mesh, [hole]), hole.params[None], scale=1.0, rotate=True, mesh=mesh,
+                        outside=point, min_axis=0.5)
+    assert geo.feasible(np.zeros(5)) is None
+    assert "cover the tracked point" in geo.feasible(np.array([6.5, 0, 0, 0, 0]))
+    assert "semi-axis" in geo.feasible(np.array([0, 0, -3.8, -3.8, 0]))
+    assert "squash" in geo.feasible(np.array([0, 0, 40.0, 0, 0]))  # a hole across most of the plate
+
+    solved = []
+    target = np.array([8.0, 0.0, 0.0, 0.0, 0.0])  # the misfit's minimum lies beyond the point
+
+    def evaluate(z):
+        solved.append(np.array(z))
+        return (np.asarray(z - target)[None, :, None], np.eye(5)[None, :, None, :])
+
+    obs = SimpleNamespace(displacements=np.zeros((1, 5, 1)))
+    stub = SimpleNamespace(model=SimpleNamespace(obs=obs), param=SimpleNamespace(
+        z0=np.zeros(5), values=lambda z: {}, feasible=geo.feasible),
+        predict=lambda z: evaluate(z)[0], jacobian=lambda z: evaluate(z)[1])
+    r = levenberg_marquardt(stub, np.ones(5, bool), 1.0)
+    assert r.history[-1]["infeasible"] > 0
+    assert all(geo.feasible(z) is None for z in solved)  # nothing infeasible was ever solved
+    assert 2.0 < r.values["z"][0] < 6.5 - 3.0  # moved towards the point, stopped before covering it

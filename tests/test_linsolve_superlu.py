@@ -46,7 +46,7 @@ def test_factorisations_are_made_and_freed_on_one_thread(monkeypatch):
         solver.solve({**theta, "E": E0 * (1 + 0.1 * k)})
     jax.jacfwd(lambda s: solver.displacement({**theta, "E": E0 * s}).sum(0))(1.0)
     assert len(made) == 1 and freed <= made, (made, freed)
-    assert made != {threading.get_ident()}  # the dedicated thread, not the caller's
+    assert made != {threading.get_ident()}  # the solver's own thread, not the caller's
 
 
 def test_memory_stays_flat_over_many_factorisations():
