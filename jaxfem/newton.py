@@ -11,12 +11,22 @@ displacement) to be small. An attempt that is going nowhere is abandoned early: 
 a solution reduces it by orders of magnitude), the step is cut back at once instead of running to
 ``max_iter``; a failed attempt then costs a few linear solves, not twenty.
 
+The whole solve is one ``while_loop`` whose every pass evaluates the residual, the tangent and
+the material state once, at the current point, and makes at most one linear solve: a correction of
+the running load step, or (where the point is an equilibrium: the start, a converged step, or the
+last equilibrium after a cut-back) the next step's predictor from the tangent already evaluated
+there. The validity of an update (no inverted element) is checked on the geometry alone (det F),
+so the material, whose derivatives are most of the program, appears once, and the tangent of the
+last pass (at the converged state) is returned for the implicit derivative, which then needs no
+tangent of its own. Measured on a 1,581-node plane-stress sheet on one core, against the former
+loop (material evaluated at four places, the derivative assembling its own tangent): the solve
+compiles in 1.9 instead of 2.5 s, the differentiable map's forward Jacobian (trace and compile) in
+3.9 instead of 7.3-7.8 s; the iterates and the residual logs are the same to round-off and
+the run time is unchanged (best of 30 interleaved: 36.1 vs 34.6 ms at 15 % stretch, 37.3 vs
+38.8 ms at 60 %).
+
 The material's inner state (the out-of-plane stretch of plane stress, solved per quadrature point)
-travels with the iterate: the check of an update returns the stretch where it converged, the
-tangent at that state starts from it (one iteration), and the next check starts from it too.
-Measured on the 2k-unknown sheet, interleaved in one process: 8.3 vs 9.6 ms for the whole solve
-(best of 300), median 10.3 vs 11.7 ms, with the element-matrix kernel of
-:func:`~jaxfem.assembly.element_matrices`.
+travels with the iterate: each evaluation starts it where the last one converged.
 
 The outcome is data (``status``, the failing step, the residual log), because nothing can be raised
 inside ``jit``; :class:`~jaxfem.solver.Solver` turns a failure into a :class:`SolverError`.
@@ -90,7 +100,9 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
         loads0: the loads (``u_D``, ``f``, ``traction``) that ``u0`` satisfies.
         arrays: device index arrays of the pattern and the constraints.
     Returns:
-        ``(u, info)``: displacements ``(n_dofs,)`` and a dict of counters and the residual log.
+        ``(u, info, vals)``: displacements ``(n_dofs,)``, a dict of counters and the residual log,
+        and the (unconstrained) tangent values at ``u`` on the pattern, evaluated by the pass that
+        found it converged (the implicit derivative's matrix, at no extra cost).
     """
     dim = theta["X"].shape[1]
     n = u0.shape[0]
@@ -98,17 +110,22 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
     p = {k: theta[k] for k in theta if k not in ("X", "thickness", "u_D", "f", "traction")}
     X, t = theta["X"], theta["thickness"]
 
+    # One loop, one evaluation of the material per pass: each pass evaluates the residual, the
+    # tangent and the material state at the current point, then either continues the load step's
+    # corrections from it, or (the point being an equilibrium: the start, a converged step, or the
+    # last equilibrium after a step was cut back) predicts the next load step from it. Every pass
+    # makes at most one linear solve. The material laws' derivatives are the bulk of the program,
+    # so one evaluation site instead of four (predictor and correction tangents, the guarded
+    # update's residual and its fallback) halves what XLA compiles.
+    #
     # ``lam`` is the material's inner state at each quadrature point (the out-of-plane stretch
-    # under plane stress): each evaluation starts it from the last one (NaN: no start) and returns
-    # where it converged, so a state evaluated by the update check costs the tangent one iteration.
-    def assemble(u, loads, lam):
-        R, vals, lam = asm.residual_and_tangent(u.reshape(-1, dim), X, p, t, arrays, nnz, lam)
-        return R - external_force(theta, loads, arrays, facet_element, n), vals, lam
+    # under plane stress): each evaluation starts it from the last one (NaN: no start, after the
+    # predictor's jump) and returns where it converged.
+    PREDICT, CORRECT = 0, 1
 
-    def det_and_residual(u, loads, lam):
-        """Smallest det F, the residual and the material state at ``u``, from one pass over the cells."""
-        R, d, lam = asm.residual_and_min_det(u.reshape(-1, dim), X, p, t, arrays, lam)
-        return d if finite else jnp.array(1.0), (R - external_force(theta, loads, arrays, facet_element, n), lam)
+    def evaluate(u, lam):
+        R, vals, lam = asm.residual_and_tangent(u.reshape(-1, dim), X, p, t, arrays, nnz, lam)
+        return R, vals, lam
 
     def constrained(vals):
         return vals * arrays["keep"] + arrays["diag_fixed"]
@@ -121,105 +138,98 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
         scale = jnp.maximum(jnp.linalg.norm(R * (1 - free)), jnp.linalg.norm(f_ext * free))
         return jnp.linalg.norm(R * free), jnp.maximum(scale, 1e-300)
 
-    def halved(u, du):
-        """Halve the update while it would invert an element (the full update already did)."""
+    def guarded(u, du):
+        """The update, halved while it would invert an element: ``(new u, valid)``."""
         if not opts.line_search:
-            return u + du
+            return u + du, jnp.array(True)
 
         def cond(c):
-            a, k = c
-            return (min_det(u + a * du) <= 0) & (k < opts.line_search)
+            a, k, d = c
+            return (d <= 0) & (k <= opts.line_search)
 
-        a, _ = jax.lax.while_loop(cond, lambda c: (0.5 * c[0], c[1] + 1), (jnp.array(0.5), 1))
-        return u + a * du
+        def halve(c):
+            a, k, _ = c
+            return 0.5 * a, k + 1, min_det(u + 0.5 * a * du)
 
-    def guarded_update(u, du, state_at):
-        """The update, halved while it would invert an element: ``(new u, valid, extra)``, where
-        ``state_at(u) -> (min det F, extra)`` evaluates the new state (once, in the usual case
-        that the full update is valid)."""
-        d, extra = state_at(u + du)
-
-        def fallback():
-            u1 = halved(u, du)
-            d1, extra1 = state_at(u1)
-            return u1, d1 > 0, extra1
-
-        return jax.lax.cond(d > 0, lambda: (u + du, d > 0, extra), fallback)
+        a, _, d = jax.lax.while_loop(cond, halve, (jnp.array(1.0), 0, min_det(u + du)))
+        return u + a * du, d > 0
 
     def log(st, value):
         i = jnp.minimum(st["n_log"], opts.log_size - 1)
         return {**st, "log": st["log"].at[i].set(value), "log_step": st["log_step"].at[i].set(st["steps"]),
                 "n_log": st["n_log"] + 1}
 
-    def attempt(st):
-        """One load step from st['s'] by st['ds']: predictor, then corrections."""
-        s_new = jnp.minimum(st["s"] + st["ds"], 1.0)
-        loads = loads_at(theta, loads0, s_new)
-        u = st["u"]
-        # predictor: prescribed increment through the tangent at the last equilibrium
-        R, vals, _ = assemble(u, loads, st["lam"])
-        du_c = jnp.zeros(n).at[fixed].set(loads["u_D"] - u[fixed])
-        rhs = -(R + matvec(vals, arrays["rows"], arrays["cols"], du_c)) * free + du_c
-        du = lin(constrained(vals), rhs, arrays)
-        u1, ok, _ = guarded_update(u, du, lambda v: (min_det(v), ()))
-        u1 = jnp.where(ok, u1, u + du_c)  # no valid predictor: start from the prescribed jump
+    def select(c, a, b):
+        return jax.tree.map(lambda x, y: jnp.where(c, x, y), a, b)
 
-        def body(c):
-            u1, lam, it, _, _, reason, stl, bad = c
-            R, vals, lam = assemble(u1, loads, lam)
-            res0, _ = norms(R, loads)
-            # any part of the prescribed jump a damped update left out is imposed again here
-            gap = jnp.zeros(n).at[fixed].set(loads["u_D"] - u1[fixed])
-            rhs = -(R + matvec(vals, arrays["rows"], arrays["cols"], gap)) * free + gap
-            du = lin(constrained(vals), rhs, arrays)
-            bad_solve = ~jnp.all(jnp.isfinite(du))
-            u2, ok, (R2, lam) = guarded_update(u1, jnp.where(bad_solve, 0.0, du),
-                                               lambda v: det_and_residual(v, loads, lam))
-            res, scale = norms(R2, loads)
-            stl = log(stl, res / scale)
-            dun = jnp.linalg.norm(du)
-            unorm = jnp.maximum(jnp.linalg.norm(u2), 1e-300)
-            miss = jnp.linalg.norm(loads["u_D"] - u2[fixed])  # prescribed values must be met too
-            conv = ((res <= opts.rtol * scale) & (dun <= opts.utol * unorm)
-                    & (miss <= 1e-10 * jnp.maximum(jnp.linalg.norm(loads["u_D"]), unorm)))
-            reason = jnp.where(bad_solve, SINGULAR, jnp.where(~ok, INVERTED,
-                               jnp.where(~jnp.isfinite(res), NAN, reason)))
-            stalled = (res > opts.progress * res0) & (res > 100 * opts.rtol * scale)
-            bad = jnp.where(stalled, bad + 1, 0)
-            hopeless = (opts.diverge_after > 0) & (bad >= opts.diverge_after) & ~conv
-            return u2, lam, it + 1, conv, (reason != OK) | bad_solve | ~ok | hopeless, reason, stl, bad
+    def end_attempt(st, accepted, reason):
+        """Book-keeping of a load step attempt that converged (``accepted``) or failed with ``reason``."""
+        grow = jnp.where(st["it"] <= opts.grow_below, 2.0, 1.0)
+        ok = {**st, "u_eq": st["u"], "lam_eq": st["lam"], "s": st["s_new"],
+              "ds": jnp.minimum(st["ds"] * grow, 1.0), "accepted": st["accepted"] + 1}
+        cut = {**st, "u": st["u_eq"], "lam": st["lam_eq"], "ds": 0.5 * st["ds"], "cutbacks": st["cutbacks"] + 1,
+               "reason": reason, "fail_s": st["s"], "fail_step": st["accepted"]}
+        new = select(accepted, ok, cut)
+        return {**new, "mode": jnp.array(PREDICT), "steps": st["steps"] + 1, "iterations": st["iterations"] + st["it"] + 1,
+                "iters_log": new["iters_log"].at[jnp.minimum(st["steps"], opts.max_steps - 1)].set(st["it"])}
 
-        def cond(c):
-            _, _, it, conv, failed, _, _, _ = c
-            return (~conv) & (~failed) & (it < opts.max_iter)
-
-        # after the predictor's jump the stretch starts from its own estimate (NaN), not the old one
-        init = (u1, jnp.full_like(st["lam"], jnp.nan), 0, False, False, jnp.array(OK), st, 0)
-        u1, lam, it, conv, failed, reason, st, _ = jax.lax.while_loop(cond, body, init)
-        reason = jnp.where(conv, OK, jnp.where(reason == OK, NO_CONVERGENCE, reason))
-        return u1, lam, s_new, it, conv, reason, st
-
-    def step_body(st):
-        u1, lam, s_new, it, conv, reason, st = attempt(st)
-        grow = jnp.where(it <= opts.grow_below, 2.0, 1.0)
-        accepted = {**st, "u": u1, "lam": lam, "s": s_new, "ds": jnp.minimum(st["ds"] * grow, 1.0),
-                    "accepted": st["accepted"] + 1}
-        cut = {**st, "ds": 0.5 * st["ds"], "cutbacks": st["cutbacks"] + 1, "reason": reason,
-               "fail_s": st["s"], "fail_step": st["accepted"]}
-        new = jax.tree.map(lambda a, b: jnp.where(conv, a, b), accepted, cut)
-        return {**new, "steps": st["steps"] + 1, "iterations": st["iterations"] + it + 1,
-                "iters_log": new["iters_log"].at[jnp.minimum(st["steps"], opts.max_steps - 1)].set(it)}
-
-    def step_cond(st):
+    def running(st):
         return (st["s"] < 1.0) & (st["ds"] >= opts.min_step) & (st["steps"] < opts.max_steps)
 
+    def body(st):
+        R_int, vals, lam = evaluate(st["u"], st["lam"])
+        st = {**st, "lam": lam, "vals": vals}
+        correcting = st["mode"] == CORRECT
+        # --- a correction's outcome: converged, failed, or go on
+        loads = loads_at(theta, loads0, st["s_new"])
+        R = R_int - external_force(theta, loads, arrays, facet_element, n)
+        res, scale = norms(R, loads)
+        unorm = jnp.maximum(jnp.linalg.norm(st["u"]), 1e-300)
+        miss = jnp.linalg.norm(loads["u_D"] - st["u"][fixed])  # prescribed values must be met too
+        conv = ((st["it"] > 0) & (res <= opts.rtol * scale) & (st["dun"] <= opts.utol * unorm)
+                & (miss <= 1e-10 * jnp.maximum(jnp.linalg.norm(loads["u_D"]), unorm)))
+        stalled = (res > opts.progress * st["res0"]) & (res > 100 * opts.rtol * scale) & (st["it"] > 0)
+        bad = jnp.where(stalled, st["bad"] + 1, 0)
+        hopeless = (opts.diverge_after > 0) & (bad >= opts.diverge_after)
+        nan = ~jnp.isfinite(res)
+        failed = ~conv & (nan | hopeless | (st["it"] >= opts.max_iter))
+        logged = select(correcting & (st["it"] > 0), log(st, res / scale), st)
+        logged = {**logged, "bad": bad, "res0": res}
+        ended = end_attempt(logged, conv, jnp.where(nan, NAN, NO_CONVERGENCE))
+        st = select(correcting & (conv | failed), ended, select(correcting, logged, st))
+        # an attempt that failed re-evaluates at the last equilibrium before predicting from it
+        fresh = correcting & failed
+        predict = (st["mode"] == PREDICT) & ~fresh
+        s_new = jnp.where(predict, jnp.minimum(st["s"] + st["ds"], 1.0), st["s_new"])
+        solve = running(st) & ~fresh
+        # --- one linear solve: the predictor from an equilibrium, or the next correction; the
+        # prescribed values not yet met enter as a jump on the fixed dofs
+        loads = loads_at(theta, loads0, s_new)
+        R = R_int - external_force(theta, loads, arrays, facet_element, n)
+        gap = jnp.zeros(n).at[fixed].set(loads["u_D"] - st["u"][fixed])
+        rhs = -(R + matvec(vals, arrays["rows"], arrays["cols"], gap)) * free + gap
+        du = jax.lax.cond(solve, lambda: lin(constrained(vals), rhs, arrays), lambda: jnp.zeros(n))
+        bad_solve = ~jnp.all(jnp.isfinite(du))
+        u1, ok = guarded(st["u"], jnp.where(bad_solve, 0.0, du))
+        # a predictor that would invert an element (or could not be solved) starts from the jump
+        u_pred = jnp.where(ok & ~bad_solve, u1, st["u"] + gap)
+        nxt = {**st, "s_new": s_new, "dun": jnp.linalg.norm(du), "mode": jnp.array(CORRECT)}
+        pred = {**nxt, "u": u_pred, "it": 0, "bad": 0, "res0": jnp.array(jnp.inf),
+                "lam": jnp.full_like(lam, jnp.nan)}
+        corr = {**nxt, "u": u1, "it": st["it"] + 1}
+        broke = bad_solve | ~ok
+        corr = select(broke, end_attempt(corr, jnp.array(False), jnp.where(bad_solve, SINGULAR, INVERTED)), corr)
+        return select(solve, select(predict, pred, corr), st)
+
     n_qp = asm.el.weights.shape[0]
-    st0 = {"u": u0, "lam": jnp.full((arrays["cells"].shape[0], n_qp), jnp.nan), "s": jnp.array(0.0),
-           "ds": jnp.array(opts.initial_step), "steps": 0, "accepted": 0,
+    lam0 = jnp.full((arrays["cells"].shape[0], n_qp), jnp.nan)
+    st0 = {"u": u0, "lam": lam0, "vals": jnp.zeros(nnz, u0.dtype), "u_eq": u0, "lam_eq": lam0, "s": jnp.array(0.0), "s_new": jnp.array(0.0),
+           "ds": jnp.array(opts.initial_step), "mode": jnp.array(PREDICT), "it": 0, "bad": 0,
+           "res0": jnp.array(jnp.inf), "dun": jnp.array(jnp.inf), "steps": 0, "accepted": 0,
            "cutbacks": 0, "iterations": 0, "reason": jnp.array(OK), "fail_s": jnp.array(0.0), "fail_step": 0,
            "log": jnp.full(opts.log_size, jnp.nan), "log_step": jnp.full(opts.log_size, -1), "n_log": 0,
            "iters_log": jnp.zeros(opts.max_steps, jnp.int32)}
-    st = jax.lax.while_loop(step_cond, step_body, st0)
+    st = jax.lax.while_loop(running, body, st0)
     done = st["s"] >= 1.0
     status = jnp.where(done, OK, jnp.where(st["reason"] == OK, NO_CONVERGENCE, st["reason"]))
     info = {"status": status, "load_factor": st["s"], "steps": st["accepted"], "attempts": st["steps"],
@@ -227,4 +237,4 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
             "fail_load_factor": st["fail_s"], "residual_log": st["log"], "log_step": st["log_step"],
             "step_iterations": st["iters_log"]}
     u = jnp.where(done, st["u"], jnp.nan)
-    return u, info
+    return u, info, st["vals"]

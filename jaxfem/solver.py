@@ -125,18 +125,31 @@ class Solver:
 
     # ------------------------------------------------------------------ the equilibrium map
     def _make_equilibrium(self):
+        """The differentiable map theta -> u: Newton (not differentiated) for the value, the
+        implicit function theorem for every derivative. Newton's last pass evaluated the tangent
+        at the converged state; the derivative solves with it (``tangent_at``: those values, and
+        for higher derivatives the derivative of the tangent, traced only when asked for)."""
         arrays = self.arrays
 
         @jax.custom_jvp
-        def equilibrium(theta, u0, loads0):
-            u, _ = self._newton(theta, u0, loads0, arrays)
+        def tangent_at(u, theta, vals):
+            return vals
+
+        @tangent_at.defjvp
+        def tangent_at_jvp(primals, tangents):
+            u, theta, vals = primals
+            du, dtheta, _ = tangents
+            return vals, jax.jvp(self.tangent_values, (u, theta), (du, dtheta))[1]
+
+        @jax.custom_jvp
+        def implicit(theta, u, vals):
             return u
 
-        @equilibrium.defjvp
-        def equilibrium_jvp(primals, tangents):
-            theta, u0, loads0 = primals
+        @implicit.defjvp
+        def implicit_jvp(primals, tangents):
+            theta, u, vals = primals
             dtheta = tangents[0]
-            u = equilibrium(theta, u0, loads0)
+            u = implicit(theta, u, vals)  # the nested derivatives of u come through this rule again
             free, fixed = arrays["free"], arrays["fixed"]
 
             def free_residual(th):
@@ -146,11 +159,15 @@ class Solver:
             _, dG = jax.jvp(free_residual, (theta,), (dtheta,))
             du_D = dtheta["u_D"]
             rhs = -dG + jnp.zeros_like(u).at[fixed].set(du_D, unique_indices=True)
-            M = self._constrained(self.tangent_values(u, theta))
+            M = self._constrained(tangent_at(u, theta, vals))
             mv = lambda x: matvec(M, arrays["rows"], arrays["cols"], x)  # noqa: E731
             du = jax.lax.custom_linear_solve(mv, rhs, lambda _, b: self._lin(jax.lax.stop_gradient(M), b, arrays),
                                              symmetric=True)
             return u, du
+
+        def equilibrium(theta, u0, loads0):
+            u, _, vals = self._newton(jax.lax.stop_gradient(theta), u0, loads0, arrays)
+            return implicit(theta, u, vals)
 
         return equilibrium
 
@@ -178,7 +195,7 @@ class Solver:
     def solve(self, theta, start=None) -> Solution:
         """Solve and return a :class:`Solution`; raise :class:`SolverError` if Newton fails."""
         u0, loads0 = self._start(theta, start)
-        u, info = self._newton(theta, u0, loads0, self.arrays)
+        u, info, _ = self._newton(theta, u0, loads0, self.arrays)
         info = jax.device_get(info)  # one transfer for all counters
         status = int(info["status"])
         if status != 0:
