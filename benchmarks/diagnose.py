@@ -8,14 +8,14 @@ gain and seconds, over random hidden cases per cause, at two grid densities and 
 
 Each case draws its hidden effect (location, size, ratio) under its own seed; data come from a
 finer quadratic mesh of a larger sheet, with noise; the inversion uses linear triangles on the
-tracked region (and quadratic ones for the chosen model's final refit). Cases run in ``--workers`` single-threaded processes; each finished case is
+tracked region (and quadratic ones for the chosen model's final refit). Cases run in ``--workers`` processes of ``--threads`` threads each; each finished case is
 appended to the rows file (JSONL) at once, so a run stopped early keeps what finished and a
 second run with the same rows file resumes (cases already there are skipped). Cases are ordered
 case index first, so a run stopped early has about as many cases in every cell.
 
 Writes benchmarks/results/diagnose.json (and diagnose.png) from all rows: per cell (spacing,
 noise, cause) the counts and rates, with the machine the rows were measured on. ``seconds`` are
-wall seconds of one diagnosis in one single-threaded worker process, on that machine, at the
+wall seconds of one diagnosis in one worker process (of ``--threads`` threads), on that machine, at the
 load average stored beside each row.
 """
 
@@ -194,8 +194,8 @@ def write_results(rows, machine: dict, settings: dict) -> dict:
               for (s, n, c), rs in sorted(cells.items(), key=lambda kv: (kv[0][0], kv[0][1], CAUSES.index(kv[0][2])))]
     results = {"settings": settings, "machine": machine, "run_note": settings.get("note", ""),
                "note": ("seconds: wall seconds of one diagnosis (data generation excluded, JIT compilation "
-                        "included) in one single-threaded worker process on the machine below, at the load "
-                        "average stored in each row"),
+                        f"included) in one worker process of {machine.get('threads_per_worker', 1)} thread(s) "
+                        "(each row's 'threads') on the machine below, at the load average stored in each row"),
                "cases_per_cell": sorted({g["cases"] for g in groups}),
                "overall": summarise(rows) if rows else None, "groups": groups}
     OUT.mkdir(exist_ok=True)

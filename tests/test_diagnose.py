@@ -63,7 +63,6 @@ def test_homogeneous_sample_gives_no_finding(seed, noise):
     assert d.findings == [], d.chosen.describe()
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("cause,seed", [("softer-region", 31), ("two-regions", 32), ("rectangle", 33)])
 def test_finds_other_effects(cause, seed):
     truth, d = _run(cause, seed)
