@@ -37,6 +37,12 @@ RELATIVE_ONLY = (
 )
 
 
+
+def side_force(model: MeasuredModel, theta, U, nodes):
+    """Force across a side in every frame, ``(n_frames, dim)``: the sum of the reactions that hold
+    the side's ``nodes`` at their measured positions, for displacements ``U (n_frames, ...)``."""
+    return jax.vmap(lambda u: model.solver.reactions(u, theta, nodes))(U)
+
 class ForcedObjective(Objective):
     """:class:`~refine.fit.Objective` with the measured force across one side as extra residuals.
 
@@ -74,7 +80,7 @@ class ForcedObjective(Objective):
     def predicted_force(self, theta, U):
         """Force across ``edge`` in every frame, ``(n_frames, dim)``: the sum of the reactions that
         hold the side's nodes at their measured positions."""
-        return jax.vmap(lambda u: self.model.solver.reactions(u, theta, self.nodes))(U)
+        return side_force(self.model, theta, U, self.nodes)
 
     def residuals(self, z):
         """Displacement residuals (noise units) followed by the force residuals ``(frames * dim,)``."""
@@ -194,8 +200,7 @@ def force_scale(model: MeasuredModel, theta) -> ForceScale | None:
         return None
     U = model.solve_frames(theta)
     # one compiled function per side: called eagerly, every JAX operation compiles on its own
-    pred = np.stack([np.asarray(jax.jit(jax.vmap(lambda u, th: model.solver.reactions(u, th, nodes),
-                                                 in_axes=(0, None)))(U, theta))
+    pred = np.stack([np.asarray(jax.jit(lambda th, UU: side_force(model, th, UU, nodes))(theta, U))
                      for _, nodes in edges], 1)  # (frames, edges, dim)
     meas = np.stack([forces.on(e) for e, _ in edges], 1)
     s = float(np.sum(meas * pred) / np.sum(pred * pred))

@@ -295,11 +295,8 @@ class ShapeGeometry:
             if quality < self.min_quality:
                 return f"the morph would squash a cell to {quality:.2f} of its area"
         if self.outside is not None and len(self.outside):
-            for cx, cy, a, b, ang in self.shape_params(z):
-                d = self.outside - [cx, cy]
-                u = d @ [np.cos(ang), np.sin(ang)]
-                v = d @ [-np.sin(ang), np.cos(ang)]
-                inside = (u / a) ** 2 + (v / b) ** 2 < 1.0
+            for params in self.shape_params(z):
+                inside = jf.Ellipse(*map(float, params)).contains(self.outside)
                 if inside.any():
                     return f"the shape would cover the tracked point at {self.outside[inside][0].round(2).tolist()}"
         return None
