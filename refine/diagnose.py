@@ -25,9 +25,9 @@ import numpy as np
 from .bundle import Bundle
 from .errors import mean_position_error, tracking_error
 from .forces import ForceScale, force_scale
-from .hypotheses import (ALTERNATIVE_LAWS, Fitted, NotApplicable, baseline, fit_hole, fit_law, fit_regions,
-                         refit)
-from .localize import Candidate, ellipse_polygon, fit_field, segment
+from .hypotheses import (ALTERNATIVE_LAWS, Fitted, NotApplicable, baseline, fit_hole, fit_law, fit_rectangle,
+                         fit_regions, refit)
+from .localize import Candidate, fit_field, outline, segment
 from .model import MeasuredModel
 from .noise import NullTest, estimate_noise, null_test, propagated_noise
 
@@ -57,6 +57,10 @@ class DiagnoseConfig:
             At 0.3: a 5 mm-grid hole with noise 0.05 mm (seed 5300) is fitted as a soft region
             of ratio 0.21 first.
         seed: seeds the holdout split.
+        try_rectangles: when the first region, fitted as an ellipse, is the best hypothesis so
+            far, also fit it as a rectangle (from the ellipse, turned 0 and pi/4, side by side); the
+            better score is kept. A stiff rectangle fitted as an ellipse comes out larger and
+            12-30 % too soft.
         workers: hypotheses (and the set-up's independent models) fitted side by side in this
             many threads; XLA compiles and solves outside Python's lock, so on 2 cores two
             compilations or fits take little longer than one (compilation is most of a
@@ -73,6 +77,7 @@ class DiagnoseConfig:
     hole_below: float = 0.3
     seed: int = 0
     workers: int = 2
+    try_rectangles: bool = True
 
 
 @dataclass
@@ -116,10 +121,11 @@ class Diagnosis:
             unc = {}
             if std is not None and kind != "hole":
                 unc["relative_elasticity_std"] = round(float(ratio * std[i]), 4)
+            area, polygon = outline(kind, cx, cy, a, b, ang)
             out.append({"cause": cause,
                         "region": {"centroid": [round(float(cx), 4), round(float(cy), 4)],
-                                   "area": round(float(np.pi * a * b), 4),
-                                   "polygon": ellipse_polygon(cx, cy, a, b, ang),
+                                   "area": round(area, 4), "polygon": polygon,
+                                   "shape": "rectangle" if kind == "rectangle" else "ellipse",
                                    "axes": [round(float(a), 4), round(float(b), 4)], "angle": round(float(ang), 4)},
                         "relative_elasticity": round(float(ratio), 4),
                         "modulus": None if not self.absolute else round(float(ratio) * self.background_modulus, 4),
@@ -154,7 +160,8 @@ class Diagnosis:
                              "model_error_std": self.null.sigma_model,
                              "hypotheses": [{"cause": f.cause, "k": f.k, "bic": f.bic, "chi2_fit": f.chi2_fit,
                                              "chi2_holdout": f.chi2_holdout, "law": f.law,
-                                             "shapes": [list(map(float, s[1:])) for s in f.shapes]}
+                                             "shapes": [list(map(float, s[1:])) for s in f.shapes],
+                                             "kinds": [s[0] for s in f.shapes]}
                                             for f in self.tried]},
                 "note": self._modulus_note(),
                 "seconds": round(self.seconds, 2)}
@@ -281,21 +288,30 @@ def _try_hypotheses(model, candidates, fit, hold, sigma, cfg, log, null, n_fit, 
         # from the single region's 302, and moved that region too)
         shapes = [tuple(s[1:6]) for s in best.shapes] if used else []
         ratios = [s[6] for s in best.shapes] if used else []
+        kinds = [s[0] for s in best.shapes] if used else []
         shapes.append(_shape_of(c))
         ratios.append((1.5 if used else 3.0) ** c.sign)
-        jobs = [(fit_regions, model, shapes, [k.sign for k in trial], fit, hold, sigma, True, None, ratios)]
+        signs = [k.sign for k in trial]
+        jobs = {"ellipse": (fit_regions, model, shapes, signs, fit, hold, sigma, True, None, ratios, "tri3",
+                            kinds + ["ellipse"])}
         if c.sign < 0 and not used:
-            jobs.append((fit_hole, model, _shape_of(c), fit, hold, sigma))
-        fits = side_by_side(*jobs)
-        if len(fits) == 2:
-            soft, hole = fits
-            # A very soft region may be a hole whose fit from the candidate's rough outline settled
-            # badly: try the hole again from the soft region's fitted outline, unless the first
-            # hole fit was far off (over twice the soft region's misfit: the outline is not it).
-            if (soft is not None and soft.cause == "softer-region" and soft.shapes[0][6] < cfg.hole_below
-                    and (hole is None or (soft.bic < hole.bic and hole.chi2_fit < 2.0 * soft.chi2_fit))):
-                fits += side_by_side((fit_hole, model, tuple(soft.shapes[0][1:6]), fit, hold, sigma))
-        fits = [f for f in fits if f is not None]
+            jobs["hole"] = (fit_hole, model, _shape_of(c), fit, hold, sigma)
+        fits = dict(zip(jobs, side_by_side(*jobs.values())))
+        soft, hole = fits.get("ellipse"), fits.get("hole")
+        # A very soft region may be a hole whose fit from the candidate's rough outline settled
+        # badly: try the hole again from the soft region's fitted outline, unless the first
+        # hole fit was far off (over twice the soft region's misfit: the outline is not it).
+        if ("hole" in jobs and soft is not None and soft.cause == "softer-region" and soft.shapes[0][6] < cfg.hole_below
+                and (hole is None or (soft.bic < hole.bic and hole.chi2_fit < 2.0 * soft.chi2_fit))):
+            fits["hole from region"] = side_by_side((fit_hole, model, tuple(soft.shapes[0][1:6]), fit, hold, sigma))[0]
+        region = fits.get("ellipse")
+        if (not used and cfg.try_rectangles and region is not None and region.cause != "regions"
+                and min((f for f in fits.values() if f is not None), key=_score) is region):
+            # the region as a rectangle, from the fitted ellipse, turned 0 and pi/4 from it
+            for turn, f in zip((0.0, np.pi / 4), side_by_side(*[(fit_rectangle, model, region, turn, fit, hold, sigma)
+                                                                 for turn in (0.0, np.pi / 4)])):
+                fits[f"rectangle {turn:.2f}"] = f
+        fits = [f for f in fits.values() if f is not None]
         if not fits:
             continue
         top = min(fits, key=_score)

@@ -99,3 +99,17 @@ def ellipse_polygon(cx, cy, a, b, angle, n: int = 48) -> list[list[float]]:
     x = cx + a * np.cos(t) * c - b * np.sin(t) * s
     y = cy + a * np.cos(t) * s + b * np.sin(t) * c
     return np.stack([x, y], 1).round(4).tolist()
+
+
+def rectangle_polygon(cx, cy, a, b, angle) -> list[list[float]]:
+    """Corners of a rectangle of half sides ``a, b`` turned ``angle``, counter-clockwise."""
+    c, s = np.cos(angle), np.sin(angle)
+    xi = np.array([[-a, -b], [a, -b], [a, b], [-a, b]], float)
+    return (np.array([cx, cy]) + xi @ np.array([[c, s], [-s, c]])).round(4).tolist()
+
+
+def outline(kind: str, cx, cy, a, b, angle) -> tuple[float, list[list[float]]]:
+    """Area and outline polygon of a fitted shape (``"rectangle"``; otherwise an ellipse)."""
+    if kind == "rectangle":
+        return float(4.0 * a * b), rectangle_polygon(cx, cy, a, b, angle)
+    return float(np.pi * a * b), ellipse_polygon(cx, cy, a, b, angle)

@@ -186,6 +186,17 @@ class Combined:
         return out
 
 
+def make_shape(kind: str, params):
+    """A ``jaxfem.Ellipse`` (``kind="ellipse"``) or ``jaxfem.Rect`` (``"rectangle"``) from
+    ``(cx, cy, a, b, angle)``: centre, semi-axes or half sides, angle (radians)."""
+    cx, cy, a, b, ang = map(float, params)
+    if kind == "ellipse":
+        return jf.Ellipse(cx, cy, a, b, ang)
+    if kind == "rectangle":
+        return jf.Rect(cx - a, cy - b, cx + a, cy + b, ang)
+    raise ValueError(f"unknown shape kind {kind!r}; known: ellipse, rectangle")
+
+
 @dataclass(frozen=True, eq=False)
 class ShapeGeometry:
     """Hole or inclusion geometry through a smooth mesh morph (``jaxfem.morph``).
@@ -200,7 +211,10 @@ class ShapeGeometry:
       ``(M11, M22, M12)`` (5 unknowns per shape). Axes and orientation are then fitted together
       and smoothly, also through a circle where an angle alone is undefined. With the orientation
       fixed at a wrong start, a fit makes up for it with a larger, rounder ellipse (a hole's area
-      came out 20 % too large on noise-free data).
+      came out 20 % too large on noise-free data). A shape whose entry in ``kinds`` is
+      ``"rectangle"`` has instead the changes of its two half sides and of its angle (the last
+      times ``scale / sqrt(a0 b0)`` radians, so that one unit turns its corners about one
+      ``scale``): a symmetric map would shear a rectangle into a parallelogram.
 
     The mesh is never remeshed inside an optimisation. :meth:`feasible` turns a step down before
     any solve when a semi-axis would fall below ``min_axis`` (length units; a region thinner than
@@ -220,6 +234,7 @@ class ShapeGeometry:
     outside: np.ndarray | None = None
     min_quality: float = 0.2
     min_axis: float = 0.0
+    kinds: tuple = ()
 
     @property
     def per_shape(self) -> int:
@@ -238,27 +253,52 @@ class ShapeGeometry:
         dz = xp.reshape(xp.asarray(z), (-1, 4)) * self.scale
         return xp.asarray(self.params0, dtype=float) + xp.concatenate([dz, xp.zeros((dz.shape[0], 1))], 1)
 
-    def _symmetric(self, z, xp):
-        """With ``rotate``: new centres ``(n, 2)``, new and reference symmetric shape matrices
-        ``(n, 2, 2)``."""
+    def _is_rect(self) -> np.ndarray:
+        kinds = self.kinds or ("ellipse",) * len(self.params0)
+        if len(kinds) != len(self.params0) or set(kinds) - {"ellipse", "rectangle"}:
+            raise ValueError(f"kinds must name 'ellipse' or 'rectangle' for each of {len(self.params0)} shapes, "
+                             f"got {kinds}")
+        return np.array([k == "rectangle" for k in kinds])
+
+    def _affine(self, z, xp):
+        """With ``rotate``: new centres ``(n, 2)``, the affine maps ``(n, 2, 2)`` that take each
+        reference shape onto its new one, and the new ``(a, b, angle)`` per shape ``(n, 3)``
+        (for an ellipse, ``a`` the axis closest in direction to the reference's ``a``)."""
         dz = xp.reshape(xp.asarray(z), (-1, 5)) * self.scale
         p = xp.asarray(self.params0, dtype=float)
-        c, s = xp.cos(p[:, 4]), xp.sin(p[:, 4])
-        R = xp.stack([xp.stack([c, -s], -1), xp.stack([s, c], -1)], -2)
-        M0 = R @ (p[:, 2:4, None] * xp.swapaxes(R, -1, -2))
+        rect = self._is_rect()
+
+        def rot(t):
+            c, s = xp.cos(t), xp.sin(t)
+            return xp.stack([xp.stack([c, -s], -1), xp.stack([s, c], -1)], -2)
+
+        R0 = rot(p[:, 4])
+        # ellipses: M = M0 + dM, symmetric
+        M0 = R0 @ (p[:, 2:4, None] * xp.swapaxes(R0, -1, -2))
         dM = xp.stack([xp.stack([dz[:, 2], dz[:, 4]], -1), xp.stack([dz[:, 4], dz[:, 3]], -1)], -2)
-        return p[:, :2] + dz[:, :2], M0 + dM, M0
+        ell_map = (M0 + dM) @ xp.linalg.inv(M0)
+        # rectangles: A = R(angle) diag(a, b), half sides and angle changed
+        r0 = xp.sqrt(p[:, 2] * p[:, 3])
+        a1, b1, t1 = p[:, 2] + dz[:, 2], p[:, 3] + dz[:, 3], p[:, 4] + dz[:, 4] / r0
+        A0 = R0 * p[:, None, 2:4]
+        A1 = rot(t1) * xp.stack([a1, b1], -1)[:, None, :]
+        rect_map = A1 @ xp.linalg.inv(A0)
+        maps = xp.where(xp.asarray(rect)[:, None, None], rect_map, ell_map)
+        return p[:, :2] + dz[:, :2], maps, (M0 + dM, xp.stack([a1, b1, t1], -1))
 
     def shape_params(self, z) -> np.ndarray:
-        """``(n_shapes, 5)`` = ``(cx, cy, a, b, angle)``; with ``rotate`` the axis ``a`` is the
-        one closest in direction to the starting shape's, and the angle stays within a quarter
-        turn of the start's."""
+        """``(n_shapes, 5)`` = ``(cx, cy, a, b, angle)``; with ``rotate`` an ellipse's axis ``a`` is
+        the one closest in direction to the starting shape's, and the angle stays within a
+        quarter turn of the start's."""
         if not self.rotate:
             return self._axis_aligned(np.asarray(z, float), np)
-        c, M, _ = self._symmetric(np.asarray(z, float), np)
+        c, _, (M, rect_abt) = self._affine(np.asarray(z, float), np)
         p0 = np.asarray(self.params0, float)
         out = []
-        for k in range(len(p0)):
+        for k, is_rect in enumerate(self._is_rect()):
+            if is_rect:
+                out.append([c[k, 0], c[k, 1], *rect_abt[k]])
+                continue
             w, V = np.linalg.eigh(M[k])
             d0 = np.array([np.cos(p0[k, 4]), np.sin(p0[k, 4])])
             i = int(np.argmax(np.abs(V.T @ d0)))
@@ -267,11 +307,16 @@ class ShapeGeometry:
             out.append([c[k, 0], c[k, 1], w[i], w[1 - i], ang])
         return np.asarray(out)
 
+    def shapes(self, z) -> list:
+        """The shapes at ``z``: ``jaxfem.Ellipse`` or ``jaxfem.Rect`` instances."""
+        kinds = self.kinds or ("ellipse",) * len(self.params0)
+        return [make_shape(kind, p) for kind, p in zip(kinds, self.shape_params(z))]
+
     def apply(self, theta, z):
         if not self.rotate:
             return {**theta, "X": self.morph(self._axis_aligned(z, jnp))}
-        c, M, M0 = self._symmetric(z, jnp)
-        return {**theta, "X": self.morph.affine(c, M @ jnp.linalg.inv(M0))}
+        c, maps, _ = self._affine(z, jnp)
+        return {**theta, "X": self.morph.affine(c, maps)}
 
     def regularization(self, z):
         return 0.0
@@ -280,11 +325,12 @@ class ShapeGeometry:
         """Why the shapes at ``z`` cannot be solved or are not physical (None: they can)."""
         z = np.asarray(z, float)
         if self.rotate:
-            c, M, M0 = self._symmetric(z, np)
-            axes = np.linalg.eigvalsh(M)
+            c, maps, (M, rect_abt) = self._affine(z, np)
+            rect = self._is_rect()
+            axes = np.concatenate([np.linalg.eigvalsh(M[~rect]).ravel(), rect_abt[rect, :2].ravel()])
             if axes.min() <= max(self.min_axis, 1e-3 * self.scale):
                 return f"a semi-axis would fall to {axes.min():.3g}"
-            X = np.asarray(self.morph.affine(c, M @ np.linalg.inv(M0)))
+            X = np.asarray(self.morph.affine(c, maps))
         else:
             p = self._axis_aligned(z, np)
             if p[:, 2:4].min() <= max(self.min_axis, 1e-3 * self.scale):
@@ -295,8 +341,8 @@ class ShapeGeometry:
             if quality < self.min_quality:
                 return f"the morph would squash a cell to {quality:.2f} of its area"
         if self.outside is not None and len(self.outside):
-            for params in self.shape_params(z):
-                inside = jf.Ellipse(*map(float, params)).contains(self.outside)
+            for shape in self.shapes(z):
+                inside = shape.contains(self.outside)
                 if inside.any():
                     return f"the shape would cover the tracked point at {self.outside[inside][0].round(2).tolist()}"
         return None
@@ -304,8 +350,9 @@ class ShapeGeometry:
     def values(self, z) -> dict:
         p = self.shape_params(z)
         names = self.names or tuple(f"shape{k + 1}" for k in range(len(p)))
-        return {n: {"centre": p[k, :2].tolist(), "axes": p[k, 2:4].tolist(), "angle": float(p[k, 4])}
-                for k, n in enumerate(names)}
+        kinds = self.kinds or ("ellipse",) * len(p)
+        return {n: {"kind": kinds[k], "centre": p[k, :2].tolist(), "axes": p[k, 2:4].tolist(),
+                    "angle": float(p[k, 4])} for k, n in enumerate(names)}
 
 
 @dataclass(frozen=True, eq=False)
