@@ -123,8 +123,13 @@ class Rect(_Affine):
     def _max_size(self):  # at least one element across a thin rectangle
         return min(self.x1 - self.x0, self.y1 - self.y0)
 
+    @property
+    def corners(self) -> np.ndarray:
+        """The four corners ``(4, 2)``, counter-clockwise from ``(x0, y0)`` turned."""
+        return self._from_unit(np.array([[-1.0, -1], [1, -1], [1, 1], [-1, 1]]))
+
     def _pieces(self, h):
-        return _polygon_pieces(self._from_unit(np.array([[-1.0, -1], [1, -1], [1, 1], [-1, 1]])), h)
+        return _polygon_pieces(self.corners, h)
 
 
 @dataclass(frozen=True, eq=False)

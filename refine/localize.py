@@ -14,7 +14,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from .fit import Objective, lbfgsb
-from .parametrize import ModulusField, cell_adjacency
+from .parametrize import ModulusField, cell_adjacency, make_shape
 
 
 @dataclass(frozen=True)
@@ -103,13 +103,12 @@ def ellipse_polygon(cx, cy, a, b, angle, n: int = 48) -> list[list[float]]:
 
 def rectangle_polygon(cx, cy, a, b, angle) -> list[list[float]]:
     """Corners of a rectangle of half sides ``a, b`` turned ``angle``, counter-clockwise."""
-    c, s = np.cos(angle), np.sin(angle)
-    xi = np.array([[-a, -b], [a, -b], [a, b], [-a, b]], float)
-    return (np.array([cx, cy]) + xi @ np.array([[c, s], [-s, c]])).round(4).tolist()
+    return make_shape("rectangle", (cx, cy, a, b, angle)).corners.round(4).tolist()
 
 
 def outline(kind: str, cx, cy, a, b, angle) -> tuple[float, list[list[float]]]:
     """Area and outline polygon of a fitted shape (``"rectangle"``; otherwise an ellipse)."""
-    if kind == "rectangle":
-        return float(4.0 * a * b), rectangle_polygon(cx, cy, a, b, angle)
-    return float(np.pi * a * b), ellipse_polygon(cx, cy, a, b, angle)
+    rect = kind == "rectangle"
+    shape = make_shape("rectangle" if rect else "ellipse", (cx, cy, a, b, angle))
+    polygon = rectangle_polygon(cx, cy, a, b, angle) if rect else ellipse_polygon(cx, cy, a, b, angle)
+    return shape.area, polygon

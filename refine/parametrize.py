@@ -253,12 +253,17 @@ class ShapeGeometry:
         dz = xp.reshape(xp.asarray(z), (-1, 4)) * self.scale
         return xp.asarray(self.params0, dtype=float) + xp.concatenate([dz, xp.zeros((dz.shape[0], 1))], 1)
 
-    def _is_rect(self) -> np.ndarray:
-        kinds = self.kinds or ("ellipse",) * len(self.params0)
+    @property
+    def _kinds(self) -> tuple:
+        """Each shape's kind (``kinds``, by default all ellipses)."""
+        kinds = tuple(self.kinds) or ("ellipse",) * len(self.params0)
         if len(kinds) != len(self.params0) or set(kinds) - {"ellipse", "rectangle"}:
             raise ValueError(f"kinds must name 'ellipse' or 'rectangle' for each of {len(self.params0)} shapes, "
                              f"got {kinds}")
-        return np.array([k == "rectangle" for k in kinds])
+        return kinds
+
+    def _is_rect(self) -> np.ndarray:
+        return np.array([k == "rectangle" for k in self._kinds])
 
     def _affine(self, z, xp):
         """With ``rotate``: new centres ``(n, 2)``, the affine maps ``(n, 2, 2)`` that take each
@@ -309,8 +314,7 @@ class ShapeGeometry:
 
     def shapes(self, z) -> list:
         """The shapes at ``z``: ``jaxfem.Ellipse`` or ``jaxfem.Rect`` instances."""
-        kinds = self.kinds or ("ellipse",) * len(self.params0)
-        return [make_shape(kind, p) for kind, p in zip(kinds, self.shape_params(z))]
+        return [make_shape(kind, p) for kind, p in zip(self._kinds, self.shape_params(z))]
 
     def apply(self, theta, z):
         if not self.rotate:
@@ -350,7 +354,7 @@ class ShapeGeometry:
     def values(self, z) -> dict:
         p = self.shape_params(z)
         names = self.names or tuple(f"shape{k + 1}" for k in range(len(p)))
-        kinds = self.kinds or ("ellipse",) * len(p)
+        kinds = self._kinds
         return {n: {"kind": kinds[k], "centre": p[k, :2].tolist(), "axes": p[k, 2:4].tolist(),
                     "angle": float(p[k, 4])} for k, n in enumerate(names)}
 
