@@ -186,7 +186,8 @@ def summarise(rows) -> dict:
             "max_seconds": float(max(r["seconds"] for r in rows))}
 
 
-def write_results(rows, machine: dict, settings: dict) -> dict:
+def write_results(rows, machine: dict, settings: dict, out: Path = OUT / "diagnose.json") -> dict:
+    """Summarise ``rows`` per cell and overall; write ``out`` (JSON) and the plot beside it."""
     cells = {}
     for r in rows:
         cells.setdefault((r["spacing"], r["noise"], r["cause"]), []).append(r)
@@ -198,9 +199,10 @@ def write_results(rows, machine: dict, settings: dict) -> dict:
                         "(each row's 'threads') on the machine below, at the load average stored in each row"),
                "cases_per_cell": sorted({g["cases"] for g in groups}),
                "overall": summarise(rows) if rows else None, "groups": groups}
-    OUT.mkdir(exist_ok=True)
-    (OUT / "diagnose.json").write_text(json.dumps(results, indent=1))
-    _plot(results)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(results, indent=1))
+    _plot(results, out.with_suffix(".png"))
     return results
 
 
@@ -219,13 +221,16 @@ def main():
     ap.add_argument("--shard", default="0/1", help="i/n: run every n-th case starting at the i-th")
     ap.add_argument("--rows", default=str(OUT / "diagnose_rows.jsonl"), help="JSONL of finished cases (resumed)")
     ap.add_argument("--merge", nargs="*", default=None, help="only summarise these rows files")
+    ap.add_argument("--out", default=str(OUT / "diagnose.json"),
+                    help="results JSON (the plot goes beside it); give another path for a partial or experimental "
+                         "run, so the full benchmark's results stay as they are")
     ap.add_argument("--note", default="", help="what the reader must know about this run (stored in the JSON)")
     args = ap.parse_args()
     machine = {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
                "cpu_count": os.cpu_count(), "workers": args.workers, "threads_per_worker": args.threads}
     if args.merge is not None:
         rows = _read_rows(args.merge)
-        write_results(rows, machine, vars(args))
+        write_results(rows, machine, vars(args), args.out)
         print(f"{len(rows)} rows summarised")
         return
     i, n = map(int, args.shard.split("/"))
@@ -247,10 +252,10 @@ def main():
             print(f"{row['spacing']:g} mm noise {row['noise']:g} {row['cause']:15s} seed {row['seed']}: found "
                   f"{row['found']} gain {row['gain'] or 0:.2f} {'PASS' if row['passed'] else 'fail'} "
                   f"{row['seconds']:.0f} s load {row['load_average'][0]}", flush=True)
-    write_results(_read_rows([args.rows]), machine, vars(args))
+    write_results(_read_rows([args.rows]), machine, vars(args), args.out)
 
 
-def _plot(results):
+def _plot(results, path: Path):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -268,7 +273,7 @@ def _plot(results):
     ax.set_xticks(x, labels, fontsize=6, rotation=90)
     ax.set_ylabel("rate")
     ax.legend(fontsize=7)
-    fig.savefig(OUT / "diagnose.png", dpi=110, bbox_inches="tight")
+    fig.savefig(path, dpi=110, bbox_inches="tight")
 
 
 if __name__ == "__main__":
