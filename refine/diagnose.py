@@ -59,11 +59,16 @@ class DiagnoseConfig:
         seed: seeds the holdout split.
         try_rectangles: when the first region, fitted as an ellipse, is the best hypothesis so
             far, also fit it as a rectangle (from the ellipse, turned 0 and pi/4, beside the
-            ellipse remeshed at its fit); the best score is kept. Off by default: on 5 mm grids it
-            fixes the paper's rectangles (fitted as ellipses they come out larger and 12-30 %
-            too soft; 5/5 within 10 % with it, 3/5 without, at noise 0.02 mm), but on 10 mm grids
-            (about one tracked point per side) rectangles out-score true ellipses too (a soft
-            ellipse's ratio 28 % off as a rectangle, 6 % as an ellipse), and it costs 15-30 s.
+            ellipse remeshed at its fit); the best score is kept. ``None`` (default): only where
+            the tracked points resolve a rectangle's corners, i.e. the fitted ellipse's smaller
+            semi-axis is at least ``rectangle_spacings`` grid spacings; True: always; False:
+            never. Fitted as ellipses, the paper's rectangles come out larger and 12-30 % too
+            soft; on 5 mm grids a rectangle fit puts 5/5 within 10 % (3/5 without) at noise
+            0.02 mm. On 10 mm grids (two grid intervals per side) rectangles out-score true
+            ellipses too (a soft ellipse's ratio 28 % off as a rectangle, 6 % as an ellipse),
+            hence the gate. It costs 15-30 s where it runs.
+        rectangle_spacings: the gate of ``try_rectangles=None``, in grid spacings (1.5: a side
+            spans at least three grid intervals).
         workers: hypotheses (and the set-up's independent models) fitted side by side in this
             many threads; XLA compiles and solves outside Python's lock, so on 2 cores two
             compilations or fits take little longer than one (compilation is most of a
@@ -80,7 +85,8 @@ class DiagnoseConfig:
     hole_below: float = 0.3
     seed: int = 0
     workers: int = 2
-    try_rectangles: bool = False
+    try_rectangles: bool | None = None
+    rectangle_spacings: float = 1.5
 
 
 @dataclass
@@ -308,7 +314,7 @@ def _try_hypotheses(model, candidates, fit, hold, sigma, cfg, log, null, n_fit, 
                 and (hole is None or (soft.bic < hole.bic and hole.chi2_fit < 2.0 * soft.chi2_fit))):
             fits["hole from region"] = side_by_side((fit_hole, model, tuple(soft.shapes[0][1:6]), fit, hold, sigma))[0]
         region = fits.get("ellipse")
-        if (not used and cfg.try_rectangles and region is not None and region.cause != "regions"
+        if (not used and region is not None and region.cause != "regions" and _rectangles_wanted(region, model, cfg)
                 and min((f for f in fits.values() if f is not None), key=_score) is region):
             # the region as a rectangle, from the fitted ellipse, turned 0 and pi/4 from it, beside
             # the ellipse remeshed at its fit (each rectangle is remeshed at its fit too)
@@ -330,6 +336,17 @@ def _try_hypotheses(model, candidates, fit, hold, sigma, cfg, log, null, n_fit, 
     if cfg.try_laws and (best is None or not _explains(best, n_fit, null)):
         side_by_side(*[(fit_law, model, law, fit, hold, sigma) for law in ALTERNATIVE_LAWS.get(model.experiment.law, ())])
     return out
+
+
+def _rectangles_wanted(region: Fitted, model, cfg: DiagnoseConfig) -> bool:
+    """Whether to fit ``region`` (one fitted ellipse) as a rectangle too: as
+    ``cfg.try_rectangles`` says, or, when it is None, where the ellipse's smaller semi-axis spans
+    ``cfg.rectangle_spacings`` grid spacings (fewer tracked points along a side cannot tell a
+    corner from a curve)."""
+    if cfg.try_rectangles is not None:
+        return bool(cfg.try_rectangles)
+    _, _, _, a, b, _, _ = region.shapes[0]
+    return min(a, b) >= cfg.rectangle_spacings * model.spacing
 
 
 def _score(f: Fitted) -> float:
