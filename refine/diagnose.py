@@ -59,14 +59,17 @@ class DiagnoseConfig:
         seed: seeds the holdout split.
         try_rectangles: when the first region, fitted as an ellipse, is the best hypothesis so
             far, also fit it as a rectangle (from the ellipse, turned 0 and pi/4, beside the
-            ellipse remeshed at its fit); the best score is kept. ``None`` (default): only where
-            the tracked points resolve a rectangle's corners, i.e. the fitted ellipse's smaller
-            semi-axis is at least ``rectangle_spacings`` grid spacings; True: always; False:
-            never. Fitted as ellipses, the paper's rectangles come out larger and 12-30 % too
-            soft; on 5 mm grids a rectangle fit puts 5/5 within 10 % (3/5 without) at noise
-            0.02 mm. On 10 mm grids (two grid intervals per side) rectangles out-score true
-            ellipses too (a soft ellipse's ratio 28 % off as a rectangle, 6 % as an ellipse),
-            hence the gate. It costs 15-30 s where it runs.
+            ellipse remeshed at its fit); the best score is kept. False (default): never; True:
+            always; None: only where the tracked points resolve a rectangle's corners, i.e. the
+            fitted ellipse's smaller semi-axis is at least ``rectangle_spacings`` grid spacings.
+            Fitted as ellipses, the paper's rectangles come out larger and 12-30 % too soft;
+            on 5 mm grids a rectangle fit puts 5/5 within 10 % (3/5 without) at noise 0.02 mm,
+            areas within 2.3 % (were +10-20 %). On 10 mm grids (two grid intervals per side)
+            rectangles out-score true ellipses too (a soft ellipse's ratio 28 % off as a
+            rectangle, 6 % as an ellipse): the gate (None) keeps them off there. It costs
+            15-30 s per diagnosis where it runs, more for two regions (146-184 s on one 5 mm
+            two-region bundle under load, against the 2-minute target), and the gate is not yet
+            validated over the benchmark's cells: hence off by default.
         rectangle_spacings: the gate of ``try_rectangles=None``, in grid spacings (1.5: a side
             spans at least three grid intervals).
         workers: hypotheses (and the set-up's independent models) fitted side by side in this
@@ -85,7 +88,7 @@ class DiagnoseConfig:
     hole_below: float = 0.3
     seed: int = 0
     workers: int = 2
-    try_rectangles: bool | None = None
+    try_rectangles: bool | None = False
     rectangle_spacings: float = 1.5
 
 

@@ -112,17 +112,17 @@ def test_a_rectangle_hypothesis_recovers_the_papers_rectangle():
 
 
 def test_rectangles_are_tried_only_where_the_points_resolve_corners():
-    """By default a region is also fitted as a rectangle only when its fitted ellipse's smaller
-    semi-axis spans 1.5 grid spacings; True / False force it either way."""
+    """With ``try_rectangles=None`` a region is also fitted as a rectangle only when its fitted
+    ellipse's smaller semi-axis spans 1.5 grid spacings; True / False (the default) force it."""
     from types import SimpleNamespace
 
     from refine.diagnose import DiagnoseConfig, _rectangles_wanted
 
     model = SimpleNamespace(spacing=5.0)
     region = lambda a, b: SimpleNamespace(shapes=[("ellipse", 50.0, 30.0, a, b, 0.3, 8.0)])  # noqa: E731
-    auto = DiagnoseConfig()
+    auto = DiagnoseConfig(try_rectangles=None)
     assert _rectangles_wanted(region(11.6, 7.5), model, auto)  # 5 mm grid, 1.5 spacings: a corner is seen
     assert not _rectangles_wanted(region(11.6, 7.4), model, auto)
     assert not _rectangles_wanted(region(11.6, 9.0), SimpleNamespace(spacing=10.0), auto)  # 10 mm grid
     assert _rectangles_wanted(region(3.0, 3.0), model, DiagnoseConfig(try_rectangles=True))
-    assert not _rectangles_wanted(region(20.0, 20.0), model, DiagnoseConfig(try_rectangles=False))
+    assert not _rectangles_wanted(region(20.0, 20.0), model, DiagnoseConfig())
