@@ -317,7 +317,7 @@ def _try_hypotheses(model, candidates, fit, hold, sigma, cfg, log, null, n_fit, 
                 and (hole is None or (soft.bic < hole.bic and hole.chi2_fit < 2.0 * soft.chi2_fit))):
             fits["hole from region"] = side_by_side((fit_hole, model, tuple(soft.shapes[0][1:6]), fit, hold, sigma))[0]
         region = fits.get("ellipse")
-        if (not used and region is not None and region.cause != "regions" and _rectangles_wanted(region, model, cfg)
+        if (not used and region is not None and _rectangles_wanted(region, model, cfg)  # one region: never "regions"
                 and min((f for f in fits.values() if f is not None), key=_score) is region):
             # the region as a rectangle, from the fitted ellipse, turned 0 and pi/4 from it, beside
             # the ellipse remeshed at its fit (each rectangle is remeshed at its fit too)

@@ -37,11 +37,11 @@ RELATIVE_ONLY = (
 )
 
 
-
 def side_force(model: MeasuredModel, theta, U, nodes):
     """Force across a side in every frame, ``(n_frames, dim)``: the sum of the reactions that hold
     the side's ``nodes`` at their measured positions, for displacements ``U (n_frames, ...)``."""
     return jax.vmap(lambda u: model.solver.reactions(u, theta, nodes))(U)
+
 
 class ForcedObjective(Objective):
     """:class:`~refine.fit.Objective` with the measured force across one side as extra residuals.

@@ -110,5 +110,5 @@ def outline(kind: str, cx, cy, a, b, angle) -> tuple[float, list[list[float]]]:
     """Area and outline polygon of a fitted shape (``"rectangle"``; otherwise an ellipse)."""
     rect = kind == "rectangle"
     shape = make_shape("rectangle" if rect else "ellipse", (cx, cy, a, b, angle))
-    polygon = rectangle_polygon(cx, cy, a, b, angle) if rect else ellipse_polygon(cx, cy, a, b, angle)
+    polygon = shape.corners.round(4).tolist() if rect else ellipse_polygon(cx, cy, a, b, angle)
     return shape.area, polygon
