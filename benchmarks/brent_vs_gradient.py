@@ -6,17 +6,19 @@ use other meshes):
 
 1. ``paper``: the Sec. 3.1 experiment with one unknown, the embedded rectangle's modulus (the paper's
    moduli, a random rectangle per seed). Brent from b = 118.80 and b = 1256.40 kPa at tolerance
-   0.01, the cubic fit + Brent at 0.001; Levenberg-Marquardt, Gauss-Newton and the third-order
-   tensor method on the log ratio, each from the uniform model and from Brent's two middle points;
-   L-BFGS-B.
+   0.01, the cubic fit + Brent at 0.001; Levenberg-Marquardt, Gauss-Newton, the third-order
+   tensor method and Pade steps on the equilibrium's order-16 series (refine.pade) on the log
+   ratio, each from the uniform model and from Brent's two middle points; L-BFGS-B.
 2. ``two_regions``: a stiffer and a softer ellipse. Coordinate-wise Brent against LM and GN.
 3. ``field``: a modulus per element (at least 2,000), TV-regularised, by L-BFGS-B. Brent cannot do
    this: one 1-D search per element and sweep.
 
 Counting. A forward solve is one evaluation of the model over all frames (one Newton solve per
 frame). A gradient evaluation is a Jacobian (LM/GN: one tangent solve per unknown and frame, with
-the tangent matrix of the converged state) or an adjoint gradient (L-BFGS-B: one adjoint solve per
-frame). Seconds are warm: each gradient method runs twice and the second run is timed, and
+the tangent matrix of the converged state), an adjoint gradient (L-BFGS-B: one adjoint solve per
+frame), the derivative tensors of the tensor method (k + k^2 + k^3 tangent solves per frame) or
+the equilibrium's series (Pade: 16 tangent solves and Taylor evaluations per frame), each from
+one factorisation. Seconds are warm: each gradient method runs twice and the second run is timed, and
 Brent runs after a reference search has compiled its solve. The compilation is reported apart
 as ``compile_seconds``.
 
@@ -119,7 +121,8 @@ def paper_case(seed: int) -> list[dict]:
     searched("cubic+brent", ex.cubic(), ex.cubic(tol=1e-6))
     starts = {"": None, **{f" b={b:g}": b for b in MIDDLE_POINTS}}  # the uniform model, then Brent's middle points
     runs = [(f"{name}{tag}", (lambda k=key, s=start: ex.least_squares(k, start=s)))
-            for name, key in (("levenberg-marquardt", "lm"), ("gauss-newton", "gn"), ("tensor (3rd order)", "tensor"))
+            for name, key in (("levenberg-marquardt", "lm"), ("gauss-newton", "gn"), ("tensor (3rd order)", "tensor"),
+                              ("pade (order 16)", "pade"))
             for tag, start in starts.items()]
     runs.append(("l-bfgs-b", lambda: ex.lbfgsb()))
     for method, run in runs:

@@ -33,6 +33,7 @@ from .results import (cauchy_stress, deformation_gradient, equivalent_strain, fi
 from .mesher import domain, plate
 from .shapes import Ellipse, Polygon, Rect, curve_nodes, morph
 from .solver import Solution, Solver
+from .series import equilibrium_series
 from . import plot
 
 __all__ = [
@@ -44,5 +45,5 @@ __all__ = [
     "first_piola_stress", "green_lagrange_strain", "principal_strains", "second_piola_stress",
     "strain_energy", "von_mises_stress", "Ellipse", "Polygon", "Rect", "curve_nodes", "morph", "plate", "domain",
     "Solution", "Solver", "taylor_test", "batch_displacement", "stack_params", "check_geometry",
-    "with_geometry",
+    "with_geometry", "equilibrium_series",
 ]

@@ -9,6 +9,9 @@ value is half their squared norm plus the parametrisation's regulariser.
   (one tangent solve per parameter and frame), for a handful of parameters.
 - :func:`lbfgsb`: bounded L-BFGS (SciPy) on the scalar objective with adjoint gradients (one
   adjoint solve per frame, whatever the number of parameters), for fields.
+- :func:`pade_least_squares` (from :mod:`refine.pade`): one unknown, Pade steps on the
+  equilibrium's Taylor series (one forward solve per step, and a step reaches a minimiser a
+  factor ten away).
 - :func:`tensor_least_squares` (from :mod:`refine.tensor`): third-order Taylor models of the
   residuals, for fewest forward solves on one or a few unknowns.
 
@@ -313,4 +316,5 @@ def levenberg_marquardt(compiled: Compiled, points, sigma: float, z0=None, max_s
                         message="converged" if ok else f"stopped after {max_steps} steps")
 
 
-from .tensor import tensor_least_squares  # noqa: E402,F401  (re-exported: one import for every fit)
+from .pade import pade_least_squares  # noqa: E402,F401  (re-exported: one import for every fit)
+from .tensor import tensor_least_squares  # noqa: E402,F401

@@ -171,13 +171,18 @@ class PaperExperiment:
     # ------------------------------------------------------------------ gradients
     def least_squares(self, method: str = "lm", start: float | None = None, rtol: float = 1e-5,
                       atol: float = 1e-4, progress: bool = False) -> RefineResult:
-        """Levenberg-Marquardt (``"lm"``), Gauss-Newton (``"gn"``) or the third-order tensor method
-        (``"tensor"``, :func:`~refine.fit.tensor_least_squares`) on the log ratio, exact
-        derivatives, started from ``start`` kPa (default: the uniform model). ``values`` and every
-        history row carry the modulus under ``E_inclusion`` and the misfit under ``error``."""
+        """Levenberg-Marquardt (``"lm"``), Gauss-Newton (``"gn"``), the third-order tensor method
+        (``"tensor"``, :func:`~refine.fit.tensor_least_squares`) or Pade steps on the
+        equilibrium's series (``"pade"``, :func:`~refine.pade.pade_least_squares`, order 16) on
+        the log ratio, exact derivatives, started from ``start`` kPa (default: the uniform model).
+        ``values`` and every history row carry the modulus under ``E_inclusion`` and the misfit
+        under ``error``."""
         z0 = self.z(self.E0 if start is None else start)
         if method == "tensor":
             r = fit.tensor_least_squares(self.objective, z0, order=3, rtol=rtol, progress=progress)
+        elif method == "pade":
+            bounds = tuple(float(v) for v in np.log(np.asarray(BRACKET) / self.E0))
+            r = fit.pade_least_squares(self.objective, z0, order=16, bounds=bounds, progress=progress)
         else:
             r = fit.least_squares(self.objective, z0, method=method, rtol=rtol, atol=atol, progress=progress)
         return self._in_kpa(r, "misfit")
