@@ -139,7 +139,9 @@ class Solver:
         def tangent_at_jvp(primals, tangents):
             u, theta, vals = primals
             du, dtheta, _ = tangents
-            return vals, jax.jvp(self.tangent_values, (u, theta), (du, dtheta))[1]
+            # the primal through the rule again: a derivative of this one (a third derivative of
+            # u) must see the tangent matrix move too, not the constant values Newton left
+            return tangent_at(u, theta, vals), jax.jvp(self.tangent_values, (u, theta), (du, dtheta))[1]
 
         @jax.custom_jvp
         def implicit(theta, u, vals):

@@ -75,8 +75,8 @@ def test_gradient_fit_reaches_its_minimum_in_fewer_solves_than_brent(experiment,
     n_brent = [solves_to_reach(experiment.brent(b, tol=1e-6), eq1_minimum, rel=1e-3) for b in MIDDLE_POINTS]
     assert n_lm is not None and None not in n_brent
     assert n_lm <= 5 and lm.n_forward <= 8
-    # The target is a third of Brent's solves; one unknown does not reach it (see
-    # benchmarks/brent_vs_gradient.py): a Newton step needs 4-5 solves from the uniform model.
+    # The target is a third of Brent's solves: Levenberg-Marquardt does not reach it (a
+    # Newton step's linear model needs 4-5 solves from the uniform model); Pade steps do (below).
     assert n_lm < 0.7 * min(n_brent)
 
 

@@ -99,3 +99,33 @@ def test_vector_pade_continues_a_rational_function_past_the_series_radius():
     ts = np.linspace(pole * 0.999, 5.0, 20001)
     assert value <= 0.5 * np.sum(f(ts) ** 2, axis=-1).min() + 1e-12
     assert pole < t_min <= 5.0
+
+
+def test_series_agrees_with_nested_implicit_derivatives():
+    """Two independent routes to the same derivatives: the series' u_k times k! against k nested
+    forward-mode derivatives of Solver.displacement (the implicit function theorem at every level).
+    Up to the third order, where the tangent matrix's own derivative enters twice."""
+    import jax
+    import jax.numpy as jnp
+
+    problem, solver, inside, u_D = _strip("plane-stress", "tri3", seed=5)
+    E0, rho0 = 50.0, np.random.default_rng(6).uniform(2.0, 5.0)
+    direction = np.where(inside, E0, 0.0)
+    base = problem.params(E=np.where(inside, E0 * rho0, E0), nu=0.3, u_D=u_D)
+
+    def u(t):
+        return solver.displacement({**base, "E": base["E"] + t * direction})
+
+    def derivative(f):
+        return lambda t: jax.jvp(f, (t,), (jnp.ones_like(t),))[1]
+
+    d1 = derivative(u)
+    d2 = derivative(d1)
+    d3 = derivative(d2)
+    t0 = jnp.asarray(0.0)
+    path = {"E": np.zeros((3, problem.mesh.n_cells))}
+    path["E"][0] = direction
+    U = np.asarray(equilibrium_series(solver, u(t0), base, path, 3))
+    for k, (d, factorial) in enumerate(((d1, 1.0), (d2, 2.0), (d3, 6.0))):
+        np.testing.assert_allclose(np.asarray(d(t0)), factorial * U[k], rtol=1e-7,
+                                   atol=1e-9 * np.abs(factorial * U[k]).max(), err_msg=f"order {k + 1}")
