@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import ctypes
 import importlib.util
+import threading
 import weakref
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
@@ -80,6 +81,10 @@ class _FactorCache:
     def __init__(self, factor: Callable, one_thread: bool = False):
         self.factor = factor
         self.vals = None
+        # XLA may run two callbacks of one program at once (independent solves, e.g. of a third
+        # derivative): the cache and a solver's handle (PARDISO's) take one call at a time, or MKL
+        # segfaults on the shared handle
+        self._lock = threading.Lock()
         self._slot = [None]  # the solve of the last factorisation (a list: see the finaliser)
         self._thread = None
         if one_thread:  # the last factorisation is freed on its own thread too, then the thread ends
@@ -89,7 +94,8 @@ class _FactorCache:
     def __call__(self, vals, rhs):
         if self._thread is not None:
             return self._thread.submit(self._call, vals, rhs).result()
-        return self._call(vals, rhs)
+        with self._lock:
+            return self._call(vals, rhs)
 
     def _call(self, vals, rhs):
         v = np.asarray(vals, dtype=np.float64)
