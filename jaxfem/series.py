@@ -33,17 +33,10 @@ from jax.experimental import jet
 from . import _config  # noqa: F401
 from .assembly import deformation_gradients, shape_gradients
 from .errors import ProblemError
+from .kinematics import embed
 from .newton import external_force
 
 FIXED_KEYS = ("u_D", "f", "traction")
-
-
-def _embed(F2, f33):
-    """3x3 F from the in-plane block and the out-of-plane stretch, by concatenation: Taylor mode
-    has no rule for the scatter of :func:`jaxfem.kinematics.embed`."""
-    zero = jnp.zeros((2, 1), F2.dtype)
-    corner = jnp.concatenate([jnp.zeros((1, 2), F2.dtype), jnp.reshape(f33, (1, 1))], axis=1)
-    return jnp.concatenate([jnp.concatenate([F2, zero], axis=1), corner], axis=0)
 
 
 def _point_law(energy, kind: str):
@@ -52,11 +45,11 @@ def _point_law(energy, kind: str):
     other kinematics ``l`` is unused and h = 0."""
     if kind == "plane-stress":
         def law(F, l, p):
-            P3 = jax.grad(energy)(_embed(F, l), p)
+            P3 = jax.grad(energy)(embed(F, l), p)
             return P3[:2, :2], P3[2, 2]
     elif kind == "plane-strain":
         def law(F, l, p):
-            return jax.grad(energy)(_embed(F, jnp.ones_like(l)), p)[:2, :2], 0.0 * l
+            return jax.grad(energy)(embed(F, jnp.ones_like(l)), p)[:2, :2], 0.0 * l
     else:
         def law(F, l, p):
             return jax.grad(energy)(F, p), 0.0 * l

@@ -68,9 +68,18 @@ class Objective:
 
     def residuals(self, z):
         """``(n_residuals,)`` noise-weighted residuals over matched, tracked points."""
-        pred = self.predict(z)[:, self.points]
-        r = (pred - self.measured) / self.sigma
+        return self.residuals_of(self.predict(z))
+
+    def residuals_of(self, predicted):
+        """The residuals of predicted displacements of all points ``(frames, n_points, dim)``
+        (for a caller that solved already)."""
+        r = (predicted[:, self.points] - self.measured) / self.sigma
         return r[self.valid].reshape(-1)
+
+    def weighted(self, values):
+        """Point values ``(frames, n_points, dim)`` noise-weighted at the matched, tracked points,
+        ``(n_residuals,)``: the residuals' linear part (e.g. a series of predicted displacements)."""
+        return (values[:, self.points] / self.sigma)[self.valid].reshape(-1)
 
     def value(self, z):
         r = self.residuals(z)

@@ -115,10 +115,8 @@ def _path(objective, z0: float, variable: str, order: int):
 
     base = along(0.0)
     other = along(0.1 * (s0 if variable == "exp" else 1.0))
+    # the moving entries (equilibrium_series refuses prescribed displacements and loads)
     keys = [k for k in base if not np.array_equal(np.asarray(base[k]), np.asarray(other[k]))]
-    if any(k in ("u_D", "f", "traction") for k in keys):
-        raise ValueError(f"pade_least_squares: the unknown moves {keys}; only parameters of the model "
-                         "(moduli, nu, thickness, geometry) can follow a series")
     terms = [1.0] + [0.0] * (order - 1)
     terms = [jnp.asarray(c) for c in terms]
     _, series = jet.jet(lambda t: [along(t)[k] for k in keys], (jnp.asarray(0.0),), (terms,), factorial_scaled=False)
@@ -167,7 +165,6 @@ def pade_least_squares(objective, z0=None, order: int = 16, degree: int | None =
     lo, hi = (bounds if bounds is not None else
               ((z - np.log(30.0), z + np.log(30.0)) if variable == "exp" else (z - 3.0, z + 3.0)))
     lo, hi = float(lo), float(hi)
-    pts, valid, meas, sigma = objective.points, objective.valid, np.asarray(objective.measured), objective.sigma
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -181,7 +178,7 @@ def pade_least_squares(objective, z0=None, order: int = 16, degree: int | None =
         n_solve += 1
         theta = param.apply(objective.theta, jnp.array([zz]))
         U = model.solve_frames(theta)
-        r = ((np.asarray(model.at_points(U, theta))[:, pts] - meas) / sigma)[valid].reshape(-1)
+        r = np.asarray(objective.residuals_of(model.at_points(U, theta)))
         misfit = 0.5 * float(r @ r) if np.all(np.isfinite(r)) else np.inf
         history.append({"step": len(history), "z": [zz], "misfit": misfit})
         if bar is not None:
@@ -199,9 +196,8 @@ def pade_least_squares(objective, z0=None, order: int = 16, degree: int | None =
             th = {**theta, "u_D": model.prescribed(f)}
             coeffs.append(equilibrium_series(model.solver, U[f], th, path, order))
         coeffs = jnp.stack(coeffs, axis=1)  # (order, frames, nodes, dim): the points are linear in them
-        at = np.asarray(model.at_points(coeffs.reshape(-1, *coeffs.shape[2:]), theta))
-        at = at.reshape(order, -1, *at.shape[1:])[:, :, pts] / sigma
-        C.extend(a[valid].reshape(-1) for a in at)
+        at = model.at_points(coeffs.reshape(-1, *coeffs.shape[2:]), theta)
+        C.extend(np.asarray(objective.weighted(a)) for a in at.reshape(order, -1, *at.shape[1:]))
         return np.stack(C)
 
     def to_t(zz):
