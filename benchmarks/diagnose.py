@@ -5,6 +5,8 @@ gain and seconds, over random hidden cases per cause, at two grid densities and 
     python benchmarks/diagnose.py --cases 3 --workers 2    # a quick look
     python benchmarks/diagnose.py --cases 20 --workers 16 --shard 0/2 --rows /tmp/rows0.jsonl
     python benchmarks/diagnose.py --merge /tmp/rows*.jsonl # summary from rows written before
+    python benchmarks/diagnose.py --oracle --merge benchmarks/results/diagnose.json --workers 2
+                                                           # what the data allow, per case
 
 Each case draws its hidden effect (location, size, ratio) under its own seed; data come from a
 finer quadratic mesh of a larger sheet, with noise; the inversion uses linear triangles on the
@@ -17,6 +19,12 @@ Writes benchmarks/results/diagnose.json (and diagnose.png) from all rows: per ce
 noise, cause) the counts and rates, with the machine the rows were measured on. ``seconds`` are
 wall seconds of one diagnosis in one worker process (of ``--threads`` threads), on that machine, at the
 load average stored beside each row.
+
+Some cases cannot meet the issue's criteria whatever the method: a stiff region's ratio hardly
+changes the motion once it is several times the background's, and noise at the driving boundary
+points and at the validation points bounds the gain. ``--oracle`` measures that per case
+(``oracle_case``: the true model's gain and the Cramer-Rao bound of each ratio) and the summary
+gives the rates also over the cases where the criteria are attainable.
 """
 
 from __future__ import annotations
@@ -32,6 +40,7 @@ import numpy as np
 
 DIAGONAL = float(np.hypot(100.0, 60.0))
 OUT = Path(__file__).parent / "results"
+ORACLE_ROWS = OUT / "diagnose_oracle.jsonl"  # oracle_case's rows, joined with the cases' rows by case
 CAUSES = ("none", "stiffer-region", "softer-region", "hole", "two-regions", "rectangle")
 SINGLE_THREAD = {"XLA_FLAGS": "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1",
                  "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
@@ -125,6 +134,55 @@ def run_case(case: dict) -> dict:
     return row
 
 
+def oracle_case(case: dict) -> dict:
+    """What the data allow, whatever the method: the case's bundle predicted by its true model
+    (the hidden shapes meshed with quadratic triangles at the size the diagnosis' final refit
+    uses, the true ratios). Gives that model's validation error, so ``oracle_gain``: the gain a
+    diagnosis that found everything exactly would report (noise on the driving boundary points
+    and at the validation points stays); and the Cramer-Rao bounds of the log ratios (relative
+    standard errors; Gauss-Newton at the truth, on the guide points, with the bundle's noise):
+    ``oracle_ratio_std`` with each shape's centre, size and orientation unknown too (as the
+    diagnosis must find them), ``oracle_ratio_std_known_shape`` with the shapes given. No
+    unbiased method does better on average."""
+    from refine.errors import mean_position_error
+    from refine.fit import Compiled
+    from refine.hypotheses import _mesh_size, region_model
+    from refine.model import MeasuredModel, domain_mesh
+    from refine.synthetic import random_truth, synthetic_bundle
+
+    fractions = tuple(np.linspace(0, 1, case["frames"] + 1)[1:])
+    truth = random_truth(np.random.default_rng(case["seed"]), case["cause"])
+    bundle = synthetic_bundle(truth, seed=case["seed"], spacing=case["spacing"], noise=case["noise"],
+                              fractions=fractions)
+    ex, obs = bundle.experiment, bundle.observations
+    guide, val = obs.mask("guide"), obs.mask("validate")
+    base = MeasuredModel(ex, obs)
+    err = lambda pred: mean_position_error(pred[:, val], obs.displacements[:, val]).value  # noqa: E731
+    out = {k: case[k] for k in ("spacing", "noise", "cause", "k", "seed")}
+    out["baseline_validation_error"] = err(np.asarray(base.predict(base.params())))
+    out["oracle_ratio_std"], out["oracle_ratio_std_known_shape"] = [], []
+    if not truth.holes and not truth.inclusions:
+        return {**out, "oracle_validation_error": out["baseline_validation_error"], "oracle_gain": None}
+    if truth.holes:
+        h = _mesh_size(base, truth.holes)
+        model = MeasuredModel(ex, obs, mesh=domain_mesh(ex, h, "tri6", holes=truth.holes), h=h)
+        pred = np.asarray(model.predict(model.params()))
+    else:
+        regions = [inc.shape for inc in truth.inclusions]
+        model, param = region_model(base, regions, _mesh_size(base, regions), "tri6")
+        n = len(regions)
+        z = np.zeros(param.size)
+        z[:n] = np.log([inc.ratio for inc in truth.inclusions])
+        pred, J = Compiled(model, param).evaluate(z)
+        ok = np.isfinite(obs.displacements[:, guide]).all(-1)
+        J = J[:, guide][ok].reshape(-1, len(z)) / ex.noise_std
+        for key, Jk in (("oracle_ratio_std", J), ("oracle_ratio_std_known_shape", J[:, :n])):
+            out[key] = [float(s) for s in np.sqrt(np.diag(np.linalg.inv(Jk.T @ Jk))[:n])]
+    out["oracle_validation_error"] = err(pred)
+    out["oracle_gain"] = out["baseline_validation_error"] / out["oracle_validation_error"]
+    return out
+
+
 def _code_version() -> str:
     """The commit the library code of this run is at (with "+dirty" when the tree differs from it)."""
     import subprocess
@@ -144,7 +202,10 @@ def _read_rows(paths) -> list[dict]:
     rows = {}
     for p in paths:
         p = Path(p)
-        if p.exists():
+        if p.suffix == ".json":  # a results file: its rows
+            for g in json.loads(p.read_text())["groups"]:
+                rows.update((case_key(r), r) for r in g["rows"])
+        elif p.exists():
             for line in p.read_text().splitlines():
                 if line.strip():
                     r = json.loads(line)
@@ -161,6 +222,45 @@ def _within_3_std(rows):
     hits = [abs(e) * t < 3 * s for r in rows for e, t, s in zip(r["signed_ratio_error"], r["truth_ratio"],
                                                                   r.get("ratio_std", [])) if s is not None]
     return float(np.mean(hits)) if hits else None
+
+
+def _attainable(r) -> bool:
+    """Whether the issue's ratio and gain criteria can be met on this case's data by any method:
+    the true model gains at least 2x and every ratio's Cramer-Rao bound (shape known) is at most
+    5 % (so 10 % is two standard errors)."""
+    return bool(r["truth"]) and (r["oracle_gain"] or 0) >= GAIN_MIN and all(
+        s <= RATIO_TOL / 2 for s in r["oracle_ratio_std"])
+
+
+def _within_10pct_chance(std: float) -> float:
+    """Chance that a log-ratio estimate of standard error ``std`` (unbiased, Gaussian) lands
+    within 10 % of the truth."""
+    from math import erf, log, sqrt
+
+    cdf = lambda x: 0.5 * (1 + erf(x / (std * sqrt(2))))  # noqa: E731
+    return cdf(log(1 + RATIO_TOL)) - cdf(log(1 - RATIO_TOL))
+
+
+def _against_oracle(rows) -> dict:
+    """The rates beside what the data allow (rows joined with ``oracle_case``'s fields)."""
+    rows = [r for r in rows if "oracle_gain" in r and r["truth"]]
+    if not rows:
+        return {}
+    ok = [r for r in rows if _attainable(r)]
+    gains = [(r["gain"], r["oracle_gain"]) for r in rows if r["gain"] and r["oracle_gain"]]
+    stds = [s for r in rows for s in r["oracle_ratio_std"]]
+    ratio_ok = [e < RATIO_TOL for r in rows for e, s in zip(r["ratio_error"], r["oracle_ratio_std"])
+                if s <= RATIO_TOL / 2]
+    return {"oracle_cases": len(rows),
+            "oracle_gain_2x_rate": float(np.mean([g >= GAIN_MIN for _, g in gains])) if gains else None,
+            "median_oracle_gain": _med([g for _, g in gains]),
+            "median_gain_over_oracle_gain": _med([a / b for a, b in gains]),
+            "ideal_ratio_within_10pct_rate": float(np.mean([_within_10pct_chance(s) for s in stds])) if stds else None,
+            "median_oracle_ratio_std": _med(stds),
+            "attainable_cases": len(ok),
+            "pass_rate_where_attainable": float(np.mean([r["passed"] for r in ok])) if ok else None,
+            "gain_2x_rate_where_attainable": float(np.mean([(r["gain"] or 0) >= GAIN_MIN for r in ok])) if ok else None,
+            "ratio_within_10pct_rate_where_attainable": float(np.mean(ratio_ok)) if ratio_ok else None}
 
 
 def summarise(rows) -> dict:
@@ -182,12 +282,15 @@ def summarise(rows) -> dict:
             "median_hole_area_error": _med(flat("area_error")),
             "median_signed_area_error": _med(flat("signed_area_error")),
             "median_gain": _med(gains), "gain_2x_rate": float(np.mean([g >= GAIN_MIN for g in gains])) if gains else None,
+            **_against_oracle(rows),
             "median_seconds": _med([r["seconds"] for r in rows]),
             "max_seconds": float(max(r["seconds"] for r in rows))}
 
 
 def write_results(rows, machine: dict, settings: dict, out: Path = OUT / "diagnose.json") -> dict:
     """Summarise ``rows`` per cell and overall; write ``out`` (JSON) and the plot beside it."""
+    oracle = {case_key(o): o for o in _read_rows([ORACLE_ROWS])} if ORACLE_ROWS.exists() else {}
+    rows = [{**r, **oracle.get(case_key(r), {})} for r in rows]
     cells = {}
     for r in rows:
         cells.setdefault((r["spacing"], r["noise"], r["cause"]), []).append(r)
@@ -224,13 +327,38 @@ def main():
     ap.add_argument("--out", default=str(OUT / "diagnose.json"),
                     help="results JSON (the plot goes beside it); give another path for a partial or experimental "
                          "run, so the full benchmark's results stay as they are")
+    ap.add_argument("--oracle", action="store_true",
+                    help=f"compute what the data allow (oracle_case) for the cases of --merge (or --rows) not yet in "
+                         f"{ORACLE_ROWS.name}, then summarise them with it (e.g. --oracle --merge "
+                         "benchmarks/results/diagnose.json re-summarises the committed run)")
     ap.add_argument("--note", default="", help="what the reader must know about this run (stored in the JSON)")
     args = ap.parse_args()
     machine = {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
                "cpu_count": os.cpu_count(), "workers": args.workers, "threads_per_worker": args.threads}
-    if args.merge is not None:
-        rows = _read_rows(args.merge)
-        write_results(rows, machine, vars(args), args.out)
+    if args.oracle:
+        done = {case_key(r) for r in _read_rows([ORACLE_ROWS])}
+        i, n = map(int, args.shard.split("/"))
+        todo = [{k: r[k] for k in ("spacing", "noise", "cause", "k", "seed", "frames")}
+                for r in _read_rows(args.merge or [args.rows])]  # the cases summarised
+        todo = [c for c in todo[i::n] if case_key(c) not in done]
+        print(f"{len(todo)} oracle cases to run on {args.workers} workers", flush=True)
+        os.environ.update(SINGLE_THREAD if args.threads == 1 else {"JAX_PLATFORMS": "cpu"})
+        import multiprocessing as mp
+
+        with open(ORACLE_ROWS, "a") as out, mp.get_context("spawn").Pool(args.workers) as pool:
+            for row in pool.imap_unordered(oracle_case, todo):
+                out.write(json.dumps(row) + "\n")
+                out.flush()
+                print(f"{row['spacing']:g} mm noise {row['noise']:g} {row['cause']:15s} k {row['k']}: oracle gain "
+                      f"{row['oracle_gain'] or 0:.2f} ratio std {row['oracle_ratio_std']}", flush=True)
+    if args.merge is not None or args.oracle:
+        rows = _read_rows(args.merge or [args.rows])
+        settings = vars(args)
+        earlier = [p for p in args.merge or [] if p.endswith(".json")]
+        if earlier:  # re-summarised: the rows' own run settings stay, with this run's note beside them
+            old = json.loads(Path(earlier[0]).read_text())
+            settings, machine = {**old["settings"], "resummarised": vars(args)}, old["machine"]
+        write_results(rows, machine, settings, args.out)
         print(f"{len(rows)} rows summarised")
         return
     i, n = map(int, args.shard.split("/"))
@@ -264,15 +392,45 @@ def _plot(results, path: Path):
     groups = results["groups"]
     if not groups:
         return
-    fig, ax = plt.subplots(figsize=(10, 4))
+    rows = [r for g in groups for r in g["rows"]]
+    oracle = any("oracle_gain" in r for r in rows)
+    fig = plt.figure(figsize=(11, 8 if oracle else 4))
+    ax = fig.add_subplot(2, 1, 1) if oracle else fig.add_subplot(1, 1, 1)
     labels = [f"{g['cause']}\n{g['spacing']:.0f}mm/{g['noise']} (n={g['cases']})" for g in groups]
     x = np.arange(len(groups))
-    ax.bar(x - 0.27, [g["right_cause_rate"] for g in groups], 0.27, label="right cause")
-    ax.bar(x, [g["pass_rate"] for g in groups], 0.27, label="all criteria")
-    ax.bar(x + 0.27, [g["false_alarm_rate"] for g in groups], 0.27, label="false alarm")
+    bars = [("right cause", "right_cause_rate"), ("all criteria", "pass_rate")]
+    if oracle:
+        bars.append(("all criteria, over the cases where the data allow them (no bar: none do)",
+                     "pass_rate_where_attainable"))
+    bars.append(("false alarm", "false_alarm_rate"))
+    w = 0.8 / len(bars)
+    for i, (label, key) in enumerate(bars):
+        ax.bar(x + (i - (len(bars) - 1) / 2) * w, [g.get(key) or 0 for g in groups], w, label=label)
     ax.set_xticks(x, labels, fontsize=6, rotation=90)
     ax.set_ylabel("rate")
     ax.legend(fontsize=7)
+    if oracle:
+        ax = fig.add_subplot(2, 2, 3)
+        pts = [(r["oracle_gain"], r["gain"]) for r in rows if r["truth"] and r.get("oracle_gain") and r["gain"]]
+        a, b = np.array(pts).T
+        ax.loglog(a, b, ".", ms=4)
+        lim = [min(a.min(), b.min()) * 0.9, max(a.max(), b.max()) * 1.1]
+        ax.plot(lim, lim, "k-", lw=0.6, label="gain of the true model")
+        ax.axhline(GAIN_MIN, color="r", lw=0.6, label=f"{GAIN_MIN:g}x")
+        ax.axvline(GAIN_MIN, color="r", lw=0.6, ls=":")
+        ax.set(xlabel="gain of the true model (oracle)", ylabel="gain of the diagnosis")
+        ax.legend(fontsize=7)
+        ax = fig.add_subplot(2, 2, 4)
+        pts = [(s, e) for r in rows for e, s in zip(r["ratio_error"], r.get("oracle_ratio_std", []))]
+        a, b = np.array(pts).T
+        ax.loglog(a, np.maximum(b, 1e-4), ".", ms=4)
+        ax.axhline(RATIO_TOL, color="r", lw=0.6, label="10 %")
+        ax.axvline(RATIO_TOL / 2, color="r", lw=0.6, ls=":", label="bound 5 %: 10 % is 2 std")
+        t = np.array([a.min(), a.max()])
+        ax.plot(t, 2 * t, "k-", lw=0.6, label="2 x bound")
+        ax.set(xlabel="Cramer-Rao bound of the ratio (relative, shape unknown)", ylabel="ratio error (relative)")
+        ax.legend(fontsize=7)
+    fig.tight_layout()
     fig.savefig(path, dpi=110, bbox_inches="tight")
 
 

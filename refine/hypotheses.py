@@ -196,6 +196,22 @@ RECTANGLE_SIDE = np.sqrt(3.0) / 2.0
 ellipse's variance along an axis is a^2 / 4, a rectangle's s^2 / 3)."""
 
 
+def region_model(base: MeasuredModel, regions, h: float, element: str = "tri3", geometry: bool = True):
+    """The model of :func:`fit_regions` for shapes ``regions`` (``jaxfem.Ellipse``/``Rect``): a
+    mesh of element size ``h`` that follows them, and its parametrisation: the log moduli of the
+    regions, then (with ``geometry``) the changes of their shapes (zero: the shapes given)."""
+    ex = base.experiment
+    mesh = domain_mesh(ex, h, element, inclusions=regions)
+    model = MeasuredModel(ex, base.obs, mesh=mesh, h=h)
+    masks = np.stack([(mesh.regions == k + 1).astype(float) for k in range(len(regions))])
+    parts = [RegionModuli(masks, ex.E, names=tuple(f"region{k + 1}" for k in range(len(regions))))]
+    if geometry:
+        kinds = tuple("rectangle" if isinstance(r, jf.Rect) else "ellipse" for r in regions)
+        parts.append(ShapeGeometry(jf.morph(mesh, regions), np.stack([e.params for e in regions]), scale=base.spacing,
+                                   rotate=True, mesh=mesh, min_axis=MIN_AXIS * base.spacing, kinds=kinds))
+    return model, Combined(tuple(parts))
+
+
 def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, geometry: bool = True,
                 h: float | None = None, ratios=None, element: str = "tri3", kinds=None) -> Fitted:
     """Regions of other stiffness: shapes ``[(cx, cy, a, b, angle)]`` of ``kinds`` (``"ellipse"``,
@@ -206,20 +222,12 @@ def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, 
     A rectangle is worth its own hypothesis: fitted as an ellipse, a stiff rectangle (the paper's
     scar) comes out larger and too soft, its corners' load paths missing (ratios 12-30 % low on
     random rectangles of ratio 10, at 2-7 of their standard errors)."""
-    ex, obs = base.experiment, base.obs
+    ex = base.experiment
     kinds = tuple(kinds or ("ellipse",) * len(shapes))
     regions = _disjoint([make_shape(k, _clamp_shape(s, ex, base.spacing)) for k, s in zip(kinds, shapes)],
                         base.spacing)
-    size = h or _mesh_size(base, regions)
-    mesh = domain_mesh(ex, size, element, inclusions=regions)
-    model = MeasuredModel(ex, obs, mesh=mesh, h=size)
-    masks = np.stack([(mesh.regions == k + 1).astype(float) for k in range(len(regions))])
-    moduli = RegionModuli(masks, ex.E, names=tuple(f"region{k + 1}" for k in range(len(regions))))
-    parts = [moduli]
-    if geometry:
-        parts.append(ShapeGeometry(jf.morph(mesh, regions), np.stack([e.params for e in regions]), scale=base.spacing,
-                                   rotate=True, mesh=mesh, min_axis=MIN_AXIS * base.spacing, kinds=kinds))
-    param = Combined(tuple(parts))
+    model, param = region_model(base, regions, h or _mesh_size(base, regions), element, geometry)
+    parts = param.parts
     z0 = np.zeros(param.size)
     z0[: len(regions)] = np.log(3.0) * np.asarray(signs, float) if ratios is None else np.log(ratios)
     n = len(regions)
