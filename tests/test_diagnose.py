@@ -126,3 +126,24 @@ def test_rectangles_are_tried_only_where_the_points_resolve_corners():
     assert not _rectangles_wanted(region(11.6, 9.0), SimpleNamespace(spacing=10.0), auto)  # 10 mm grid
     assert _rectangles_wanted(region(3.0, 3.0), model, DiagnoseConfig(try_rectangles=True))
     assert not _rectangles_wanted(region(20.0, 20.0), model, DiagnoseConfig())
+
+
+def test_a_soft_region_over_tracked_material_is_not_renamed_a_hole():
+    """After the refit a very soft region is compared with a hole at its outline; where points
+    were tracked inside that outline (material was seen) no hole is fitted and the soft region
+    stays (drawn under a seed: a soft ellipse's place and size on a 5 mm grid)."""
+    from types import SimpleNamespace
+
+    from refine.diagnose import DiagnoseConfig, _hole_if_as_likely
+    from refine.experiment import Experiment, Rectangle
+    from refine.synthetic import grid_points
+
+    rng = np.random.default_rng(41)
+    cx, cy, a, b = rng.uniform(40, 100), rng.uniform(25, 55), *rng.uniform(6, 12, 2)
+    ex = Experiment(name="t", kind="plane-stress", domain=Rectangle(20.0, 10.0, 120.0, 70.0), law="neo-hookean",
+                    E=1.0, nu=0.3, thickness=1.0)
+    model = SimpleNamespace(experiment=ex, spacing=5.0, obs=SimpleNamespace(reference=grid_points((20, 10, 120, 70), 5.0)))
+    soft = SimpleNamespace(cause="softer-region", shapes=[("ellipse", cx, cy, a, b, 0.3, 0.05)], bic=100.0)
+    said = []
+    kept = _hole_if_as_likely(model, soft, None, None, 1.0, DiagnoseConfig(), said.append)
+    assert kept is soft and "no hole" in said[0], said
