@@ -106,16 +106,22 @@ def score(truth, d) -> dict:
     return row
 
 
-def run_case(case: dict) -> dict:
-    """Generate one bundle and diagnose it (in a worker process)."""
-    from refine.diagnose import DiagnoseConfig, diagnose
+def _case_bundle(case: dict):
+    """The case's hidden effect (drawn under its seed) and the bundle generated from it."""
     from refine.synthetic import random_truth, synthetic_bundle
 
     fractions = tuple(np.linspace(0, 1, case["frames"] + 1)[1:])
     truth = random_truth(np.random.default_rng(case["seed"]), case["cause"])
+    return truth, synthetic_bundle(truth, seed=case["seed"], spacing=case["spacing"], noise=case["noise"],
+                                   fractions=fractions)
+
+
+def run_case(case: dict) -> dict:
+    """Generate one bundle and diagnose it (in a worker process)."""
+    from refine.diagnose import DiagnoseConfig, diagnose
+
     t0 = time.perf_counter()
-    bundle = synthetic_bundle(truth, seed=case["seed"], spacing=case["spacing"], noise=case["noise"],
-                              fractions=fractions)
+    truth, bundle = _case_bundle(case)
     try:
         d = diagnose(bundle, config=DiagnoseConfig(workers=case.get("threads", 1)), log=lambda m: None)
     except Exception as e:  # noqa: BLE001 - a failed diagnosis is a failed case, recorded as such
@@ -148,12 +154,8 @@ def oracle_case(case: dict) -> dict:
     from refine.fit import Compiled
     from refine.hypotheses import _mesh_size, region_model
     from refine.model import MeasuredModel, domain_mesh
-    from refine.synthetic import random_truth, synthetic_bundle
 
-    fractions = tuple(np.linspace(0, 1, case["frames"] + 1)[1:])
-    truth = random_truth(np.random.default_rng(case["seed"]), case["cause"])
-    bundle = synthetic_bundle(truth, seed=case["seed"], spacing=case["spacing"], noise=case["noise"],
-                              fractions=fractions)
+    truth, bundle = _case_bundle(case)
     ex, obs = bundle.experiment, bundle.observations
     guide, val = obs.mask("guide"), obs.mask("validate")
     base = MeasuredModel(ex, obs)
@@ -342,15 +344,8 @@ def main():
                 for r in _read_rows(args.merge or [args.rows])]  # the cases summarised
         todo = [c for c in todo[i::n] if case_key(c) not in done]
         print(f"{len(todo)} oracle cases to run on {args.workers} workers", flush=True)
-        os.environ.update(SINGLE_THREAD if args.threads == 1 else {"JAX_PLATFORMS": "cpu"})
-        import multiprocessing as mp
-
-        with open(ORACLE_ROWS, "a") as out, mp.get_context("spawn").Pool(args.workers) as pool:
-            for row in pool.imap_unordered(oracle_case, todo):
-                out.write(json.dumps(row) + "\n")
-                out.flush()
-                print(f"{row['spacing']:g} mm noise {row['noise']:g} {row['cause']:15s} k {row['k']}: oracle gain "
-                      f"{row['oracle_gain'] or 0:.2f} ratio std {row['oracle_ratio_std']}", flush=True)
+        _run_rows(oracle_case, todo, ORACLE_ROWS, args, lambda row: (
+            f"k {row['k']}: oracle gain {row['oracle_gain'] or 0:.2f} ratio std {row['oracle_ratio_std']}"))
     if args.merge is not None or args.oracle:
         rows = _read_rows(args.merge or [args.rows])
         settings = vars(args)
@@ -365,22 +360,26 @@ def main():
     done = {case_key(r) for r in _read_rows([args.rows])}
     todo = [c for c in all_cases(args)[i::n] if case_key(c) not in done]
     print(f"{len(todo)} cases to run ({len(done)} already in {args.rows}) on {args.workers} workers", flush=True)
-    if args.threads == 1:
-        os.environ.update(SINGLE_THREAD)  # inherited by the workers, read when they import jax
-    else:
-        os.environ["JAX_PLATFORMS"] = "cpu"
     code = _code_version()
     todo = [{**c, "threads": args.threads, "code": code} for c in todo]
+    _run_rows(run_case, todo, args.rows, args, lambda row: (
+        f"seed {row['seed']}: found {row['found']} gain {row['gain'] or 0:.2f} {'PASS' if row['passed'] else 'fail'} "
+        f"{row['seconds']:.0f} s load {row['load_average'][0]}"))
+    write_results(_read_rows([args.rows]), machine, vars(args), args.out)
+
+
+def _run_rows(fn, todo, path, args, line):
+    """``fn`` over the cases ``todo`` in ``args.workers`` processes; each row appended to ``path``
+    (JSONL) as it finishes, and a ``line`` about it printed."""
     import multiprocessing as mp
 
-    with open(args.rows, "a") as out, mp.get_context("spawn").Pool(args.workers) as pool:
-        for row in pool.imap_unordered(run_case, todo):
+    # inherited by the workers, read when they import jax
+    os.environ.update(SINGLE_THREAD if args.threads == 1 else {"JAX_PLATFORMS": "cpu"})
+    with open(path, "a") as out, mp.get_context("spawn").Pool(args.workers) as pool:
+        for row in pool.imap_unordered(fn, todo):
             out.write(json.dumps(row) + "\n")
             out.flush()
-            print(f"{row['spacing']:g} mm noise {row['noise']:g} {row['cause']:15s} seed {row['seed']}: found "
-                  f"{row['found']} gain {row['gain'] or 0:.2f} {'PASS' if row['passed'] else 'fail'} "
-                  f"{row['seconds']:.0f} s load {row['load_average'][0]}", flush=True)
-    write_results(_read_rows([args.rows]), machine, vars(args), args.out)
+            print(f"{row['spacing']:g} mm noise {row['noise']:g} {row['cause']:15s} {line(row)}", flush=True)
 
 
 def _plot(results, path: Path):
@@ -393,7 +392,9 @@ def _plot(results, path: Path):
     if not groups:
         return
     rows = [r for g in groups for r in g["rows"]]
-    oracle = any("oracle_gain" in r for r in rows)
+    gains = [(r["oracle_gain"], r["gain"]) for r in rows if r["truth"] and r.get("oracle_gain") and r["gain"]]
+    ratios = [(s, e) for r in rows for e, s in zip(r["ratio_error"], r.get("oracle_ratio_std", []))]
+    oracle = bool(gains)  # panels against the oracle where its rows cover cases with an effect
     fig = plt.figure(figsize=(11, 8 if oracle else 4))
     ax = fig.add_subplot(2, 1, 1) if oracle else fig.add_subplot(1, 1, 1)
     labels = [f"{g['cause']}\n{g['spacing']:.0f}mm/{g['noise']} (n={g['cases']})" for g in groups]
@@ -411,8 +412,7 @@ def _plot(results, path: Path):
     ax.legend(fontsize=7)
     if oracle:
         ax = fig.add_subplot(2, 2, 3)
-        pts = [(r["oracle_gain"], r["gain"]) for r in rows if r["truth"] and r.get("oracle_gain") and r["gain"]]
-        a, b = np.array(pts).T
+        a, b = np.array(gains).T
         ax.loglog(a, b, ".", ms=4)
         lim = [min(a.min(), b.min()) * 0.9, max(a.max(), b.max()) * 1.1]
         ax.plot(lim, lim, "k-", lw=0.6, label="gain of the true model")
@@ -420,9 +420,9 @@ def _plot(results, path: Path):
         ax.axvline(GAIN_MIN, color="r", lw=0.6, ls=":")
         ax.set(xlabel="gain of the true model (oracle)", ylabel="gain of the diagnosis")
         ax.legend(fontsize=7)
+    if oracle and ratios:
         ax = fig.add_subplot(2, 2, 4)
-        pts = [(s, e) for r in rows for e, s in zip(r["ratio_error"], r.get("oracle_ratio_std", []))]
-        a, b = np.array(pts).T
+        a, b = np.array(ratios).T
         ax.loglog(a, np.maximum(b, 1e-4), ".", ms=4)
         ax.axhline(RATIO_TOL, color="r", lw=0.6, label="10 %")
         ax.axvline(RATIO_TOL / 2, color="r", lw=0.6, ls=":", label="bound 5 %: 10 % is 2 std")

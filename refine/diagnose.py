@@ -271,17 +271,17 @@ def _hole_if_as_likely(model, soft: Fitted, points, hold, sigma, cfg, log) -> Fi
     (ratios 0.14 and 0.28, their held-out misfit lower than the first hole fits') whose refits
     on every guide point then went to ratio 0.00: holes in all but name. Where points were
     tracked near the region's middle (material was seen) no hole is fitted (:class:`NotApplicable`)."""
+    ratio = soft.shapes[0][6]
     try:
         hole = refit(fit_hole(model, tuple(soft.shapes[0][1:6]), points, hold, sigma), points, hold, sigma,
                      element=cfg.refit_element)
     except NotApplicable as e:
-        log(f"  the soft region (ratio {soft.shapes[0][6]:.2f}) is no hole: {e}")
+        log(f"  the soft region (ratio {ratio:.2f}) is no hole: {e}")
         return soft
     except Exception as e:  # noqa: BLE001 - a hole that cannot be fitted leaves the soft region chosen
-        log(f"  could not fit the soft region (ratio {soft.shapes[0][6]:.2f}) as a hole: {e}")
+        log(f"  could not fit the soft region (ratio {ratio:.2f}) as a hole: {e}")
         return soft
-    log(f"  the soft region (ratio {soft.shapes[0][6]:.2f}, BIC {soft.bic:.0f}) as a hole: {hole.describe()}, "
-        f"BIC {hole.bic:.0f}")
+    log(f"  the soft region (ratio {ratio:.2f}, BIC {soft.bic:.0f}) as a hole: {hole.describe()}, BIC {hole.bic:.0f}")
     return hole if hole.bic <= soft.bic else soft
 
 
