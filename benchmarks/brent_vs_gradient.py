@@ -7,7 +7,7 @@ use other meshes):
 1. ``paper``: the Sec. 3.1 experiment with one unknown, the embedded rectangle's modulus (the paper's
    moduli, a random rectangle per seed). Brent from b = 118.80 and b = 1256.40 kPa at tolerance
    0.01, the cubic fit + Brent at 0.001; Levenberg-Marquardt, Gauss-Newton, the third-order
-   tensor method and Pade steps on the equilibrium's order-16 series (refine.pade) on the log
+   tensor method and Pade steps on the equilibrium's order-16 series (refine.optimize.pade) on the log
    ratio, each from the uniform model and from Brent's two middle points; L-BFGS-B.
 2. ``two_regions``: a stiffer and a softer ellipse. Coordinate-wise Brent against LM and GN.
 3. ``field``: a modulus per element (at least 2,000), TV-regularised, by L-BFGS-B. Brent cannot do
@@ -49,14 +49,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from refine import fit  # noqa: E402
-from refine.model import MeasuredModel, domain_mesh  # noqa: E402
-from refine.paper import (BACKGROUND, INCLUSION, MIDDLE_POINTS, NAME, EmbeddedRectangle,  # noqa: E402
-                          PaperExperiment, displacement_error_function, evaluations_to_reach,
-                          solves_to_reach)
-from refine.parametrize import ModulusField, RegionModuli  # noqa: E402
-from refine.search import coordinate_brent_search  # noqa: E402
-from refine.synthetic import random_truth, synthetic_bundle  # noqa: E402
+from refine import optimize
+from refine.model.objective import Compiled, Objective
+from refine.model.measured import MeasuredModel, domain_mesh  # noqa: E402
+from refine.paper.experiment import (BACKGROUND, INCLUSION, MIDDLE_POINTS, NAME, EmbeddedRectangle, PaperExperiment, displacement_error_function, evaluations_to_reach, solves_to_reach)
+from refine.model.parametrize import ModulusField, RegionModuli  # noqa: E402
+from refine.optimize import coordinate_brent_search  # noqa: E402
+from refine.synthetic.sheet import random_truth, synthetic_bundle  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "results"
 DATA = dict(spacing=10.0, noise=0.02, fractions=(0.5, 1.0), h=3.0)
@@ -143,7 +142,7 @@ def two_region_case(seed: int) -> list[dict]:
     model = MeasuredModel(bundle.experiment, bundle.observations, mesh=mesh)
     E0 = bundle.experiment.E
     masks = np.stack([mesh.regions == k for k in (1, 2)])
-    objective = fit.Objective(model, RegionModuli(masks=masks, E0=E0, names=("a", "b")))
+    objective = Objective(model, RegionModuli(masks=masks, E0=E0, names=("a", "b")))
     true = [E0 * inc.ratio for inc in truth.inclusions]
     eq1 = displacement_error_function(objective)
 
@@ -171,7 +170,7 @@ def two_region_case(seed: int) -> list[dict]:
                     compile_seconds=brent_compile, curve=_curve([x["error"] for x in h], est, ref, tight.seconds),
                     objective="eq. (1)", sweeps=int(max(x["sweep"] for x in r.history)))]
     for method, key in (("levenberg-marquardt", "lm"), ("gauss-newton", "gn")):
-        r, compile_s = _twice(lambda: fit.least_squares(objective, method=key, rtol=1e-5, atol=1e-4))
+        r, compile_s = _twice(lambda: optimize.least_squares(objective, method=key, rtol=1e-5, atol=1e-4))
         moduli = [E0 * np.exp(np.asarray(x["z"])) for x in r.history]
         value = E0 * np.exp(np.asarray(r.values["z"]))
         errors = [x["misfit"] for x in r.history]
@@ -188,8 +187,8 @@ def field_case(seed: int, maxiter: int, warm: bool) -> list[dict]:
     assert mesh.n_cells >= 2000, mesh.n_cells
     model = MeasuredModel(bundle.experiment, bundle.observations, mesh=mesh)
     E0 = bundle.experiment.E
-    objective = fit.Objective(model, ModulusField(mesh, E0, weight=1.0, kind="tv"))
-    run = lambda: fit.lbfgsb(objective, bounds=(-3.0, 3.0), maxiter=maxiter)  # noqa: E731
+    objective = Objective(model, ModulusField(mesh, E0, weight=1.0, kind="tv"))
+    run = lambda: optimize.lbfgsb(objective, bounds=(-3.0, 3.0), maxiter=maxiter)  # noqa: E731
     if warm:
         r, compile_s = _twice(run)
     else:

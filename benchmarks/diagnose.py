@@ -108,7 +108,7 @@ def score(truth, d) -> dict:
 
 def _case_bundle(case: dict):
     """The case's hidden effect (drawn under its seed) and the bundle generated from it."""
-    from refine.synthetic import random_truth, synthetic_bundle
+    from refine.synthetic.sheet import random_truth, synthetic_bundle
 
     fractions = tuple(np.linspace(0, 1, case["frames"] + 1)[1:])
     truth = random_truth(np.random.default_rng(case["seed"]), case["cause"])
@@ -118,7 +118,7 @@ def _case_bundle(case: dict):
 
 def run_case(case: dict) -> dict:
     """Generate one bundle and diagnose it (in a worker process)."""
-    from refine.diagnose import DiagnoseConfig, diagnose
+    from refine.diagnosis.pipeline import DiagnoseConfig, diagnose
 
     t0 = time.perf_counter()
     truth, bundle = _case_bundle(case)
@@ -150,10 +150,10 @@ def oracle_case(case: dict) -> dict:
     ``oracle_ratio_std`` with each shape's centre, size and orientation unknown too (as the
     diagnosis must find them), ``oracle_ratio_std_known_shape`` with the shapes given. No
     unbiased method does better on average."""
-    from refine.errors import mean_position_error
-    from refine.fit import Compiled
-    from refine.hypotheses import _mesh_size, region_model
-    from refine.model import MeasuredModel, domain_mesh
+    from refine.measures import mean_position_error
+    from refine.model.objective import Compiled
+    from refine.diagnosis.hypotheses import _mesh_size, region_model
+    from refine.model.measured import MeasuredModel, domain_mesh
 
     truth, bundle = _case_bundle(case)
     ex, obs = bundle.experiment, bundle.observations

@@ -20,14 +20,14 @@ from .batch import batch_displacement, stack_params
 from .derivatives import taylor_test
 from .elements import ELEMENTS, Element, get_element
 from .geometry import check_geometry, with_geometry
-from .errors import InvertedElementError, JaxfemError, MeshError, ProblemError, SolverError
+from .exceptions import InvertedElementError, JaxfemError, MeshError, ProblemError, SolverError
 from .io import read_mesh, to_meshio, write_vtu
 from .materials import LAWS, Material, get_material, lame
 from .mesh import Mesh, box, check_orientation, fix_orientation, rectangle, to_quadratic
 from .newton import NewtonOptions
 from .probe import Probe, boundary_interpolation, boundary_loop, locate
 from .problem import Problem, dofs
-from .results import (cauchy_stress, deformation_gradient, equivalent_strain, first_piola_stress,
+from .postprocess import (cauchy_stress, deformation_gradient, equivalent_strain, first_piola_stress,
                       green_lagrange_strain, principal_strains, second_piola_stress, strain_energy,
                       von_mises_stress)
 from .mesher import domain, plate

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _config  # noqa: F401
-from .tensor import det, inv
+from ._small import det, inv
 from .elements import Element, get_element
 from .kinematics import Reduced
 from .mesh import Mesh

@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .errors import MeshError
+from .exceptions import MeshError
 
 
 @dataclass(frozen=True)

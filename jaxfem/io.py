@@ -15,7 +15,7 @@ import meshio
 import numpy as np
 
 from .elements import FROM_MESHIO, get_element
-from .errors import MeshError
+from .exceptions import MeshError
 from .mesh import Mesh, check_orientation, fix_orientation
 
 #: cell-data keys read as region tags, first found wins

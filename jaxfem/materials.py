@@ -16,7 +16,7 @@ from typing import Callable
 import jax.numpy as jnp
 
 from . import _config  # noqa: F401  (float64)
-from .tensor import det
+from ._small import det
 
 
 def lame(E, nu):

@@ -12,7 +12,7 @@ from typing import Callable
 import numpy as np
 
 from .elements import Element, get_element
-from .errors import InvertedElementError, MeshError
+from .exceptions import InvertedElementError, MeshError
 
 
 @dataclass(frozen=True, eq=False)

@@ -19,7 +19,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import Delaunay, cKDTree
 
 from . import _config  # noqa: F401  (float64)
-from .errors import MeshError
+from .exceptions import MeshError
 from .mesh import Mesh, check_orientation, to_quadratic
 from .shapes import Rect
 

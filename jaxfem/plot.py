@@ -41,7 +41,7 @@ def cell_map(mesh: Mesh, values, u=None, ax=None, cmap="viridis", label=None, po
 
 def strain_map(solver, u, theta, ax=None, deformed=True, **kw):
     """Map of the equivalent (von Mises) Green-Lagrange strain of an equilibrium."""
-    from .results import equivalent_strain
+    from .postprocess import equivalent_strain
 
     eq = np.asarray(equivalent_strain(solver, u, theta))
     return cell_map(solver.problem.mesh, eq, u=np.asarray(u) if deformed else None, ax=ax,

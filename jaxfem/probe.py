@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 
 from . import _config  # noqa: F401
 from .elements import get_element
-from .errors import MeshError
+from .exceptions import MeshError
 from .mesh import Mesh
 
 

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _config  # noqa: F401
-from .errors import ProblemError
+from .exceptions import ProblemError
 from .kinematics import KINDS
 from .materials import Material, get_material
 from .mesh import Mesh, check_orientation

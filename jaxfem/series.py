@@ -13,7 +13,7 @@ residual. This is the asymptotic-numerical method of Cochelin, Damil and Potier-
 iteration beyond the one that found ``u0``. The series itself converges only up to the nearest
 singularity of ``u(t)`` in the complex plane (for a region's modulus, a pole at a negative
 modulus), so a caller who needs ``u`` farther away continues it by a Pade approximant
-(:mod:`refine.pade`).
+(:mod:`refine.optimize.pade`).
 
 Under plane stress the out-of-plane stretch ``l`` of every quadrature point is an unknown of the
 series too, with its own equation h(l, F) = d psi / d F33 = 0: at each order the residual's and
@@ -32,7 +32,7 @@ from jax.experimental import jet
 
 from . import _config  # noqa: F401
 from .assembly import deformation_gradients, shape_gradients
-from .errors import ProblemError
+from .exceptions import ProblemError
 from .kinematics import embed
 from .newton import external_force
 

@@ -20,7 +20,7 @@ from matplotlib.path import Path
 from scipy.spatial import cKDTree
 
 from . import _config  # noqa: F401  (float64)
-from .errors import InvertedElementError, MeshError
+from .exceptions import InvertedElementError, MeshError
 from .mesh import Mesh
 
 

@@ -3,7 +3,7 @@
 ``Solver(problem)`` computes the sparsity pattern once and compiles once. Then
 
 - :meth:`Solver.solve` runs Newton with load stepping and returns a :class:`Solution`, raising
-  :class:`~jaxfem.errors.SolverError` (with the failing load step and the reason) on failure;
+  :class:`~jaxfem.exceptions.SolverError` (with the failing load step and the reason) on failure;
 - :meth:`Solver.displacement` is the same solve as a differentiable function ``theta -> u``.
 
 Derivatives of the converged equilibrium u*(theta) come from the implicit function theorem,
@@ -26,7 +26,7 @@ import numpy as np
 
 from . import _config  # noqa: F401
 from .assembly import Assembler, make_pattern, matvec
-from .errors import SolverError
+from .exceptions import SolverError
 from .kinematics import reduce
 from .linsolve import make_linear_solver
 from .newton import REASONS, NewtonOptions, external_force, newton_solve

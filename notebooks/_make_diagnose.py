@@ -24,9 +24,9 @@ discretisation. To diagnose your own measurements, read them with `refine.bundle
     ("code", """import numpy as np
 import matplotlib.pyplot as plt
 import jaxfem as jf
-from refine.synthetic import Truth, Inclusion, random_truth, synthetic_bundle
-from refine.diagnose import diagnose
-from refine import report
+from refine.synthetic.sheet import Truth, Inclusion, random_truth, synthetic_bundle
+from refine.diagnosis.pipeline import diagnose
+from refine.diagnosis import report
 
 cause, seed = "stiffer-region", 4
 truth = random_truth(np.random.default_rng(seed), cause)

@@ -31,8 +31,7 @@ another mesh, so nothing can hit 837.61 exactly."""),
 import numpy as np
 import matplotlib.pyplot as plt
 import jaxfem as jf
-from refine.paper import (BACKGROUND, BRACKET, INCLUSION, MIDDLE_POINTS, NAME, EmbeddedRectangle,
-                          PaperExperiment, format_rows, solves_to_reach)
+from refine.paper.experiment import (BACKGROUND, BRACKET, INCLUSION, MIDDLE_POINTS, NAME, EmbeddedRectangle, PaperExperiment, format_rows, solves_to_reach)
 
 t0 = time.perf_counter()
 ex = PaperExperiment(EmbeddedRectangle())          # noise 0.02 mm, 2 frames, 10 mm grid
@@ -122,9 +121,9 @@ No force was measured in this bundle. For a plane-stress sheet driven by its mea
 the displacements depend on modulus times thickness only through ratios. The data therefore give
 only the relative elasticity E_R = (E2 b2)/(E1 b1) (eq. 8): E and the thickness are confounded.
 The library says so rather than returning a number. With a measured force (forces.csv) it also
-fits the background (`refine.forces.fit_region_moduli`)."""),
+fits the background (`refine.diagnosis.forces.fit_region_moduli`)."""),
     ("code", """from refine.exceptions import IdentifiabilityError
-from refine.forces import ForcedObjective
+from refine.diagnosis.forces import ForcedObjective
 print(f"relative elasticity of the rectangle: {lm.values['inclusion_relative_elasticity']:.3f} "
       f"(truth {INCLUSION / BACKGROUND:.3f})")
 try:

@@ -26,11 +26,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 from IPython.display import Image, display
 
-from refine import report, track_cmd
-from refine.bundle import read_bundle
-from refine.diagnose import diagnose
-from refine.render import render_sheet_images
-from refine.synthetic import Inclusion, Truth
+from refine.diagnosis import report
+from refine.cli import track as track_cmd
+from refine.bundle.io import read_bundle
+from refine.diagnosis.pipeline import diagnose
+from refine.synthetic.render import render_sheet_images
+from refine.synthetic.sheet import Inclusion, Truth
 import jaxfem as jf
 
 work = Path(tempfile.mkdtemp(prefix="nonrigid-tracking-"))

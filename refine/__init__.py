@@ -1,5 +1,17 @@
-"""refine: measurement bundles, error measures and the searches that refine a finite-element model.
+"""refine: joins measured motion (``tracking``) and finite-element models (``jaxfem``).
 
-Deliberately empty of imports: submodules are imported where used (``from refine.bundle import
-read_bundle``), so importing refine never pulls in jaxfem.
+Rooms, each with a short public ``__init__`` that is its API (import from the room, not from
+this package, which imports nothing so that ``import refine`` stays light):
+
+- :mod:`refine.bundle`: the measurement bundle (experiment, observations, roles) and its I/O;
+- :mod:`refine.model`: the model driven by measured boundary points, its parametrisations and
+  the misfit a fit minimises;
+- :mod:`refine.optimize`: the optimisers, one method per module (LM / Gauss-Newton, L-BFGS-B,
+  Pade steps, the tensor method, the paper's Brent and cubic searches);
+- :mod:`refine.diagnosis`: show / decide / name / extend / measure, and the report;
+- :mod:`refine.paper`: the paper's Sec. 3.1 experiment;
+- :mod:`refine.synthetic`: hidden-effect sheets from an independent solve, and their images;
+- :mod:`refine.cli`: the ``nonrigid`` command line, one module per command.
+
+:mod:`refine.exceptions` is the error hierarchy and :mod:`refine.measures` the error measures.
 """

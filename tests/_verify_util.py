@@ -16,7 +16,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 import jaxfem as jf
-from jaxfem.tensor import det
+from jaxfem._small import det
 
 #: A homogeneous finite deformation for the patch tests (the issue's example) and a 3D one.
 F_PATCH_2D = np.array([[1.2, 0.1], [0.05, 0.9]])

@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from refine.bundle import Bundle, read_bundle, write_bundle, write_displacements_csv
+from refine.bundle.io import Bundle, read_bundle, write_bundle, write_displacements_csv
 from refine.exceptions import BundleError, ExperimentError, ObservationError
-from refine.experiment import Experiment, MeshDomain, Polygon, Rectangle
-from refine.observations import Forces, Observations
+from refine.bundle.experiment import Experiment, MeshDomain, PolygonDomain, RectangleDomain
+from refine.bundle.observations import Forces, Observations
 
 
 def shared_dir() -> Path | None:
@@ -32,7 +32,7 @@ def observations_2d(n_frames=3, forces=True) -> Observations:
 
 
 def experiment_2d(**changes) -> Experiment:
-    fields = dict(name="sheet-07", kind="plane-stress", domain=Rectangle(0.0, 0.0, 10.0, 10.0),
+    fields = dict(name="sheet-07", kind="plane-stress", domain=RectangleDomain(0.0, 0.0, 10.0, 10.0),
                   law="neo-hookean", E=83.76, nu=0.3, thickness=1.0,
                   units={"length": "mm", "stress": "kPa", "force": "mN"}, noise_std=0.02,
                   extra={"experiment": {"operator": "lt"}, "material": {"C01": 1.5},
@@ -101,7 +101,7 @@ def test_round_trip_3d_with_mesh_and_no_forces(tmp_path):
 
 
 def test_round_trip_polygon_domain(tmp_path):
-    exp = experiment_2d(domain=Polygon(((0, 0), (10, 0), (10, 10), (0, 10))), extra={})
+    exp = experiment_2d(domain=PolygonDomain(((0, 0), (10, 0), (10, 10), (0, 10))), extra={})
     obs = observations_2d(forces=False)
     write_bundle(tmp_path, Bundle(exp, obs))
     back = read_bundle(tmp_path)
@@ -158,7 +158,7 @@ def test_reads_the_example_bundle():
     exp, obs = bundle.experiment, bundle.observations
     assert (exp.name, exp.kind, exp.law, exp.E, exp.nu, exp.thickness, exp.noise_std) == (
         "sheet-stiff-inclusion", "plane-stress", "neo-hookean", 83.76, 0.3, 1.0, 0.02)
-    assert exp.domain == Rectangle(20.0, 10.0, 120.0, 70.0) and exp.units["force"] == "mN"
+    assert exp.domain == RectangleDomain(20.0, 10.0, 120.0, 70.0) and exp.units["force"] == "mN"
     assert (obs.n_points, obs.n_frames, obs.dim) == (273, 4, 2)
     assert [obs.mask(r).sum() for r in ("boundary", "guide", "validate")] == [64, 167, 42]
     assert obs.valid.all() and obs.forces is None

@@ -13,9 +13,9 @@ import json
 import numpy as np
 import pytest
 
-from refine import report
-from refine.diagnose import diagnose
-from refine.synthetic import random_truth, synthetic_bundle
+from refine.diagnosis import report
+from refine.diagnosis.pipeline import diagnose
+from refine.synthetic.sheet import random_truth, synthetic_bundle
 
 DIAGONAL = float(np.hypot(100.0, 60.0))
 
@@ -100,7 +100,7 @@ def test_a_rectangle_hypothesis_recovers_the_papers_rectangle():
     """With ``try_rectangles`` a random rectangle of ratio 10 (the paper's scar) is reported as a
     rectangle, its ratio within 10 % and its area within 5 % (fitted as an ellipse on this draw:
     ratio 17 % low, area 19 % too large)."""
-    from refine.diagnose import DiagnoseConfig
+    from refine.diagnosis.pipeline import DiagnoseConfig
 
     truth = random_truth(np.random.default_rng(5501), "rectangle")
     bundle = synthetic_bundle(truth, seed=5501, spacing=5.0, noise=0.02, fractions=(0.25, 0.5, 0.75, 1.0))
@@ -119,7 +119,7 @@ def test_rectangles_are_tried_only_where_the_points_resolve_corners():
     ellipse's smaller semi-axis spans 1.5 grid spacings; True / False (the default) force it."""
     from types import SimpleNamespace
 
-    from refine.diagnose import DiagnoseConfig, _rectangles_wanted
+    from refine.diagnosis.pipeline import DiagnoseConfig, _rectangles_wanted
 
     model = SimpleNamespace(spacing=5.0)
     region = lambda a, b: SimpleNamespace(shapes=[("ellipse", 50.0, 30.0, a, b, 0.3, 8.0)])  # noqa: E731
@@ -137,13 +137,13 @@ def test_a_soft_region_over_tracked_material_is_not_renamed_a_hole():
     stays (drawn under a seed: a soft ellipse's place and size on a 5 mm grid)."""
     from types import SimpleNamespace
 
-    from refine.diagnose import DiagnoseConfig, _hole_if_as_likely
-    from refine.experiment import Experiment, Rectangle
-    from refine.synthetic import grid_points
+    from refine.diagnosis.pipeline import DiagnoseConfig, _hole_if_as_likely
+    from refine.bundle.experiment import Experiment, RectangleDomain
+    from refine.synthetic.sheet import grid_points
 
     rng = np.random.default_rng(41)
     cx, cy, a, b = rng.uniform(40, 100), rng.uniform(25, 55), *rng.uniform(6, 12, 2)
-    ex = Experiment(name="t", kind="plane-stress", domain=Rectangle(20.0, 10.0, 120.0, 70.0), law="neo-hookean",
+    ex = Experiment(name="t", kind="plane-stress", domain=RectangleDomain(20.0, 10.0, 120.0, 70.0), law="neo-hookean",
                     E=1.0, nu=0.3, thickness=1.0)
     model = SimpleNamespace(experiment=ex, spacing=5.0, obs=SimpleNamespace(reference=grid_points((20, 10, 120, 70), 5.0)))
     soft = SimpleNamespace(cause="softer-region", shapes=[("ellipse", cx, cy, a, b, 0.3, 0.05)], bic=100.0)

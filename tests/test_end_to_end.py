@@ -2,7 +2,7 @@
 ``diagnose`` names the cause and finds the disc.
 
 Nothing crosses from the simulation to the analysis but 8-bit PNG images: the images come from a
-fine quadratic solution of a larger sheet (refine.render), the bundle from the grid tracker.
+fine quadratic solution of a larger sheet (refine.synthetic.render), the bundle from the grid tracker.
 
 The grid is 12 px at 0.25 mm/px, 3 mm on the 100 x 60 mm region (714 points). At 5-6 mm (pitch
 10-12 px at 0.5 mm/px) the diagnosis misses the ratio of a disc 12-16 mm across by 12-29 % even
@@ -18,11 +18,11 @@ import cv2
 import numpy as np
 import pytest
 
-from refine import track_cmd
-from refine.bundle import read_bundle
-from refine.diagnose import diagnose
-from refine.render import render_sheet_images
-from refine.synthetic import random_truth
+from refine.cli import track as track_cmd
+from refine.bundle.io import read_bundle
+from refine.diagnosis.pipeline import diagnose
+from refine.synthetic.render import render_sheet_images
+from refine.synthetic.sheet import random_truth
 
 
 def hidden_stiff_disc(seed: int):

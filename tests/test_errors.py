@@ -5,15 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from refine.elasticity import STANDARD_GRAVITY, apparent_modulus, relative_elasticity, strip_modulus
-from refine.errors import (
-    displacement_error,
-    mean_position_error,
-    misfit,
-    residual_mask,
-    tracking_error,
-    weighted_residuals,
-)
+from refine.diagnosis.elasticity import STANDARD_GRAVITY, apparent_modulus, relative_elasticity, strip_modulus
+from refine.measures import (displacement_error, mean_position_error, misfit, residual_mask, tracking_error, weighted_residuals)
 from refine.exceptions import ExperimentError, ObservationError
 
 jax.config.update("jax_enable_x64", True)

@@ -15,11 +15,13 @@ import numpy as np
 import pytest
 
 from refine.exceptions import IdentifiabilityError
-from refine.fit import Objective, lbfgsb, least_squares
-from refine.forces import ForcedObjective, fit_region_moduli
-from refine.model import MeasuredModel, domain_mesh
-from refine.parametrize import ModulusField, RegionModuli
-from refine.synthetic import random_truth, synthetic_bundle
+from refine.model.objective import Objective
+from refine.optimize.lbfgsb import lbfgsb
+from refine.optimize.least_squares import least_squares
+from refine.diagnosis.forces import ForcedObjective, fit_region_moduli
+from refine.model.measured import MeasuredModel, domain_mesh
+from refine.model.parametrize import ModulusField, RegionModuli
+from refine.synthetic.sheet import random_truth, synthetic_bundle
 
 DATA = dict(spacing=5.0, noise=0.02, fractions=(0.5, 1.0), h=3.0)  # 10 mm leaves a small inclusion few points
 MODEL_H = 2.5
@@ -125,9 +127,9 @@ def test_tv_field_by_lbfgsb_shows_the_stiff_region(stiff_region):
 def test_lm_moves_a_hole_to_its_true_centre():
     """Geometry as the unknown: a hole meshed 3.6 mm off its true place, moved by the mesh morph."""
     import jaxfem as jf
-    from refine.observations import Observations
-    from refine.parametrize import ShapeGeometry
-    from refine.synthetic import Truth
+    from refine.bundle.observations import Observations
+    from refine.model.parametrize import ShapeGeometry
+    from refine.synthetic.sheet import Truth
 
     hole, guess = jf.Ellipse(72.0, 40.0, 9.0, 7.0, 0.3), jf.Ellipse(69.0, 38.0, 9.0, 7.0, 0.3)
     bundle = synthetic_bundle(Truth(holes=(hole,)), seed=0, **DATA)
@@ -183,7 +185,7 @@ def test_tensor_method_derivatives_and_minimum(seed):
     import jax
     import jax.numpy as jnp
 
-    from refine.tensor import _taylor_function, tensor_least_squares
+    from refine.optimize.tensor_method import _taylor_function, tensor_least_squares
 
     toy = _Toy(seed)
     z = jnp.asarray([0.3, -0.2])
@@ -206,7 +208,7 @@ def test_tensor_method_derivatives_and_minimum(seed):
 
 
 def test_tensor_method_refuses_what_it_cannot_do():
-    from refine.tensor import tensor_least_squares
+    from refine.optimize.tensor_method import tensor_least_squares
 
     toy = _Toy(0)
     with pytest.raises(ValueError, match="unknowns"):
@@ -214,10 +216,10 @@ def test_tensor_method_refuses_what_it_cannot_do():
 
 
 def test_compiled_model_gives_prediction_and_jacobian_from_one_program(stiff_region):
-    """:class:`refine.fit.Compiled` evaluates the prediction and its forward-mode Jacobian in one
+    """:class:`refine.model.Compiled` evaluates the prediction and its forward-mode Jacobian in one
     compiled call; the Jacobian matches central differences of the prediction, and a repeated
     point is not solved again."""
-    from refine.fit import Compiled
+    from refine.model.objective import Compiled
 
     truth, model, masks = stiff_region
     c = Compiled(model, RegionModuli(masks, model.experiment.E))
@@ -236,12 +238,12 @@ def test_no_hole_is_tried_where_material_was_tracked(monkeypatch):
     from types import SimpleNamespace
 
     import jaxfem as jf
-    from refine import hypotheses
-    from refine.experiment import Rectangle
+    from refine.diagnosis import hypotheses
+    from refine.bundle.experiment import RectangleDomain
 
     xs, ys = np.meshgrid(np.arange(20.0, 121.0, 5.0), np.arange(10.0, 71.0, 5.0))
     pts = np.c_[xs.ravel(), ys.ravel()]
-    ex = SimpleNamespace(domain=Rectangle(20.0, 10.0, 120.0, 70.0))
+    ex = SimpleNamespace(domain=RectangleDomain(20.0, 10.0, 120.0, 70.0))
 
     def base(points, spacing):
         return SimpleNamespace(experiment=ex, obs=SimpleNamespace(reference=points), spacing=spacing, h=spacing / 2)
@@ -268,8 +270,8 @@ def test_hole_fit_finds_orientation_and_area_from_a_round_start():
     fit must turn the ellipse to the hole's orientation and find its area, not make up for a fixed
     orientation with a larger, rounder hole (what it did before the orientation was fitted)."""
     import jaxfem as jf
-    from refine.hypotheses import fit_hole, refit
-    from refine.synthetic import Truth
+    from refine.diagnosis.hypotheses import fit_hole, refit
+    from refine.synthetic.sheet import Truth
 
     rng = np.random.default_rng(int(np.random.default_rng(2611).integers(1 << 30)))
     a = rng.uniform(7.0, 9.0)
@@ -296,7 +298,7 @@ def test_levenberg_marquardt_reports_a_start_that_does_not_solve():
     finite result instead of steps judged against a NaN misfit (which once returned z = NaN)."""
     from types import SimpleNamespace
 
-    from refine.fit import levenberg_marquardt
+    from refine.optimize.levenberg_marquardt import levenberg_marquardt
 
     obs = SimpleNamespace(displacements=np.zeros((1, 3, 2)))
     stub = SimpleNamespace(model=SimpleNamespace(obs=obs), param=SimpleNamespace(z0=np.zeros(2), values=lambda z: {}),
@@ -313,8 +315,8 @@ def test_infeasible_shapes_are_turned_down_without_a_solve():
     from types import SimpleNamespace
 
     import jaxfem as jf
-    from refine.fit import levenberg_marquardt
-    from refine.parametrize import ShapeGeometry
+    from refine.optimize.levenberg_marquardt import levenberg_marquardt
+    from refine.model.parametrize import ShapeGeometry
 
     rng = np.random.default_rng(5)
     hole = jf.Ellipse(*rng.uniform([45, 25], [55, 35]), 4.0, 3.0, rng.uniform(0, np.pi))
@@ -322,10 +324,10 @@ def test_infeasible_shapes_are_turned_down_without_a_solve():
     point = np.array([[hole.cx + 6.5, hole.cy]])  # 2.5 mm beyond the hole along x at most
     geo = ShapeGeometry(jf.morph(mesh, [hole]), hole.params[None], scale=1.0, rotate=True, mesh=mesh,
                         outside=point, min_axis=0.5)
-    assert geo.feasible(np.zeros(5)) is None
-    assert "cover the tracked point" in geo.feasible(np.array([6.5, 0, 0, 0, 0]))
-    assert "semi-axis" in geo.feasible(np.array([0, 0, -3.8, -3.8, 0]))
-    assert "squash" in geo.feasible(np.array([0, 0, 40.0, 0, 0]))  # a hole across most of the plate
+    assert geo.infeasibility(np.zeros(5)) is None
+    assert "cover the tracked point" in geo.infeasibility(np.array([6.5, 0, 0, 0, 0]))
+    assert "semi-axis" in geo.infeasibility(np.array([0, 0, -3.8, -3.8, 0]))
+    assert "squash" in geo.infeasibility(np.array([0, 0, 40.0, 0, 0]))  # a hole across most of the plate
 
     solved = []
     target = np.array([8.0, 0.0, 0.0, 0.0, 0.0])  # the misfit's minimum lies beyond the point
@@ -336,9 +338,9 @@ def test_infeasible_shapes_are_turned_down_without_a_solve():
 
     obs = SimpleNamespace(displacements=np.zeros((1, 5, 1)))
     stub = SimpleNamespace(model=SimpleNamespace(obs=obs), param=SimpleNamespace(
-        z0=np.zeros(5), values=lambda z: {}, feasible=geo.feasible),
+        z0=np.zeros(5), values=lambda z: {}, infeasibility=geo.infeasibility),
         predict=lambda z: evaluate(z)[0], jacobian=lambda z: evaluate(z)[1])
     r = levenberg_marquardt(stub, np.ones(5, bool), 1.0)
     assert r.history[-1]["infeasible"] > 0
-    assert all(geo.feasible(z) is None for z in solved)  # nothing infeasible was ever solved
+    assert all(geo.infeasibility(z) is None for z in solved)  # nothing infeasible was ever solved
     assert 2.0 < r.values["z"][0] < 6.5 - 3.0  # moved towards the point, stopped before covering it

@@ -4,7 +4,7 @@ import meshio
 import numpy as np
 import pytest
 
-from jaxfem.errors import MeshError
+from jaxfem.exceptions import MeshError
 from jaxfem.io import read_mesh, to_meshio, write_vtu
 from jaxfem.mesh import box, rectangle
 from jaxfem.mesher import plate

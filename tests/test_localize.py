@@ -1,9 +1,9 @@
-"""Segmentation of a log-modulus field into candidate regions (refine.localize.segment)."""
+"""Segmentation of a log-modulus field into candidate regions (refine.diagnosis.localize.segment)."""
 
 import numpy as np
 
 import jaxfem as jf
-from refine.localize import segment
+from refine.diagnosis.localize import segment
 
 
 def _patch(mesh, centre, half):

@@ -12,9 +12,8 @@ import numpy as np
 import pytest
 
 from refine.exceptions import IdentifiabilityError
-from refine.forces import ForcedObjective
-from refine.paper import (BRACKET, INCLUSION, MIDDLE_POINTS, NAME, EmbeddedRectangle, PaperExperiment,
-                          evaluations_to_reach, format_rows, solves_to_reach)
+from refine.diagnosis.forces import ForcedObjective
+from refine.paper.experiment import (BRACKET, INCLUSION, MIDDLE_POINTS, NAME, EmbeddedRectangle, PaperExperiment, evaluations_to_reach, format_rows, solves_to_reach)
 
 
 @pytest.fixture(scope="module")

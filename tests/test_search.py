@@ -7,15 +7,8 @@ import pytest
 import scipy.optimize
 
 from refine.exceptions import SearchError
-from refine.result import RefineResult
-from refine.search import (
-    brent_search,
-    coordinate_brent_search,
-    cubic_brent_search,
-    cubic_minimum,
-    parabola_vertex,
-    spread_points,
-)
+from refine.optimize.result import RefineResult
+from refine.optimize import (brent_search, coordinate_brent_search, cubic_brent_search, cubic_minimum, parabola_vertex, spread_points)
 
 # The paper's controlled experiment: background 83.76 kPa, bracket from half to twenty times it,
 # true inclusion modulus 837.61 kPa, starting points of Tables 1 and 2.

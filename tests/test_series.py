@@ -1,5 +1,5 @@
 """The equilibrium's Taylor series along a parameter path (jaxfem.series) and the Pade
-approximants built on it (refine.pade).
+approximants built on it (refine.optimize.pade).
 
 The series is checked against forward solves at points along the path: the remainder of the
 series truncated at order K must shrink like h^(K+1) (a Taylor test of every order at once), and
@@ -13,7 +13,7 @@ import pytest
 
 import jaxfem as jf
 from jaxfem.series import equilibrium_series
-from refine.pade import VectorPade, pade_minimiser
+from refine.optimize.pade import VectorPade, pade_minimiser
 
 
 def _strip(kind: str, element: str, seed: int, n=(8, 5)):

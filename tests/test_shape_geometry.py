@@ -1,4 +1,4 @@
-"""The shape parametrisation of geometry fits (``refine.parametrize.ShapeGeometry``): ellipses
+"""The shape parametrisation of geometry fits (``refine.model.parametrize.ShapeGeometry``): ellipses
 moved by their symmetric shape matrix, rectangles by centre, half sides and angle."""
 
 import numpy as np
@@ -13,7 +13,7 @@ def test_shape_geometry_turns_an_ellipse_onto_any_other():
 
     import jaxfem as jf
     from jaxfem.shapes import curve_nodes
-    from refine.parametrize import ShapeGeometry
+    from refine.model.parametrize import ShapeGeometry
 
     rng = np.random.default_rng(7)
     for start in (jf.Ellipse(50.0, 30.0, *rng.uniform(6, 9, 2), rng.uniform(0, np.pi)), jf.Ellipse(50.0, 30.0, 7.0, 7.0)):
@@ -58,7 +58,7 @@ def test_shape_geometry_moves_a_rectangle_as_a_rectangle():
 
     import jaxfem as jf
     from jaxfem.shapes import curve_nodes
-    from refine.parametrize import ShapeGeometry
+    from refine.model.parametrize import ShapeGeometry
 
     rng = np.random.default_rng(11)
     rect = jf.Rect(20.0, 20.0, 20.0 + rng.uniform(10, 16), 20.0 + rng.uniform(8, 12), rng.uniform(-0.3, 0.3))
@@ -76,7 +76,7 @@ def test_shape_geometry_moves_a_rectangle_as_a_rectangle():
     on = curve_nodes(mesh, rect)
     moved = jf.Rect(target[0] - target[2], target[1] - target[3], target[0] + target[2], target[1] + target[3], target[4])
     assert np.linalg.norm(X[on] - moved.to_curve(X[on]), axis=1).max() < 1e-9
-    from refine.localize import rectangle_polygon
+    from refine.diagnosis.localize import rectangle_polygon
 
     for ref, new in zip(rectangle_polygon(*p0), rectangle_polygon(*target)):  # each corner onto its corner
         k = np.argmin(np.linalg.norm(mo.nodes0 - ref, axis=1))
@@ -88,5 +88,5 @@ def test_shape_geometry_moves_a_rectangle_as_a_rectangle():
     assert np.linalg.matrix_rank(J[:, :5]) == 5
     thin = np.zeros(10)
     thin[3] = (0.9 - p0[3]) / geo.scale
-    assert "semi-axis" in geo.feasible(thin)
-    assert geo.feasible(z) is None
+    assert "semi-axis" in geo.infeasibility(thin)
+    assert geo.infeasibility(z) is None

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxfem.errors import InvertedElementError, MeshError
+from jaxfem.exceptions import InvertedElementError, MeshError
 from jaxfem.mesh import check_orientation
 from jaxfem.mesher import domain, plate
 from jaxfem.shapes import Ellipse, Polygon, Rect, check_morph, curve_nodes, min_angles, morph

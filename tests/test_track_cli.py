@@ -1,4 +1,4 @@
-"""``nonrigid track``: images -> measurement bundle (refine.track_cmd)."""
+"""``nonrigid track``: images -> measurement bundle (refine.cli.track)."""
 
 import argparse
 import csv
@@ -9,9 +9,9 @@ import cv2
 import numpy as np
 import pytest
 
-from refine import track_cmd
-from refine.bundle import read_bundle
-from refine.experiment import Polygon, Rectangle
+from refine.cli import track as track_cmd
+from refine.bundle.io import read_bundle
+from refine.bundle.experiment import PolygonDomain, RectangleDomain
 from tracking import render_grid, render_speckle, scaled, smooth_displacement, track_images
 
 SHAPE = (200, 300)  # rows, cols
@@ -104,7 +104,7 @@ def test_boundary_points_lie_on_the_domain_outline_and_the_rest_inside(tracked):
     out, _, _ = tracked
     bundle = read_bundle(out)
     domain, obs = bundle.experiment.domain, bundle.observations
-    assert isinstance(domain, Rectangle)
+    assert isinstance(domain, RectangleDomain)
     x, y = obs.reference.T
     to_edge = np.min([x - domain.xmin, domain.xmax - x, y - domain.ymin, domain.ymax - y], axis=0)
     spacing = PITCH * SCALE
@@ -222,7 +222,7 @@ def test_outline_of_a_lattice_with_a_notch_and_a_single_corner_contact():
     # a 4 x 4 lattice without its 2 x 2 corner (i < 2, j >= 2), and a square touching it at (3, 3) only
     cells = [(i, j) for i in range(4) for j in range(4) if not (i < 2 and j >= 2)] + [(3, 4), (4, 3), (4, 4)]
     index = np.array(cells)
-    loop = [tuple(int(v) for v in index[k]) for k in track_cmd.outline(index)]
+    loop = [tuple(int(v) for v in index[k]) for k in track_cmd.lattice_outline(index)]
     assert len(loop) == len(set(loop)) == 12  # every outline point once, the touching square left out
     expected = {(0, 0), (0, 1), (1, 1), (2, 1), (2, 2), (2, 3), (3, 3), (3, 2), (3, 1), (3, 0), (2, 0), (1, 0)}
     assert set(loop) == expected
@@ -236,7 +236,7 @@ def test_a_rotated_grid_gets_a_polygon_through_its_outer_ring(tmp_path):
     tracks = track_images(images, "grid", roi=(20, 20, 180, 140)).to_length(0.5)
     bundle, dropped = track_cmd.bundle_from_tracks(tracks, "rotated")
     domain, obs = bundle.experiment.domain, bundle.observations
-    assert isinstance(domain, Polygon)
+    assert isinstance(domain, PolygonDomain)
     # points that belong to no cell of the lattice (corners of the staircase) are left out
     assert obs.n_points + dropped.size == tracks.n_points
     occupied = {tuple(ij) for ij in tracks.grid_index.tolist()}

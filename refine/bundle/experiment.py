@@ -1,0 +1,228 @@
+"""What was measured and the initial model: the content of a bundle's experiment.toml.
+
+Keys the library does not know are kept in :attr:`Experiment.extra` (nested like the TOML file)
+and written back, so reading and writing a bundle never loses anything a user wrote.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+from typing import Any, Union
+
+from refine.exceptions import ExperimentError
+
+MODEL_KINDS = ("plane-stress", "plane-strain", "solid")
+LAWS = ("neo-hookean", "linear-elastic", "saint-venant-kirchhoff", "mooney-rivlin")
+RECTANGLE_EDGES = ("left", "right", "bottom", "top")
+
+
+@dataclass(frozen=True)
+class RectangleDomain:
+    """Axis-aligned rectangular domain ``[xmin, xmax] x [ymin, ymax]``, length unit."""
+
+    xmin: float
+    ymin: float
+    xmax: float
+    ymax: float
+
+    def __post_init__(self):
+        for name in ("xmin", "ymin", "xmax", "ymax"):
+            object.__setattr__(self, name, _number(getattr(self, name), f"domain.rectangle {name}"))
+        if not (self.xmin < self.xmax and self.ymin < self.ymax):
+            raise ExperimentError(
+                f"domain.rectangle must be [xmin, ymin, xmax, ymax] with xmin < xmax and ymin < ymax, "
+                f"got {[self.xmin, self.ymin, self.xmax, self.ymax]}"
+            )
+
+    def to_toml(self) -> dict:
+        return {"rectangle": [self.xmin, self.ymin, self.xmax, self.ymax]}
+
+
+@dataclass(frozen=True)
+class PolygonDomain:
+    """Polygonal 2-D domain; ``vertices`` is a tuple of (x, y), counter-clockwise, length unit."""
+
+    vertices: tuple[tuple[float, float], ...]
+
+    def __post_init__(self):
+        try:
+            verts = tuple((float(x), float(y)) for x, y in self.vertices)
+        except (TypeError, ValueError):
+            raise ExperimentError("domain.polygon must be a list of [x, y] pairs") from None
+        if len(verts) < 3:
+            raise ExperimentError(f"domain.polygon needs at least 3 vertices, got {len(verts)}")
+        if not all(math.isfinite(c) for v in verts for c in v):
+            raise ExperimentError("domain.polygon has a NaN or inf coordinate")
+        doubled_area = sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(verts, verts[1:] + verts[:1]))
+        if doubled_area <= 0:
+            raise ExperimentError(
+                "domain.polygon is clockwise or degenerate (signed area <= 0); list its vertices counter-clockwise"
+            )
+        object.__setattr__(self, "vertices", verts)
+
+    def to_toml(self) -> dict:
+        return {"polygon": [list(v) for v in self.vertices]}
+
+
+@dataclass(frozen=True)
+class MeshDomain:
+    """Domain given by a mesh file (any meshio format), ``path`` relative to the bundle directory."""
+
+    path: str
+
+    def __post_init__(self):
+        if not isinstance(self.path, str) or not self.path:
+            raise ExperimentError(f"domain.mesh must be a file name, got {self.path!r}")
+
+    def to_toml(self) -> dict:
+        return {"mesh": self.path}
+
+
+Domain = Union[RectangleDomain, PolygonDomain, MeshDomain]
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """The experiment and the initial (background) model of a bundle.
+
+    Attributes:
+        name: experiment name.
+        kind: ``"plane-stress"`` | ``"plane-strain"`` | ``"solid"`` (3-D).
+        domain: :class:`RectangleDomain`, :class:`PolygonDomain` or :class:`MeshDomain` (required for solid).
+        law: ``"neo-hookean"`` | ``"linear-elastic"`` | ``"saint-venant-kirchhoff"`` |
+            ``"mooney-rivlin"``.
+        E: background Young's modulus, stress unit (> 0).
+        nu: Poisson's ratio, in (-1, 0.5).
+        thickness: assumed sheet thickness for plane stress, length unit; None if not given.
+        units: e.g. ``{"length": "mm", "stress": "kPa", "force": "mN"}`` (free text, a consistent set).
+        noise_std: standard deviation of each measured displacement component, length unit; None
+            if unknown.
+        extra: every key of experiment.toml not listed above, nested as in the file.
+    """
+
+    name: str
+    kind: str
+    domain: Domain
+    law: str
+    E: float
+    nu: float
+    thickness: float | None = None
+    units: dict[str, str] = field(default_factory=dict)
+    noise_std: float | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name:
+            raise ExperimentError(f"experiment.name must be a non-empty string, got {self.name!r}")
+        if self.kind not in MODEL_KINDS:
+            raise ExperimentError(f"model.kind {self.kind!r} is unknown; use one of {list(MODEL_KINDS)}")
+        if not isinstance(self.domain, (RectangleDomain, PolygonDomain, MeshDomain)):
+            raise ExperimentError(f"domain must be a RectangleDomain, PolygonDomain or MeshDomain, got {self.domain!r}")
+        if self.kind == "solid" and not isinstance(self.domain, MeshDomain):
+            raise ExperimentError('a "solid" model needs domain = { mesh = "FILE" }')
+        if self.law not in LAWS:
+            raise ExperimentError(f"material.law {self.law!r} is unknown; use one of {list(LAWS)}")
+        object.__setattr__(self, "E", _number(self.E, "material.E", positive=True))
+        nu = _number(self.nu, "material.nu")
+        if not -1.0 < nu < 0.5:
+            raise ExperimentError(f"material.nu must lie in (-1, 0.5), got {nu}")
+        object.__setattr__(self, "nu", nu)
+        if self.thickness is not None:
+            object.__setattr__(self, "thickness", _number(self.thickness, "model.thickness", positive=True))
+        if self.noise_std is not None:
+            object.__setattr__(self, "noise_std", _number(self.noise_std, "measurement.noise_std", positive=True))
+        if not isinstance(self.units, dict) or not all(isinstance(v, str) for v in self.units.values()):
+            raise ExperimentError(f'experiment.units must be a table of strings, e.g. {{ length = "mm" }}')
+
+    @property
+    def dim(self) -> int:
+        """Spatial dimension of the model: 3 for ``solid``, else 2."""
+        return 3 if self.kind == "solid" else 2
+
+    @classmethod
+    def from_toml(cls, data: dict[str, Any]) -> Experiment:
+        """Build from the dict tomllib returns for experiment.toml (unknown keys go to ``extra``)."""
+        rest = copy.deepcopy(data)
+        sections = {}
+        for section in ("experiment", "model", "material", "measurement"):
+            table = rest.pop(section, {})
+            if not isinstance(table, dict):
+                raise ExperimentError(f"[{section}] must be a table")
+            sections[section] = table
+        exp, model, mat, meas = (sections[s] for s in ("experiment", "model", "material", "measurement"))
+        for key, table, section in (("kind", model, "model"), ("domain", model, "model"),
+                                    ("law", mat, "material"), ("E", mat, "material"), ("nu", mat, "material"),
+                                    ("name", exp, "experiment")):
+            if key not in table:
+                raise ExperimentError(f"[{section}] has no {key!r}; it is required")
+        fields = dict(
+            name=exp.pop("name"),
+            units=exp.pop("units", {}),
+            kind=model.pop("kind"),
+            thickness=model.pop("thickness", None),
+            domain=_domain_from_toml(model.pop("domain")),
+            law=mat.pop("law"),
+            E=mat.pop("E"),
+            nu=mat.pop("nu"),
+            noise_std=meas.pop("noise_std", None),
+        )
+        extra = {s: t for s, t in sections.items() if t}
+        extra.update(rest)
+        return cls(**fields, extra=extra)
+
+    def to_toml(self) -> dict[str, Any]:
+        """The dict to write as experiment.toml; ``from_toml(to_toml())`` equals ``self``."""
+        data: dict[str, Any] = {
+            "experiment": {"name": self.name, **({"units": dict(self.units)} if self.units else {})},
+            "model": {"kind": self.kind, **({} if self.thickness is None else {"thickness": self.thickness}),
+                      "domain": self.domain.to_toml()},
+            "material": {"law": self.law, "E": self.E, "nu": self.nu},
+        }
+        if self.noise_std is not None:
+            data["measurement"] = {"noise_std": self.noise_std}
+        _merge(data, copy.deepcopy(self.extra))
+        return data
+
+
+def _domain_from_toml(table: Any) -> Domain:
+    if not isinstance(table, dict) or len(table) != 1:
+        raise ExperimentError(
+            "model.domain must hold exactly one of rectangle = [xmin, ymin, xmax, ymax], "
+            f"polygon = [[x, y], ...] or mesh = \"FILE\"; got {table!r}"
+        )
+    (kind, value), = table.items()
+    if kind == "rectangle":
+        if not isinstance(value, list) or len(value) != 4:
+            raise ExperimentError(f"domain.rectangle must be [xmin, ymin, xmax, ymax], got {value!r}")
+        return RectangleDomain(*value)
+    if kind == "polygon":
+        if not isinstance(value, list) or not all(isinstance(v, list) and len(v) == 2 for v in value):
+            raise ExperimentError(f"domain.polygon must be a list of [x, y] pairs, got {value!r}")
+        return PolygonDomain(tuple(tuple(v) for v in value))
+    if kind == "mesh":
+        return MeshDomain(value)
+    raise ExperimentError(f"model.domain kind {kind!r} is unknown; use rectangle, polygon or mesh")
+
+
+def _number(value: Any, what: str, positive: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ExperimentError(f"{what} must be a number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ExperimentError(f"{what} must be a finite number, got {value}")
+    if positive and value <= 0:
+        raise ExperimentError(f"{what} must be positive, got {value}")
+    return value
+
+
+def _merge(into: dict, extra: dict) -> None:
+    """Deep-merge ``extra`` into ``into``; a key present in both must be a table in both."""
+    for key, value in extra.items():
+        if isinstance(value, dict) and isinstance(into.get(key), dict):
+            _merge(into[key], value)
+        elif key in into:
+            raise ExperimentError(f"extra key {key!r} would overwrite a key the library writes itself")
+        else:
+            into[key] = value
