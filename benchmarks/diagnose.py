@@ -118,7 +118,7 @@ def _case_bundle(case: dict):
 
 def run_case(case: dict) -> dict:
     """Generate one bundle and diagnose it (in a worker process)."""
-    from refine.diagnosis.pipeline import DiagnoseConfig, diagnose
+    from refine.diagnosis import DiagnoseConfig, diagnose
 
     t0 = time.perf_counter()
     truth, bundle = _case_bundle(case)
@@ -152,7 +152,7 @@ def oracle_case(case: dict) -> dict:
     unbiased method does better on average."""
     from refine.measures import mean_position_error
     from refine.model.objective import Compiled
-    from refine.diagnosis.hypotheses import _mesh_size, region_model
+    from refine.diagnosis.regions import _mesh_size, region_model
     from refine.model.measured import MeasuredModel, domain_mesh
 
     truth, bundle = _case_bundle(case)

@@ -25,7 +25,7 @@ discretisation. To diagnose your own measurements, read them with `refine.bundle
 import matplotlib.pyplot as plt
 import jaxfem as jf
 from refine.synthetic.sheet import Truth, Inclusion, random_truth, synthetic_bundle
-from refine.diagnosis.pipeline import diagnose
+from refine.diagnosis import diagnose
 from refine.diagnosis import report
 
 cause, seed = "stiffer-region", 4

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from refine.diagnosis import report
-from refine.diagnosis.pipeline import diagnose
+from refine.diagnosis import diagnose
 from refine.synthetic.sheet import random_truth, synthetic_bundle
 
 DIAGONAL = float(np.hypot(100.0, 60.0))
@@ -100,7 +100,7 @@ def test_a_rectangle_hypothesis_recovers_the_papers_rectangle():
     """With ``try_rectangles`` a random rectangle of ratio 10 (the paper's scar) is reported as a
     rectangle, its ratio within 10 % and its area within 5 % (fitted as an ellipse on this draw:
     ratio 17 % low, area 19 % too large)."""
-    from refine.diagnosis.pipeline import DiagnoseConfig
+    from refine.diagnosis.config import DiagnoseConfig
 
     truth = random_truth(np.random.default_rng(5501), "rectangle")
     bundle = synthetic_bundle(truth, seed=5501, spacing=5.0, noise=0.02, fractions=(0.25, 0.5, 0.75, 1.0))

@@ -20,7 +20,7 @@ import pytest
 
 from refine.cli import track as track_cmd
 from refine.bundle.io import read_bundle
-from refine.diagnosis.pipeline import diagnose
+from refine.diagnosis import diagnose
 from refine.synthetic.render import render_sheet_images
 from refine.synthetic.sheet import random_truth
 

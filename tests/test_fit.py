@@ -238,7 +238,7 @@ def test_no_hole_is_tried_where_material_was_tracked(monkeypatch):
     from types import SimpleNamespace
 
     import jaxfem as jf
-    from refine.diagnosis import hypotheses
+    from refine.diagnosis import holes as hypotheses
     from refine.bundle.experiment import RectangleDomain
 
     xs, ys = np.meshgrid(np.arange(20.0, 121.0, 5.0), np.arange(10.0, 71.0, 5.0))
@@ -270,7 +270,8 @@ def test_hole_fit_finds_orientation_and_area_from_a_round_start():
     fit must turn the ellipse to the hole's orientation and find its area, not make up for a fixed
     orientation with a larger, rounder hole (what it did before the orientation was fitted)."""
     import jaxfem as jf
-    from refine.diagnosis.hypotheses import fit_hole, refit
+    from refine.diagnosis.fitted import refit
+    from refine.diagnosis.holes import fit_hole
     from refine.synthetic.sheet import Truth
 
     rng = np.random.default_rng(int(np.random.default_rng(2611).integers(1 << 30)))

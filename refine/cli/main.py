@@ -71,7 +71,7 @@ def _simulate(bundle_path: str, out: str, h: float | None = None, quiet: bool = 
 def _diagnose(bundle_path: str, out: str, quiet: bool = False):
     from refine.diagnosis import report
     from refine.bundle.io import read_bundle
-    from refine.diagnosis.pipeline import diagnose
+    from refine.diagnosis import diagnose
 
     bundle = read_bundle(bundle_path)
     d = diagnose(bundle, log=(lambda m: None) if quiet else print)

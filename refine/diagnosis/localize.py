@@ -2,7 +2,7 @@
 into connected regions of abnormal stiffness, each summarised by the ellipse of its moments.
 
 The region's shape comes from the data (the field), not from a grid cell the points bound; the
-parametric refit that follows (``refine.diagnosis.hypotheses``) then sharpens it.
+parametric refit that follows (``refine.diagnosis.regions``, ``refine.diagnosis.holes``) then sharpens it.
 """
 
 from __future__ import annotations
