@@ -44,3 +44,8 @@ class ExperimentError(RefineError, ValueError):
 class IdentifiabilityError(RefineError, ValueError):
     """A quantity was asked for that the data cannot determine, e.g. an absolute modulus without a
     measured force (only ratios of E times thickness are identifiable then)."""
+
+
+class FitError(RefineError, ValueError):
+    """A fit cannot be set up or started as asked: a method given a parametrisation it does not
+    handle (too many unknowns, a regulariser), or a model that does not solve at the start."""

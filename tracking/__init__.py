@@ -11,8 +11,9 @@ nothing here knows of finite elements.
 
 from ._api import TRACKERS, make_tracker, track_images
 from ._errors import GridNotFoundError, ImageError, RoiError, TrackingError
+from ._exports import ExportError, read_dice, read_displacement_csv, write_dice
 from ._grid_tracker import REFINERS, GridTracker
-from ._images import load_images, roi_mask
+from ._images import image_paths, load_images, natural_key, roi_mask
 from ._range import points_3d, range_lookup
 from ._roles import ROLES, assign_roles
 from ._snake import SnakeOptions
@@ -29,4 +30,5 @@ __all__ = [
     "render_pattern", "grid_truth", "deformed_points", "smooth_displacement", "creased_displacement", "scaled",
     "GridPattern", "SpecklePattern",
     "TrackingError", "ImageError", "RoiError", "GridNotFoundError",
+    "read_dice", "write_dice", "read_displacement_csv", "ExportError", "image_paths", "natural_key",
 ]

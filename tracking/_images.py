@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import glob
+import re
 from pathlib import Path
 from typing import Sequence
 
@@ -9,32 +11,82 @@ import numpy as np
 
 from ._errors import ImageError, RoiError
 
+IMAGE_SUFFIXES = (".tif", ".tiff", ".png", ".jpg", ".jpeg", ".bmp", ".pgm", ".ppm")
 
-def load_images(paths: Sequence[str | Path]) -> np.ndarray:
+
+def natural_key(path: str | Path) -> list:
+    """Sort key that orders names as people count: frame_2 before frame_10."""
+    return [int(part) if part.isdigit() else part.lower() for part in re.split(r"(\d+)", str(path))]
+
+
+def image_paths(sources: str | Path | Sequence[str | Path]) -> list[Path]:
+    """The image files that ``sources`` name, in natural order within each source.
+
+    A source is a file, a folder (its image files: ``IMAGE_SUFFIXES``) or a glob pattern
+    (``"frames/img_*.tif"``); several sources keep the order given. Raises :class:`ImageError`
+    naming a source that matches no image.
+    """
+    if isinstance(sources, (str, Path)):
+        sources = [sources]
+    out: list[Path] = []
+    for source in sources:
+        path = Path(source)
+        if path.is_dir():
+            found = sorted((p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES), key=natural_key)
+            if not found:
+                raise ImageError(f"folder {path} holds no image files ({', '.join(IMAGE_SUFFIXES)})")
+        elif path.is_file():
+            found = [path]
+        elif any(c in str(source) for c in "*?["):
+            found = sorted((Path(p) for p in glob.glob(str(source)) if Path(p).is_file()), key=natural_key)
+            if not found:
+                raise ImageError(f"the pattern {source!r} matches no file")
+        else:
+            raise ImageError(f"image file not found: {path}")
+        out.extend(found)
+    return out
+
+
+def load_images(paths: str | Path | Sequence[str | Path]) -> np.ndarray:
     """Read images (TIFF, PNG, ...) into a float64 grey stack, (n_frames, rows, cols).
 
-    Grey values keep the file's scale (0-255 for 8-bit, 0-65535 for 16-bit); colour images are
-    converted with the ITU-R 601 luma weights, an alpha channel is ignored.
+    ``paths``: files, folders or glob patterns (see :func:`image_paths`: natural order, so
+    frame_2 comes before frame_10). A multi-page TIFF gives one frame per page. Grey values keep
+    the file's scale (0-255 for 8-bit, 0-65535 for 16-bit); colour images are converted with the
+    ITU-R 601 luma weights, an alpha channel is ignored.
     """
+    frames = []
+    for path in image_paths(paths):
+        frames.extend(_read_frames(path))
+    return as_stack(frames)
+
+
+def _read_frames(path: Path) -> list[np.ndarray]:
+    """The grey frames of one file: one, or one per page of a multi-page TIFF."""
     import cv2  # imported here: only loading needs it
 
-    frames = []
-    for path in paths:
-        path = Path(path)
-        if not path.is_file():
-            raise ImageError(f"image file not found: {path}")
-        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-        if image is None:
-            try:
-                import skimage.io
-                image = skimage.io.imread(str(path))
-            except Exception as error:  # noqa: BLE001 - report any reader failure the same way
-                raise ImageError(f"cannot read image {path}: {error}") from error
-            image = _to_grey(np.asarray(image), bgr=False)
-        else:
-            image = _to_grey(np.asarray(image), bgr=True)
-        frames.append(image)
-    return as_stack(frames)
+    if path.suffix.lower() in (".tif", ".tiff"):
+        try:
+            import tifffile
+
+            with tifffile.TiffFile(str(path)) as tif:
+                pages = len(tif.pages)
+                data = np.asarray(tif.asarray())
+        except Exception:  # noqa: BLE001 - no tifffile, or not a TIFF it reads: the readers below report
+            data, pages = None, 0
+        # frames are pages, or the first axis of a 3D page that is not colour (rows, cols, 3 or 4)
+        if data is not None and (pages > 1 or (data.ndim == 3 and data.shape[-1] not in (3, 4))):
+            return [_to_grey(frame, bgr=False) for frame in data]
+    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if image is not None:
+        return [_to_grey(np.asarray(image), bgr=True)]
+    try:
+        import skimage.io
+
+        image = skimage.io.imread(str(path))
+    except Exception as error:  # noqa: BLE001 - report any reader failure the same way
+        raise ImageError(f"cannot read image {path}: {error}") from error
+    return [_to_grey(np.asarray(image), bgr=False)]
 
 
 def _to_grey(image: np.ndarray, bgr: bool) -> np.ndarray:
@@ -52,11 +104,12 @@ def _to_grey(image: np.ndarray, bgr: bool) -> np.ndarray:
 def as_stack(images) -> np.ndarray:
     """Check images and return them as one float64 array (n_frames, rows, cols).
 
-    Accepts a sequence of 2D arrays or file paths, or a 3D array. Raises :class:`ImageError` for
+    Accepts a sequence of 2D arrays, a 3D array, or what :func:`load_images` reads (files,
+    folders, glob patterns). Raises :class:`ImageError` for
     NaN/inf values, unequal shapes, fewer than one frame or images smaller than 8 x 8 pixels.
     """
     if isinstance(images, (str, Path)):
-        raise ImageError("give a sequence of images or paths, not a single path")
+        return load_images(images)  # a folder, a glob pattern or one (multi-page) file
     if isinstance(images, np.ndarray) and images.ndim == 3:
         frames = list(images)
     else:

@@ -1,4 +1,4 @@
-"""Read and write measurement bundles (see spec/measurement-bundle.md).
+"""Read and write measurement bundles (see docs/measurement-bundle.md).
 
 A bundle is a directory of plain text files: experiment.toml, points.csv, displacements.csv and
 optionally forces.csv and a mesh file. Every problem found while reading raises
@@ -125,7 +125,7 @@ def write_displacements_csv(path: str | Path, ids, displacements) -> Path:
 # ---------------------------------------------------------------------------------- readers
 def _read_experiment(path: Path) -> Experiment:
     if not path.is_file():
-        raise BundleError(path, "is missing; every bundle needs experiment.toml (see spec/measurement-bundle.md)")
+        raise BundleError(path, "is missing; every bundle needs experiment.toml (see docs/measurement-bundle.md)")
     try:
         with open(path, "rb") as f:
             data = tomllib.load(f)

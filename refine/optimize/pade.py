@@ -28,6 +28,7 @@ from scipy.optimize import minimize_scalar
 from jaxfem.series import equilibrium_series
 
 from refine.model.parametrize import RegionModuli
+from refine.exceptions import FitError
 from refine.optimize.result import RefineResult
 
 
@@ -43,7 +44,7 @@ class VectorPade:
     def __init__(self, C, L: int, M: int):
         C = np.asarray(C, float)
         if C.ndim != 2 or len(C) < L + M + 1:
-            raise ValueError(f"VectorPade: [{L}/{M}] needs {L + M + 1} coefficients, got {len(C)}")
+            raise FitError(f"VectorPade: [{L}/{M}] needs {L + M + 1} coefficients, got {len(C)}")
         # balance the powers of t (the approximant does not depend on the scale of t; the least
         # squares' conditioning does): coefficients at t = tau s decay like 1 in s
         norms = np.linalg.norm(C, axis=1)
@@ -98,7 +99,7 @@ def _variable(param, variable: str | None) -> str:
     if variable is None:
         variable = "exp" if isinstance(param, RegionModuli) else "z"
     if variable not in ("exp", "z"):
-        raise ValueError(f"variable must be 'exp' (the ratio exp(z) of a log-space modulus) or 'z', not {variable!r}")
+        raise FitError(f"variable must be 'exp' (the ratio exp(z) of a log-space modulus) or 'z', not {variable!r}")
     return variable
 
 
@@ -150,14 +151,14 @@ def pade_least_squares(objective, z0=None, order: int = 16, degree: int | None =
     """
     param, model = objective.param, objective.model
     if param.size != 1:
-        raise ValueError(f"pade_least_squares fits one unknown; this parametrisation has {param.size} "
+        raise FitError(f"pade_least_squares fits one unknown; this parametrisation has {param.size} "
                          "(use tensor_least_squares() or least_squares())")
     reg = param.regularization(np.zeros(1))
     if not (isinstance(reg, float) and reg == 0.0):
-        raise ValueError("pade_least_squares() fits unregularised parametrisations")
+        raise FitError("pade_least_squares() fits unregularised parametrisations")
     degree = order // 2 if degree is None else int(degree)
     if 2 * degree > order or degree < 1:
-        raise ValueError(f"pade_least_squares: a [{degree}/{degree}] approximant needs order >= {2 * degree}, "
+        raise FitError(f"pade_least_squares: a [{degree}/{degree}] approximant needs order >= {2 * degree}, "
                          f"got order {order}")
     variable = _variable(param, variable)
     z = float(np.asarray(param.z0 if z0 is None else z0, float).reshape(-1)[0])
@@ -207,7 +208,7 @@ def pade_least_squares(objective, z0=None, order: int = 16, degree: int | None =
 
     U, r, misfit = solve(z)
     if not np.isfinite(misfit):
-        raise ValueError(f"pade_least_squares: the model cannot be solved at the start z0 = {z}")
+        raise FitError(f"pade_least_squares: the model cannot be solved at the start z0 = {z}")
     ok, message = False, f"stopped after {max_steps} steps"
     for _ in range(max_steps):
         C = series(z, U, r)

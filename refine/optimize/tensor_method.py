@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from refine.exceptions import FitError
 from refine.optimize.result import RefineResult
 
 
@@ -104,10 +105,10 @@ def tensor_least_squares(objective, z0=None, order: int = 3, rtol: float = 1e-6,
     """
     z = np.asarray(objective.param.z0 if z0 is None else z0, float)
     if z.size ** order > 216:
-        raise ValueError(f"tensor_least_squares: {z.size} unknowns at order {order} need {z.size ** order} "
+        raise FitError(f"tensor_least_squares: {z.size} unknowns at order {order} need {z.size ** order} "
                          "tangent solves per evaluation; use least_squares() or a lower order")
     if not (isinstance(objective.param.regularization(z), float) and objective.param.regularization(z) == 0.0):
-        raise ValueError("tensor_least_squares() fits unregularised parametrisations; use lbfgsb() for a field")
+        raise FitError("tensor_least_squares() fits unregularised parametrisations; use lbfgsb() for a field")
     fn = _taylor_function(objective, order)
     bar = None
     if progress:
@@ -133,7 +134,7 @@ def tensor_least_squares(objective, z0=None, order: int = 3, rtol: float = 1e-6,
 
     ders, misfit = evaluate(z)
     if not np.isfinite(misfit):
-        raise ValueError(f"tensor_least_squares: the model cannot be solved at the start z0 = {z.tolist()}")
+        raise FitError(f"tensor_least_squares: the model cannot be solved at the start z0 = {z.tolist()}")
     ok, message = False, f"stopped after {max_steps} steps"
     for _ in range(max_steps):
         d, predicted = _minimise_model(ders, radius)

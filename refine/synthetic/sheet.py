@@ -16,6 +16,7 @@ import numpy as np
 import jaxfem as jf
 
 from refine.bundle.io import Bundle
+from refine.exceptions import ExperimentError
 from refine.bundle.experiment import Experiment, RectangleDomain
 from refine.bundle.observations import Forces, Observations
 
@@ -88,7 +89,7 @@ def random_truth(rng: np.random.Generator, cause: str, roi=(20.0, 10.0, 120.0, 7
         w, h = rng.uniform(0.15, 0.25) * W, rng.uniform(0.2, 0.35) * H
         cx, cy = place(max(w, h) / 2)
         return Truth(inclusions=(Inclusion(jf.Rect(cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2), 10.0),))
-    raise ValueError(f"unknown cause {cause!r}; known: {', '.join(CAUSES)}")
+    raise ExperimentError(f"unknown cause {cause!r}; use one of {', '.join(CAUSES)}")
 
 
 def _fine_solution(truth: Truth, sheet, pull: float, fractions, h: float, force_roi=None):
