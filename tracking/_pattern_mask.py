@@ -9,8 +9,9 @@ is, so the mask's edge sits on the material's edge):
 - grid: the amplitude of the image demodulated at each line family's wave vector, smoothed over
   about a pitch (the minimum over the two families). A dark disc or background has none, and an
   edge contributes little at the grid's frequency (unlike a band-pass energy, which edges light).
-- speckle: the local RMS of a band-passed image (image minus its Gaussian blur at a few pixels),
-  smoothed over half a subset.
+- speckle: the local RMS of a band-passed image (image minus its Gaussian blur at 2 px),
+  smoothed over 3 px (or half a subset if smaller); the mask's cleaning closes the gaps between
+  speckles.
 
 Saturated patches (glare) are left out: pixels at the image's top grey level forming patches
 wider than a few pixels (isolated clipped speckles are not a patch).
@@ -75,7 +76,9 @@ def pattern_mask(image: np.ndarray, scale: float, roi: np.ndarray | None = None,
         TrackingError: no texture anywhere in the ROI.
     """
     roi = np.ones(image.shape, bool) if roi is None else np.asarray(roi, bool)
-    smoothing = 0.75 * scale if waves is not None else 0.5 * scale
+    # a speckle's texture is fine, so its amplitude is smoothed over a few px only: an edge's step
+    # lights the band-passed image too, and a wide window would carry that far into a hole
+    smoothing = 0.75 * scale if waves is not None else min(0.5 * scale, 3.0)
     amplitude = texture_amplitude(image, smoothing, waves)
     glare = ndimage.binary_dilation(saturated(image), iterations=max(1, int(round(0.5 * scale))))
     usable = roi & ~glare
