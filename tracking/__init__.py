@@ -14,13 +14,15 @@ from ._errors import GridNotFoundError, ImageError, RoiError, TrackingError
 from ._exports import ExportError, read_dice, read_displacement_csv, write_dice
 from ._grid_tracker import REFINERS, GridTracker
 from ._images import image_paths, load_images, natural_key, roi_mask
+from ._lost import LOST_REASONS
+from ._pattern_mask import material_outline, pattern_mask
 from ._range import points_3d, range_lookup
 from ._roles import ROLES, assign_roles
 from ._snake import SnakeOptions
 from ._speckle_tracker import SpeckleTracker
-from ._synthetic import (GridPattern, SpecklePattern, creased_displacement, deformed_points, grid_truth,
-                         render_grid, render_pattern, render_range, render_speckle, scaled,
-                         smooth_displacement)
+from ._synthetic import (GridPattern, Scene, SpecklePattern, clamped_displacement, creased_displacement,
+                         deformed_points, grid_truth, render_grid, render_pattern, render_range, render_speckle,
+                         scaled, smooth_displacement)
 from ._tracks import Tracks, scale_from_grid
 
 __all__ = [
@@ -31,4 +33,5 @@ __all__ = [
     "GridPattern", "SpecklePattern",
     "TrackingError", "ImageError", "RoiError", "GridNotFoundError",
     "read_dice", "write_dice", "read_displacement_csv", "ExportError", "image_paths", "natural_key",
+    "Scene", "clamped_displacement", "LOST_REASONS", "pattern_mask", "material_outline",
 ]

@@ -5,7 +5,8 @@ lost its displacement is filled smoothly from its neighbours. The prediction is 
 ring by ring outwards from a seed near the grid's centre: each crossing takes the mean correction
 of its already matched neighbours before looking for the nearest detected crossing. So a large
 but smooth deformation is followed as long as the seed itself moves less than a third of a pitch
-beyond its prediction.
+beyond its prediction; the grid tracker makes that so by predicting from the frame's global
+motion (``_coarse``) plus each crossing's residual (:func:`affine_fit` splits the two).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from collections import deque
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ._coarse import CoarseMotion
 from ._grid_topology import NEIGHBOURS, fill_field
 
 _RING = tuple((di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1) if (di, dj) != (0, 0))
@@ -137,3 +139,14 @@ def jumps(step: np.ndarray, valid: np.ndarray, limit: float) -> np.ndarray:
     count = np.sum(np.isfinite(around[..., 0]), axis=0)
     off = np.linalg.norm(step - median, axis=-1)
     return valid & (count >= 2) & (off > limit)
+
+
+def affine_fit(reference: np.ndarray, positions: np.ndarray, active: np.ndarray) -> CoarseMotion:
+    """Least-squares affine map of the reference crossings (R, C, 2) to ``positions`` (R, C, 2),
+    over the active crossings seen in both (identity if fewer than 3); not marked supported."""
+    seen = active & np.isfinite(positions[..., 0]) & np.isfinite(reference[..., 0])
+    if np.count_nonzero(seen) < 3:
+        return CoarseMotion(np.eye(2), np.zeros(2))
+    design = np.hstack([reference[seen], np.ones((np.count_nonzero(seen), 1))])
+    coef, *_ = np.linalg.lstsq(design, positions[seen], rcond=None)
+    return CoarseMotion(coef[:2].T, coef[2])

@@ -1,28 +1,43 @@
 """The grid tracker: crossings of a painted grid, found with snakes and refined to sub-pixels.
 
 Reference frame: the lattice (pitch, orientation, polarity, line width) comes from the image
-spectrum, crossing candidates from the smoothed ink, their (row, column) from growing the
-lattice from the centre of the region of interest; snakes on the row and column lines give the
-crossings, which a refiner (default: symmetric line fitting) brings to sub-pixel accuracy.
-Later frames: each crossing's position is predicted (constant velocity, neighbours for lost
-ones), corrected ring by ring from detected crossings, then snakes and the refiner run again.
-A crossing is lost in a frame when the refiner rejects it (poor symmetry, moved too far, near
-the image border) or when its motion disagrees with its neighbours' by more than ``max_jump``
-pitches; it is looked for again in the next frame.
+spectrum; the pattern's extent (where the grid's texture is: not a hole, not the background
+beyond an edge, not glare) from ``_pattern_mask``; crossing candidates from the smoothed ink on
+that extent, their (row, column) from growing the lattice from the pattern's most interior
+point; snakes on the row and column lines give the crossings, which a refiner (default:
+symmetric line fitting) brings to sub-pixel accuracy.
+
+Later frames, coarse to fine: the frame's global affine motion is estimated first (``_coarse``:
+the lattice from the spectrum, the translation from the silhouette, which is not periodic), so a
+sheet may move several pitches between frames; each crossing is predicted by that map plus its
+own residual from the previous frames (constant velocity), corrected ring by ring from detected
+crossings (neighbour to neighbour the motion differs by strain x pitch), then snakes and the
+refiner run again. Where the view holds nothing but grid, the global motion is the previous
+frames' extrapolated (a motion of half a pitch or more is then not observable).
+
+A crossing is lost in a frame, with its reason in ``meta["lost_reasons"]`` (see ``_lost``), when
+the refiner rejects it, when saturated pixels lie on it, when its motion disagrees with its
+neighbours' by more than ``max_jump`` pitches, or when it is more than half a pitch from the
+frame's supported global prediction (a lattice slip); it is looked for again in the next frame.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
+from scipy import ndimage
 
+from . import _lost as lost_codes
+from ._coarse import CoarseMotion, grid_motion, silhouette
 from ._crossings import CrossingGuess, GridFrame, Refined
 from ._errors import GridNotFoundError, TrackingError
-from ._grid_motion import jumps, predict, propagate
+from ._grid_motion import affine_fit, jumps, predict, propagate
 from ._grid_topology import crossing_candidates, fill_positions, interior_gaps, label_grid, lattice_spacing
 from ._images import as_stack, inside_mask, roi_mask
 from ._lattice import GridGeometry, grid_geometry, ink_image
+from ._pattern_mask import material_outline, pattern_mask, saturated
 from ._refine_hessian import HessianRefiner, SnakeOnlyRefiner
 from ._refine_lines import LineFitRefiner
 from ._snake import SnakeOptions, snake_crossings
@@ -46,6 +61,9 @@ class GridTracker:
         min_quality: refiner quality under which a crossing is lost (None: the refiner's own).
         line_shape: centre lines of the "lines" refiner: "adaptive" (a parabola per line where
             the data ask for it, e.g. at a stiff inclusion's edge), "straight" or "curved".
+        find_pattern: track only where the grid is seen (holes, background, glare left out);
+            False: every crossing in the ROI.
+        coarse: estimate each frame's global motion first (large motion between frames).
     """
 
     refiner: str = "lines"
@@ -55,6 +73,8 @@ class GridTracker:
     max_jump: float = 0.3
     min_quality: float | None = None
     line_shape: str = "adaptive"
+    find_pattern: bool = True
+    coarse: bool = True
 
     def _refiner(self):
         if self.refiner not in REFINERS:
@@ -70,58 +90,113 @@ class GridTracker:
 
         Args:
             roi: (x0, y0, x1, y1) pixels of the first image, a mask, or None for all of it.
-                Crossings of the first image inside it are tracked.
+                Crossings of the first image inside it (and on the pattern) are tracked.
 
         Returns:
-            Tracks with ``grid_index`` (row, col) and ``quality_kind`` the refiner's score.
+            Tracks with ``grid_index`` (row, col), ``quality_kind`` the refiner's score, and in
+            ``meta``: ``lost_reasons`` (n_frames, n) int8 codes and ``lost_reason_names``
+            (see ``tracking._lost``), ``excluded`` ({reason: lattice nodes in the ROI never
+            made points}), ``pattern_mask`` (rows, cols) bool, ``outline`` ({"outer": (k, 2),
+            "holes": [(m, 2), ...]} px, the material's polygon and its holes) and
+            ``coarse_motion`` (per frame: the global affine (2, 3) and whether the data
+            supported it).
         """
         stack = as_stack(images)
-        mask = roi_mask(roi, stack.shape[1:])
+        roi = roi_mask(roi, stack.shape[1:])
         refiner = self._refiner()
-        geometry = grid_geometry(stack[0], mask, self.pitch_range, self.dark_lines)
-        nodes, quality = self._reference(stack[0], mask, geometry, refiner)
+        geometry = grid_geometry(stack[0], roi, self.pitch_range, self.dark_lines)
+        material = roi
+        if self.find_pattern:
+            waves = np.linalg.inv(np.stack([geometry.col_step, geometry.row_step], axis=1))
+            material = pattern_mask(stack[0], geometry.pitch, roi, waves)
+            if np.count_nonzero(material) < 4 * geometry.pitch ** 2:
+                raise GridNotFoundError("the grid covers almost none of the region of interest; check the ROI")
+            geometry = grid_geometry(stack[0], material, self.pitch_range, geometry.dark_lines)
+        nodes, quality, excluded = self._reference(stack[0], material, roi, geometry, refiner)
         active = np.isfinite(nodes[..., 0])
-        history = [nodes]
-        qualities = [quality]
+        history, qualities = [nodes], [quality]
+        reasons = [np.zeros(active.shape, np.int8)]
+        features = silhouette(stack[0], geometry.pitch, saturated(stack[0]))
+        # an edge between material and background, blurred at a pitch, has a gradient of about
+        # its contrast / (2.5 pitch); a tenth of the pattern's spread per pitch marks one
+        min_contrast = 0.1 * float(np.std(stack[0][material])) / geometry.pitch
+        motions = [CoarseMotion.identity()]
         for image in stack[1:]:
-            positions, quality = self._frame(image, history, active, geometry, refiner)
+            fitted = [affine_fit(nodes, h, active) for h in history]
+            prior = fitted[-1].extrapolated(fitted[-2]) if len(fitted) >= 2 else fitted[-1]
+            motion = grid_motion(features, image, geometry, prior, min_contrast, saturated(image)) \
+                if self.coarse else prior
+            positions, quality, reason = self._frame(image, history, fitted, motion, active, geometry, refiner,
+                                                     material, roi)
             history.append(positions)
             qualities.append(quality)
-        return self._tracks(history, qualities, active, geometry)
+            reasons.append(reason)
+            motions.append(motion)
+        meta = {"excluded": excluded, "pattern_mask": material,
+                "outline": material_outline(material, min_hole_area=geometry.pitch ** 2),
+                "coarse_motion": [{"affine": np.hstack([m.linear, m.offset[:, None]]), "supported": m.supported}
+                                  for m in motions]}
+        return self._tracks(history, qualities, reasons, active, geometry, meta)
 
-    def _reference(self, image, mask, geometry: GridGeometry, refiner):
-        ink = ink_image(image, geometry)
-        candidates = crossing_candidates(ink, geometry.pitch, mask)
-        rows, cols = np.nonzero(mask)
-        nodes = label_grid(candidates, geometry, (cols.mean(), rows.mean()))
+    def _reference(self, image, material, roi, geometry: GridGeometry, refiner):
+        ink = ink_image(image, geometry, _ink_mask(material, roi))
+        candidates = crossing_candidates(ink, geometry.pitch, material)
+        # grow the lattice from the pattern's most interior point (not the ROI's centre: a hole)
+        depth = ndimage.distance_transform_edt(np.pad(material, 1))[1:-1, 1:-1]
+        row, col = np.unravel_index(int(np.argmax(depth)), depth.shape)
+        nodes = label_grid(candidates, geometry, (col, row))
         valid = np.isfinite(nodes[..., 0])
-        gaps = interior_gaps(valid)
-        if gaps.any():
-            filled = fill_positions(nodes, valid)
-            gaps &= inside_mask(mask, filled.reshape(-1, 2)).reshape(gaps.shape)
-            nodes = np.where(gaps[..., None], filled, nodes)
+        filled = fill_positions(nodes, valid)
+        on_pattern = inside_mask(material, filled.reshape(-1, 2)).reshape(valid.shape)
+        in_roi = inside_mask(roi, filled.reshape(-1, 2)).reshape(valid.shape)
+        gaps = interior_gaps(valid) & on_pattern
+        nodes = np.where(gaps[..., None], filled, nodes)
         frame = GridFrame(image, ink, geometry.line_width, geometry.pitch)
         positions, quality, ok = self._measure(frame, nodes, valid | gaps, geometry, refiner)
-        ok &= inside_mask(mask, np.nan_to_num(positions, nan=-1.0).reshape(-1, 2)).reshape(ok.shape)
+        ok &= inside_mask(material, np.nan_to_num(positions, nan=-1.0).reshape(-1, 2)).reshape(ok.shape)
         if np.count_nonzero(ok) < 4:
             raise GridNotFoundError(
                 f"only {np.count_nonzero(ok)} grid crossings could be measured in the reference image; "
                 "check the ROI and that the grid lines are visible")
         positions[~ok] = np.nan
-        return positions, quality
+        glare = _near(saturated(image), filled, 0.5 * geometry.pitch)
+        excluded = lost_codes.reason_counts(np.select(
+            [ok, ~in_roi, ~on_pattern & glare, ~on_pattern, ~(valid | gaps), True],
+            [lost_codes.MEASURED, lost_codes.MEASURED, lost_codes.SATURATED, lost_codes.OFF_PATTERN,
+             lost_codes.NOT_SEEN, lost_codes.REJECTED]))
+        return positions, quality, excluded
 
-    def _frame(self, image, history, active, geometry: GridGeometry, refiner):
-        predicted = predict(history, active)
-        ink = ink_image(image, geometry)
+    def _frame(self, image, history, fitted, motion: CoarseMotion, active, geometry: GridGeometry, refiner,
+               material, roi):
+        reference = history[0]
+        # each crossing's own deviation from its frame's affine motion, extrapolated in time
+        residual = [h - f.apply(reference) + reference for h, f in zip(history, fitted)]
+        predicted = motion.apply(reference) + predict(residual, active) - reference
+        ink = ink_image(image, geometry, _ink_mask(_moved(material, motion), _moved(roi, motion)))
         candidates = crossing_candidates(ink, geometry.pitch)
         coarse, _ = propagate(predicted, active, candidates, radius=0.3 * geometry.pitch)
         frame = GridFrame(image, ink, geometry.line_width, geometry.pitch)
         positions, quality, ok = self._measure(frame, coarse, active, geometry, refiner)
+        reason = np.zeros(active.shape, np.int8)
+        rows, cols = image.shape
+        x, y = np.nan_to_num(predicted, nan=-1e9)[..., 0], np.nan_to_num(predicted, nan=-1e9)[..., 1]
+        outside = (x < 0) | (y < 0) | (x > cols - 1) | (y > rows - 1)
+        reason = lost_codes.first_reason(reason, active & ~ok & outside, lost_codes.LEFT_IMAGE)
+        glare = _near(saturated(image), np.where(np.isfinite(positions), positions, coarse), 0.5 * geometry.pitch)
+        reason = lost_codes.first_reason(reason, active & glare, lost_codes.SATURATED)
+        reason = lost_codes.first_reason(reason, active & ~ok, lost_codes.REJECTED)
+        ok &= reason == lost_codes.MEASURED
+        if motion.supported:
+            slip = np.linalg.norm(np.nan_to_num(positions - predicted, nan=0.0), axis=-1) > 0.5 * geometry.pitch
+            reason = lost_codes.first_reason(reason, ok & slip, lost_codes.SLIP)
+            ok &= ~slip
         last = history[-1]
         step = np.where(np.isfinite(last), positions - last, positions - predicted)
-        ok &= ~jumps(step, ok, self.max_jump * geometry.pitch)
+        jumped = jumps(step, ok, self.max_jump * geometry.pitch)
+        reason = lost_codes.first_reason(reason, jumped, lost_codes.JUMP)
+        ok &= ~jumped
         positions[~ok] = np.nan
-        return positions, quality
+        return positions, quality, np.where(active, reason, 0).astype(np.int8)
 
     def _measure(self, frame: GridFrame, nodes, use, geometry: GridGeometry, refiner):
         """Snakes then refiner on the nodes in ``use``: positions (R, C, 2), quality, ok (R, C)."""
@@ -147,17 +222,43 @@ class GridTracker:
         ok.reshape(-1)[flat] = result.ok & ~bad
         return positions, quality, ok
 
-    def _tracks(self, history, qualities, active, geometry: GridGeometry) -> Tracks:
+    def _tracks(self, history, qualities, reasons, active, geometry: GridGeometry, extra: dict) -> Tracks:
         ii, jj = np.nonzero(active)
         positions = np.stack([h[ii, jj] for h in history])
         lost = ~np.isfinite(positions).all(axis=-1)
         positions[lost] = np.nan
         quality = np.stack([q[ii, jj] for q in qualities])
+        codes = np.stack([r[ii, jj] for r in reasons])
+        codes = np.where(lost & (codes == lost_codes.MEASURED), lost_codes.NOT_SEEN, codes).astype(np.int8)
         ids = ii * active.shape[1] + jj + 1
         kind = {"lines": "symmetry", "hessian": "peak-sharpness", "snake": "snake"}[self.refiner]
         meta = {"tracker": "grid", "refiner": self.refiner, "pitch_px": geometry.pitch,
                 "line_width_px": geometry.line_width, "dark_lines": geometry.dark_lines,
                 **({"line_shape": self.line_shape} if self.refiner == "lines" else {}),
-                "col_step_px": tuple(geometry.col_step), "row_step_px": tuple(geometry.row_step)}
+                "col_step_px": tuple(geometry.col_step), "row_step_px": tuple(geometry.row_step),
+                "lost_reasons": codes, "lost_reason_names": dict(lost_codes.LOST_REASONS), **extra}
         return Tracks(ids=ids, reference=positions[0], positions=positions, lost=lost, quality=quality,
                       grid_index=np.stack([ii, jj], axis=1), quality_kind=kind, meta=meta)
+
+
+def _ink_mask(material: np.ndarray, roi: np.ndarray) -> np.ndarray | None:
+    """Where the ink's local means are taken: all but what the pattern mask left out of the ROI
+    (holes, background); None when that is nothing (the ink is then as without a mask)."""
+    mask = material | ~roi
+    return None if mask.all() else mask
+
+
+def _moved(mask: np.ndarray, motion: CoarseMotion) -> np.ndarray:
+    """The reference ``mask`` carried into a frame by its global motion (nearest pixel)."""
+    matrix = np.hstack([motion.linear, motion.offset[:, None]])
+    moved = cv2.warpAffine(mask.astype(np.uint8), matrix, mask.shape[::-1], flags=cv2.INTER_NEAREST)
+    return moved.astype(bool)
+
+
+def _near(mask: np.ndarray, nodes: np.ndarray, radius: float) -> np.ndarray:
+    """(R, C) bool: nodes (R, C, 2) with a True pixel of ``mask`` within ``radius`` px."""
+    if not mask.any():
+        return np.zeros(nodes.shape[:2], bool)
+    grown = ndimage.binary_dilation(mask, iterations=max(1, int(round(radius))))
+    xy = np.nan_to_num(nodes, nan=-1.0).reshape(-1, 2)
+    return inside_mask(grown, xy).reshape(nodes.shape[:2]) & np.isfinite(nodes[..., 0])

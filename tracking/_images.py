@@ -74,8 +74,8 @@ def _read_frames(path: Path) -> list[np.ndarray]:
                 data = np.asarray(tif.asarray())
         except Exception:  # noqa: BLE001 - no tifffile, or not a TIFF it reads: the readers below report
             data, pages = None, 0
-        # frames are pages, or the first axis of a 3D page that is not colour (rows, cols, 3 or 4)
-        if data is not None and (pages > 1 or (data.ndim == 3 and data.shape[-1] not in (3, 4))):
+        # frames are pages, or the first axis of a 3D page that is not colour (rows, cols, 2, 3 or 4)
+        if data is not None and (pages > 1 or (data.ndim == 3 and data.shape[-1] not in (2, 3, 4))):
             return [_to_grey(frame, bgr=False) for frame in data]
     image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if image is not None:

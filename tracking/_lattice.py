@@ -55,12 +55,16 @@ def _spectral_peaks(image: np.ndarray, mask: np.ndarray, pitch_range) -> tuple[n
     usable &= (fx > 0) | ((fx == 0) & (fy > 0))
     if not usable.any():
         raise GridNotFoundError("no usable frequencies for the given pitch range")
-    score = np.where(usable, power, 0.0)
+    # peaks are picked on the whitened spectrum: an edge in view (the specimen's, a hole's) has a
+    # power falling as 1/f^2 that can beat a grid's peak at low frequencies; a grid's peak stays
+    whitened = power * radius ** 2
+    score = np.where(usable, whitened, 0.0)
     first = np.unravel_index(np.argmax(score), score.shape)
     k1 = np.array([fx[first], fy[first]])
     angle = np.abs(fx * k1[1] - fy * k1[0]) / (radius * np.linalg.norm(k1) + 1e-300)
-    score2 = np.where(usable & (angle > np.sin(np.radians(30))), power, 0.0)
+    score2 = np.where(usable & (angle > np.sin(np.radians(30))), whitened, 0.0)
     second = np.unravel_index(np.argmax(score2), score2.shape)
+    first, second = _fundamental(power, first, fx, fy, usable), _fundamental(power, second, fx, fy, usable)
     background = np.median(power[usable])
     for peak in (first, second):
         if power[peak] < 20.0 * background:
@@ -68,6 +72,20 @@ def _spectral_peaks(image: np.ndarray, mask: np.ndarray, pitch_range) -> tuple[n
                 "no grid found: the image spectrum has no two clear line-family peaks; check the "
                 "ROI, the pitch range (grid pitch in pixels) and that the grid is in focus")
     return _refined_frequency(power, first, fx, fy), _refined_frequency(power, second, fx, fy)
+
+
+def _fundamental(power, peak, fx, fy, usable):
+    """The peak, or its half frequency where that holds a tenth of its power (whitening can
+    favour a thin-line grid's second harmonic)."""
+    shape = power.shape
+    half = (int(round(fy[peak] / 2 * shape[0])) % shape[0], int(round(fx[peak] / 2 * shape[1])) % shape[1])
+    rows = [(half[0] + d) % shape[0] for d in (-1, 0, 1)]
+    cols = [(half[1] + d) % shape[1] for d in (-1, 0, 1)]
+    block = power[np.ix_(rows, cols)] * usable[np.ix_(rows, cols)]
+    if block.max() < 0.1 * power[peak]:
+        return peak
+    i, j = np.unravel_index(int(np.argmax(block)), block.shape)
+    return rows[i], cols[j]
 
 
 def _refined_frequency(power, peak, fx, fy) -> np.ndarray:
@@ -135,10 +153,23 @@ def grid_geometry(image: np.ndarray, mask: np.ndarray, pitch_range=(4.0, 80.0),
                         line_width=max(line_width, 1.0))
 
 
-def ink_image(image: np.ndarray, geometry: GridGeometry) -> np.ndarray:
-    """Lines as positive ridges: background removed, polarity set, local contrast normalised."""
+def ink_image(image: np.ndarray, geometry: GridGeometry, mask: np.ndarray | None = None) -> np.ndarray:
+    """Lines as positive ridges: background removed, polarity set, local contrast normalised.
+
+    With a ``mask`` of the material (True where the grid is), background and contrast are local
+    means over the material only (normalised convolution), so crossings next to a hole or the
+    specimen's edge keep their ink instead of sinking under the dark side's mean.
+    """
     pitch = geometry.pitch
-    background = ndimage.gaussian_filter(image, 1.5 * pitch, mode="nearest")
+
+    def local_mean(values):
+        if mask is None:
+            return ndimage.gaussian_filter(values, 1.5 * pitch, mode="nearest")
+        weight = ndimage.gaussian_filter(mask.astype(np.float64), 1.5 * pitch, mode="nearest")
+        total = ndimage.gaussian_filter(np.where(mask, values, 0.0), 1.5 * pitch, mode="nearest")
+        return total / np.maximum(weight, 1e-3)
+
+    background = local_mean(image)
     ink = (background - image) if geometry.dark_lines else (image - background)
-    contrast = ndimage.gaussian_filter(np.abs(ink), 1.5 * pitch, mode="nearest")
+    contrast = local_mean(np.abs(ink))
     return ink / (contrast + 1e-6 * (np.abs(contrast).max() + 1e-300))

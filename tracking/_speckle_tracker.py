@@ -1,11 +1,16 @@
 """The speckle tracker: subset-based digital image correlation (DIC) on a lattice of points.
 
-Points sit every ``spacing`` px in the region of interest. Each frame is matched by IC-GN
-(see ``_dic``) starting from the previous frame's solution extrapolated at constant velocity;
-points without a usable start (the first deformed frame, or after a failure) get an integer
-guess by normalised cross-correlation within ``search`` px first. A point is lost in a frame
-when IC-GN does not converge, the subset leaves the image, or the ZNCC falls under ``min_zncc``;
-it is tried again (from its neighbours' motion) in the next frame.
+Points sit every ``spacing`` px in the region of interest, where the speckle is (``_pattern_mask``:
+holes, background beyond the edges and glare are left out, and a subset must lie wholly on the
+pattern). Each frame's global affine motion is estimated first (``_coarse``: correlation of the
+whole images over a tenth of their size, then ECC), so a frame may jump by far more than a
+subset; each point starts IC-GN (see ``_dic``) from that map plus its own residual from the
+previous frames extrapolated at constant velocity; points without a usable start (the first
+deformed frame, or after a failure) get an integer guess by normalised cross-correlation within
+``search`` px of it first. A point is lost in a frame, with its reason in
+``meta["lost_reasons"]`` (see ``_lost``), when IC-GN does not converge, the subset leaves the
+image or meets saturated pixels, or the ZNCC falls under ``min_zncc``; it is tried again (from
+its neighbours' motion) in the next frame.
 """
 
 from __future__ import annotations
@@ -15,12 +20,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from . import _lost as lost_codes
+from ._coarse import CoarseMotion, speckle_motion
 from ._dic import icgn, reference_subsets
 from ._dic_search import integer_search
 from ._errors import RoiError, TrackingError
 from ._grid_topology import fill_field
 from ._images import as_stack, roi_mask
 from ._interp import spline_image
+from ._pattern_mask import material_outline, pattern_mask, saturated
 from ._tracks import Tracks
 
 
@@ -41,6 +49,8 @@ class SpeckleTracker:
         min_zncc: correlation under which a point is lost.
         max_iterations, tolerance: IC-GN stopping rule (tolerance in px at the subset edge).
         subset_in_roi: keep only points whose whole subset lies in the ROI (else the centre).
+        find_pattern: track only where the speckle is (holes, background, glare left out).
+        coarse: estimate each frame's global motion first (jumps of up to a tenth of the image).
     """
 
     spacing: float = 10.0
@@ -53,6 +63,8 @@ class SpeckleTracker:
     max_iterations: int = 40
     tolerance: float = 1e-3
     subset_in_roi: bool = True
+    find_pattern: bool = True
+    coarse: bool = True
 
     def points(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Correlation points in ``mask`` (rows, cols): xy (n, 2) integer pixels, (row, col) (n, 2)."""
@@ -81,29 +93,47 @@ class SpeckleTracker:
         return xy[ok], index[ok]
 
     def track(self, images, roi=None) -> Tracks:
-        """Track a lattice of points in the ROI through ``images``; quality is the ZNCC (-1..1)."""
+        """Track a lattice of points in the ROI through ``images``; quality is the ZNCC (-1..1).
+
+        ``meta`` holds ``lost_reasons`` (n_frames, n) int8 and ``lost_reason_names`` (see
+        ``tracking._lost``), ``excluded`` ({reason: lattice points in the ROI not made points}),
+        ``pattern_mask``, ``outline`` ({"outer": (k, 2), "holes": [(m, 2), ...]} px) and
+        ``coarse_motion`` (per frame: the global affine (2, 3) and whether the data supported it).
+        """
         if self.subset < 5 or self.subset % 2 == 0:
             raise TrackingError(f"subset must be an odd number of pixels >= 5, got {self.subset}")
         if self.reference not in ("first", "previous"):
             raise TrackingError(f"reference must be 'first' or 'previous', got {self.reference!r}")
-        stack = as_stack(images)
+        raw = as_stack(images)
+        stack = raw
         if self.smoothing > 0:
-            stack = np.stack([ndimage.gaussian_filter(im, self.smoothing) for im in stack])
-        mask = roi_mask(roi, stack.shape[1:])
+            stack = np.stack([ndimage.gaussian_filter(im, self.smoothing) for im in raw])
+        roi = roi_mask(roi, stack.shape[1:])
+        mask = pattern_mask(raw[0], self.subset, roi) if self.find_pattern else roi
         xy, index = self.points(mask)
+        excluded = {}
+        if self.find_pattern:
+            lattice_in_roi = len(self.points(roi)[0])
+            excluded = lost_codes.reason_counts(np.full(max(lattice_in_roi - len(xy), 0), lost_codes.OFF_PATTERN))
         n = len(xy)
         positions = np.full((len(stack), n, 2), np.nan)
         quality = np.zeros((len(stack), n))
+        codes = np.zeros((len(stack), n), np.int8)
         positions[0], quality[0] = xy, 1.0
         lattice = (index[:, 0].max() + 1, index[:, 1].max() + 1)
         radius = self.subset // 2
         reference = spline_image(stack[0], self.order)
         first_subsets = reference_subsets(reference, reference.lattice_gradient(), xy, radius)
-        history = [np.zeros((n, 6))]          # p of every frame against frame 0 ("first")
+        motions = [CoarseMotion.identity()]
+        history = [np.zeros((n, 6))]          # p of every frame against frame 0 ("first"), less its map's
         increment = np.zeros((n, 6))          # last frame-to-frame p ("previous")
         alive = np.ones(n, bool)
         before = reference
+        rows, cols = np.nonzero(mask)
+        search = 0.1 * max(np.ptp(rows) + 1, np.ptp(cols) + 1)
         for k in range(1, len(stack)):
+            prior = motions[-1].extrapolated(motions[-2]) if len(motions) >= 2 else motions[-1]
+            motion = speckle_motion(stack[0], stack[k], prior, search) if self.coarse else prior
             target = spline_image(stack[k], self.order)
             if self.reference == "previous" and k > 1:
                 alive &= ~np.isnan(positions[k - 1]).any(axis=1)
@@ -114,22 +144,48 @@ class SpeckleTracker:
                 base, start = stack[k - 1], np.nan_to_num(increment)
             else:
                 centres, offset, subsets = xy, np.zeros((n, 2)), first_subsets
-                base, start = stack[0], self._start(history, index, lattice)
+                base, start = stack[0], _map_parameters(motion, xy) + self._start(history, index, lattice)
             p, zncc, ok = self._match(base, stack[k], target, subsets, centres, start, k == 1)
             ok &= alive
             # the tracked point sits at ``offset`` from the subset centre: move it with the warp
             gradient = p[:, [1, 2, 4, 5]].reshape(n, 2, 2)
             moved = centres + offset + p[:, [0, 3]] + np.einsum("nij,nj->ni", gradient, offset)
+            codes[k] = self._reasons(raw[k], moved, ok, zncc, alive)
+            ok &= codes[k] == lost_codes.MEASURED
             positions[k] = np.where(ok[:, None], moved, np.nan)
             quality[k] = zncc
-            history.append(np.where(ok[:, None], p, np.nan))
+            history.append(np.where(ok[:, None], p - _map_parameters(motion, xy), np.nan))
             increment = np.where(ok[:, None], p, np.nan)
+            motions.append(motion)
             before = target
         lost = ~np.isfinite(positions).all(axis=-1)
         meta = {"tracker": "speckle", "subset_px": self.subset, "spacing_px": self.spacing,
-                "reference": self.reference, "spline_order": self.order}
+                "reference": self.reference, "spline_order": self.order,
+                "lost_reasons": codes, "lost_reason_names": dict(lost_codes.LOST_REASONS),
+                "excluded": excluded, "pattern_mask": mask,
+                "outline": material_outline(mask, min_hole_area=float(self.subset) ** 2),
+                "coarse_motion": [{"affine": np.hstack([m.linear, m.offset[:, None]]), "supported": m.supported}
+                                  for m in motions]}
         return Tracks(ids=index[:, 0] * lattice[1] + index[:, 1] + 1, reference=xy, positions=positions,
                       lost=lost, quality=quality, grid_index=index, quality_kind="zncc", meta=meta)
+
+    def _reasons(self, image, moved, ok, zncc, alive) -> np.ndarray:
+        """Lost-reason codes (n,) int8 of one frame's matches."""
+        radius = self.subset // 2
+        rows, cols = image.shape
+        x, y = np.nan_to_num(moved, nan=-1e9).T
+        outside = (x < radius) | (y < radius) | (x > cols - 1 - radius) | (y > rows - 1 - radius)
+        codes = np.zeros(len(moved), np.int8)
+        codes = lost_codes.first_reason(codes, ~alive, lost_codes.NOT_SEEN)
+        codes = lost_codes.first_reason(codes, outside, lost_codes.LEFT_IMAGE)
+        glare = saturated(image)
+        if glare.any():
+            grown = ndimage.binary_dilation(glare, np.ones((self.subset, self.subset), bool))
+            inside = ~outside
+            hit = np.zeros(len(moved), bool)
+            hit[inside] = grown[np.rint(y[inside]).astype(int), np.rint(x[inside]).astype(int)]
+            codes = lost_codes.first_reason(codes, hit, lost_codes.SATURATED)
+        return lost_codes.first_reason(codes, ~ok | (zncc < self.min_zncc), lost_codes.REJECTED)
 
     def _start(self, history, index, lattice):
         """Constant-velocity prediction of p per point; lost points take their neighbours'."""
@@ -173,3 +229,11 @@ class SpeckleTracker:
             match.zncc[again[better]] = second.zncc[better]
             ok[again[better]] = True
         return match.p, match.zncc, ok
+
+
+def _map_parameters(motion: CoarseMotion, xy: np.ndarray) -> np.ndarray:
+    """IC-GN parameters (n, 6) = (u, ux, uy, v, vx, vy) of an affine map at points (n, 2)."""
+    u = motion.apply(xy) - xy
+    g = motion.linear - np.eye(2)
+    return np.column_stack([u[:, 0], np.full(len(xy), g[0, 0]), np.full(len(xy), g[0, 1]),
+                            u[:, 1], np.full(len(xy), g[1, 0]), np.full(len(xy), g[1, 1])])

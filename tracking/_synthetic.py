@@ -105,6 +105,47 @@ class SpecklePattern:
         return out.reshape(shape)
 
 
+@dataclass(frozen=True)
+class Scene:
+    """What a camera sees besides the pattern: the specimen's extent, holes, a glare patch.
+
+    The specimen and its holes are material features (reference pixels: they move with the
+    displacement); beyond the specimen and inside a hole the camera sees a uniform dark
+    ``background``. The glare is light on the camera's side (image pixels: it stays put while the
+    material moves under it): a Gaussian of ``glare[2]`` px adding ``glare[3]`` grey levels at
+    ``glare[:2]``, clipped at 255 like a saturated sensor.
+
+    Attributes:
+        specimen: (x0, y0, x1, y1) reference rectangle of material; None: material everywhere.
+        holes: discs (x, y, radius) in reference pixels with no material.
+        glare: (x, y, sigma, strength) in image pixels, or None.
+        background: grey level of what is not material.
+    """
+
+    specimen: tuple[float, float, float, float] | None = None
+    holes: tuple[tuple[float, float, float], ...] = ()
+    glare: tuple[float, float, float, float] | None = None
+    background: float = 15.0
+
+    def material(self, x: np.ndarray, y: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """True at reference points (x, y) on material at least ``margin`` px from its edges."""
+        x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+        inside = np.ones(np.broadcast(x, y).shape, bool)
+        if self.specimen is not None:
+            x0, y0, x1, y1 = self.specimen
+            inside &= (x >= x0 + margin) & (x <= x1 - margin) & (y >= y0 + margin) & (y <= y1 - margin)
+        for hx, hy, radius in self.holes:
+            inside &= (x - hx) ** 2 + (y - hy) ** 2 > (radius + margin) ** 2
+        return inside
+
+    def glare_light(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Grey levels the glare adds at image points (x, y) (0 without glare)."""
+        if self.glare is None:
+            return np.zeros(np.broadcast(x, y).shape)
+        gx, gy, sigma, strength = self.glare
+        return strength * np.exp(-0.5 * ((x - gx) ** 2 + (y - gy) ** 2) / sigma ** 2)
+
+
 def reference_points(x: np.ndarray, y: np.ndarray, displacement: Displacement | None,
                      tol: float = 1e-8, max_iter: int = 200) -> tuple[np.ndarray, np.ndarray]:
     """Reference coordinates X with X + u(X) = x, by fixed-point iterations (arrays in pixels)."""
@@ -135,7 +176,7 @@ def deformed_points(xy: np.ndarray, displacement: Displacement | None) -> np.nda
 def render_pattern(pattern, shape: tuple[int, int], displacement: Displacement | None = None, *,
                    blur_sigma: float = 1.0, noise_sigma: float = 0.0, lighting_gradient: float = 0.0,
                    levels: tuple[float, float] = (200.0, 50.0), supersample: int = 4,
-                   seed: int = 0, quantize: bool = False) -> np.ndarray:
+                   seed: int = 0, quantize: bool = False, scene: Scene | None = None) -> np.ndarray:
     """Image (rows, cols) float64 of ``pattern`` moved by ``displacement``, 0-255 grey levels.
 
     The scene ``background + (ink_level - background) * ink`` (``levels``) is evaluated on a
@@ -149,6 +190,8 @@ def render_pattern(pattern, shape: tuple[int, int], displacement: Displacement |
         pattern: anything with ``ink(x, y)`` (e.g. :class:`GridPattern`, :class:`SpecklePattern`).
         shape: (rows, cols).
         displacement: callable u(X, Y) -> (ux, uy) in pixels of reference coordinates, or None.
+        scene: what else is in view (the specimen's extent, holes, glare; see :class:`Scene`);
+            None: the pattern fills the image.
     """
     rows, cols = shape
     s = max(1, int(supersample))
@@ -159,6 +202,9 @@ def render_pattern(pattern, shape: tuple[int, int], displacement: Displacement |
     rx, ry = reference_points(xx, yy, displacement)
     background, ink_level = levels
     image = background + (ink_level - background) * pattern.ink(rx, ry)
+    if scene is not None:
+        image = np.where(scene.material(rx, ry), image, scene.background)
+        image = image + scene.glare_light(xx, yy)
     if lighting_gradient:
         ramp = ((xx - (cols - 1) / 2) * np.cos(np.pi / 6)
                 + (yy - (rows - 1) / 2) * np.sin(np.pi / 6)) / cols
@@ -168,6 +214,8 @@ def render_pattern(pattern, shape: tuple[int, int], displacement: Displacement |
     image = image.reshape(rows, s, cols, s).mean(axis=(1, 3))
     if noise_sigma > 0:
         image = image + np.random.default_rng(seed).normal(0.0, noise_sigma, shape)
+    if scene is not None:                      # the sensor saturates (glare)
+        image = np.clip(image, 0.0, 255.0)
     if quantize:
         image = np.clip(np.rint(image), 0, 255)
     return image
@@ -177,7 +225,8 @@ def render_grid(shape: tuple[int, int], pitch_px: float = 12.0, line_width: floa
                 displacement: Displacement | None = None, blur_sigma: float = 1.0,
                 noise_sigma: float = 0.0, lighting_gradient: float = 0.0, seed: int = 0, *,
                 origin: tuple[float, float] | None = None, angle_deg: float = 0.0,
-                bright_lines: bool = False, supersample: int = 4, quantize: bool = False) -> np.ndarray:
+                bright_lines: bool = False, supersample: int = 4, quantize: bool = False,
+                scene: Scene | None = None) -> np.ndarray:
     """Image (rows, cols) of a painted grid (dark lines on a light sheet, or bright lines).
 
     ``origin`` is a line crossing in reference pixels (default: the image centre plus a quarter
@@ -188,7 +237,7 @@ def render_grid(shape: tuple[int, int], pitch_px: float = 12.0, line_width: floa
     levels = (40.0, 210.0) if bright_lines else (200.0, 50.0)
     return render_pattern(pattern, shape, displacement, blur_sigma=blur_sigma, noise_sigma=noise_sigma,
                           lighting_gradient=lighting_gradient, levels=levels, supersample=supersample,
-                          seed=seed, quantize=quantize)
+                          seed=seed, quantize=quantize, scene=scene)
 
 
 def grid_pattern(shape, pitch_px=12.0, line_width=2.0, origin=None, angle_deg=0.0) -> GridPattern:
@@ -215,7 +264,8 @@ def grid_truth(shape: tuple[int, int], pitch_px: float = 12.0, displacement: Dis
 def render_speckle(shape: tuple[int, int], speckle_sigma: float = 1.2,
                    displacement: Displacement | None = None, blur_sigma: float = 0.5,
                    noise_sigma: float = 0.0, lighting_gradient: float = 0.0, seed: int = 0, *,
-                   pattern_seed: int = 0, supersample: int = 2, quantize: bool = False) -> np.ndarray:
+                   pattern_seed: int = 0, supersample: int = 2, quantize: bool = False,
+                   scene: Scene | None = None) -> np.ndarray:
     """Image (rows, cols) of a random speckle pattern (dark dots on white) moved by ``displacement``.
 
     Dots are Gaussians of ``speckle_sigma`` px (about 4 sigma across). The speckles come from
@@ -225,7 +275,7 @@ def render_speckle(shape: tuple[int, int], speckle_sigma: float = 1.2,
     pattern = SpecklePattern(speckle_sigma=speckle_sigma, cell=2.5 * speckle_sigma, seed=pattern_seed)
     return render_pattern(pattern, shape, displacement, blur_sigma=blur_sigma, noise_sigma=noise_sigma,
                           lighting_gradient=lighting_gradient, levels=(220.0, 30.0),
-                          supersample=supersample, seed=seed, quantize=quantize)
+                          supersample=supersample, seed=seed, quantize=quantize, scene=scene)
 
 
 def render_range(surface: Callable[[np.ndarray, np.ndarray], np.ndarray], shape: tuple[int, int], *,
@@ -322,3 +372,17 @@ def creased_displacement(shape: tuple[int, int], stretch: float = 0.12, jump: fl
 def scaled(displacement: Displacement, factor: float) -> Displacement:
     """The displacement field ``factor`` * u (a frame part-way through a loading sequence)."""
     return lambda x, y: tuple(factor * np.asarray(c) for c in displacement(x, y))
+
+
+def clamped_displacement(clamp_x: float, strain: float, contraction: float = 0.3, centre_y: float = 0.0,
+                         shift: tuple[float, float] = (0.0, 0.0)) -> Displacement:
+    """A sheet clamped at x = ``clamp_x`` and stretched by ``strain`` along x (pixels in, pixels out).
+
+    ux = strain (X - clamp_x) + shift_x, uy = -contraction strain (Y - centre_y) + shift_y: the far
+    end moves most, the clamp (plus ``shift``) not at all.
+    """
+    def displacement(x, y):
+        x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+        return strain * (x - clamp_x) + shift[0], -contraction * strain * (y - centre_y) + shift[1]
+
+    return displacement

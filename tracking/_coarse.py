@@ -1,0 +1,198 @@
+"""A frame's global motion, estimated before any point is measured (coarse to fine).
+
+Local measurements (a crossing's refiner, a subset's IC-GN) need a start within half a pitch or
+a few pixels; a sheet can move several pitches between frames. So each frame's motion is first
+estimated globally as an affine map of the reference, x' = L x + t:
+
+- Grid: the linear part L comes from the grid itself (the lattice in the frame's spectrum against
+  the reference lattice: unambiguous for any strain under 50 %), the translation t from what is
+  NOT periodic: the images blurred by a Gaussian of a pitch (the grid averages out to a uniform
+  grey) minus their blur at four pitches (lighting ramps go) keep the specimen's silhouette,
+  its holes and edges, its far end. t is the normalised cross-correlation peak of that
+  "silhouette" image against the reference's, warped by L. Where the view has no such feature
+  (a grid filling the whole view) the estimate is not supported and the trackers fall back to
+  temporal prediction (and a motion of more than half a pitch cannot be told from the data).
+- Speckle: the translation by the same correlation on lightly smoothed images over a search of
+  a tenth of the image, then an affine refinement by ECC (OpenCV's enhanced correlation).
+
+Local measurements start from this map plus each point's own residual from the previous frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy import ndimage
+
+from ._errors import GridNotFoundError
+from ._lattice import GridGeometry, _spectral_peaks
+
+
+@dataclass(frozen=True)
+class CoarseMotion:
+    """Affine map of reference pixels to a frame's pixels, x' = linear @ x + offset.
+
+    Attributes:
+        linear: (2, 2).
+        offset: (2,) px.
+        supported: True when the frame's data determine the map (else it is the prior).
+        score: the correlation (-1..1) that supported it.
+    """
+
+    linear: np.ndarray
+    offset: np.ndarray
+    supported: bool = False
+    score: float = 0.0
+
+    @staticmethod
+    def identity() -> "CoarseMotion":
+        return CoarseMotion(np.eye(2), np.zeros(2), True, 1.0)
+
+    def apply(self, xy: np.ndarray) -> np.ndarray:
+        """Mapped points, same shape as ``xy`` (..., 2); NaN stays NaN."""
+        return xy @ self.linear.T + self.offset
+
+    def extrapolated(self, before: "CoarseMotion") -> "CoarseMotion":
+        """Constant-velocity guess of the next frame's map from this one and the one ``before``."""
+        return CoarseMotion(2 * self.linear - before.linear, 2 * self.offset - before.offset)
+
+
+def silhouette(image: np.ndarray, scale: float, ignore: np.ndarray | None = None) -> np.ndarray:
+    """The image without its pattern: the gradient magnitude of its blur at ``scale`` (float32).
+
+    Blurred at a pitch, a grid is a uniform grey; what is left are edges (the specimen's, a
+    hole's) and lighting, whose slow ramps have a small, even gradient. ``ignore`` (e.g. glare,
+    which stays in the camera's frame) is set to zero.
+    """
+    blurred = ndimage.gaussian_filter(np.asarray(image, dtype=np.float64), scale, mode="nearest")
+    gy, gx = np.gradient(blurred)
+    out = np.hypot(gx, gy)
+    if ignore is not None and ignore.any():
+        out[ndimage.binary_dilation(ignore, iterations=max(1, int(round(2 * scale))))] = 0.0
+    return out.astype(np.float32)
+
+
+def _peak(scores: np.ndarray) -> tuple[np.ndarray, float]:
+    """Sub-pixel (x, y) of the maximum of a 2D score by a parabola in each axis, and its value."""
+    iy, ix = np.unravel_index(int(np.argmax(scores)), scores.shape)
+    out = np.array([ix, iy], dtype=np.float64)
+    for axis, (i, n) in enumerate(((ix, scores.shape[1]), (iy, scores.shape[0]))):
+        if 0 < i < n - 1:
+            lo = scores[iy, ix - 1] if axis == 0 else scores[iy - 1, ix]
+            hi = scores[iy, ix + 1] if axis == 0 else scores[iy + 1, ix]
+            denom = lo - 2 * scores[iy, ix] + hi
+            if denom < 0:
+                out[axis] += 0.5 * (lo - hi) / denom
+    return out, float(scores[iy, ix])
+
+
+def translation(reference: np.ndarray, image: np.ndarray, linear: np.ndarray, prior: np.ndarray,
+                search: float, step: int = 1, sharpness: float = 4.0) -> tuple[np.ndarray, float]:
+    """The offset t of x' = linear @ x + t that best aligns ``image`` with ``reference``.
+
+    Both are float32 (rows, cols) feature images (e.g. :func:`silhouette`). The reference is
+    warped by the prior map, and the remaining shift found by normalised cross-correlation
+    within ``search`` px (on images subsampled by ``step``). Returns t (2,) and the peak score,
+    0 when the score does not drop by 0.01 over ``sharpness`` px in both directions (the data
+    do not fix the translation).
+    """
+    rows, cols = reference.shape
+    matrix = np.hstack([linear, np.asarray(prior, np.float64).reshape(2, 1)]).astype(np.float64)
+    warped = cv2.warpAffine(reference, matrix, (cols, rows), flags=cv2.INTER_LINEAR)
+    if step > 1:
+        warped, image = warped[::step, ::step], image[::step, ::step]
+    margin = int(np.ceil(search / step))
+    h, w = warped.shape
+    if h <= 2 * margin + 4 or w <= 2 * margin + 4:
+        margin = max(1, min(h, w) // 4)
+    template = np.ascontiguousarray(warped[margin:h - margin, margin:w - margin])
+    if float(template.std()) == 0.0:
+        return np.asarray(prior, np.float64), 0.0
+    scores = cv2.matchTemplate(np.ascontiguousarray(image), template, cv2.TM_CCOEFF_NORMED)
+    where, score = _peak(scores)
+    # a feature that fixes only one direction (a straight edge) leaves the score flat along it:
+    # the score is then that of the worse direction (its drop over ``sharpness`` px)
+    iy, ix = np.rint(where[::-1]).astype(int)
+    reach = max(1, int(round(sharpness / step)))
+    drops = []
+    for dy, dx in ((0, reach), (reach, 0)):
+        around = [scores[iy + sy * dy, ix + sy * dx] for sy in (-1, 1)
+                  if 0 <= iy + sy * dy < scores.shape[0] and 0 <= ix + sy * dx < scores.shape[1]]
+        drops.append(score - max(around) if around else 0.0)
+    if min(drops) < 0.01:
+        score = min(score, 0.0)
+    return np.asarray(prior, np.float64) + (where - margin) * step, score
+
+
+def frame_lattice(image: np.ndarray, geometry: GridGeometry, previous: np.ndarray) -> np.ndarray | None:
+    """Linear part L (2, 2) of the frame's mean motion from its grid lattice, or None if unseen.
+
+    The frame's two line-family wave vectors are matched to the reference's (as predicted by the
+    ``previous`` L); L = K'^-1 K with K, K' the reference and frame wave vectors as rows.
+    """
+    reference = np.linalg.inv(np.stack([geometry.col_step, geometry.row_step], axis=1))
+    pitch = geometry.pitch
+    flat = image - ndimage.gaussian_filter(image, 4.0 * pitch)
+    try:
+        found = np.stack(_spectral_peaks(flat, np.ones(image.shape, bool), (0.5 * pitch, 2.0 * pitch)))
+    except GridNotFoundError:
+        return None
+    predicted = reference @ np.linalg.inv(previous)
+    waves = np.zeros((2, 2))
+    for i, k in enumerate(predicted):
+        cosine = found @ k / (np.linalg.norm(found, axis=1) * np.linalg.norm(k))
+        j = int(np.argmax(np.abs(cosine)))
+        waves[i] = np.sign(cosine[j]) * found[j]
+    if abs(np.linalg.det(waves)) < 1e-12:
+        return None
+    linear = np.linalg.inv(waves) @ reference
+    return linear if abs(np.linalg.det(linear) - 1.0) < 0.6 else None
+
+
+def grid_motion(reference_features: np.ndarray, image: np.ndarray, geometry: GridGeometry,
+                prior: CoarseMotion, min_contrast: float, ignore: np.ndarray | None = None) -> CoarseMotion:
+    """A grid frame's affine motion (see the module's notes); ``prior``: the temporal guess.
+
+    ``reference_features`` is the reference's :func:`silhouette` at a pitch; the estimate is
+    supported when the silhouette holds edges (its 99th percentile above ``min_contrast`` grey
+    levels per px) and the frame's correlates with it (score >= 0.5, sharp in x and y).
+    """
+    pitch = geometry.pitch
+    linear = frame_lattice(image, geometry, prior.linear)
+    if linear is None or float(np.percentile(reference_features, 99)) < min_contrast:
+        return prior
+    features = silhouette(image, pitch, ignore)
+    centre = 0.5 * np.array([image.shape[1] - 1, image.shape[0] - 1])
+    # the prior's translation at the image centre, carried to the new linear part
+    offset = prior.apply(centre) - linear @ centre
+    search = max(4.0 * pitch, 0.1 * max(image.shape))
+    offset, score = translation(reference_features, features, linear, offset, search,
+                                step=max(1, int(pitch // 3)), sharpness=0.5 * pitch)
+    if score < 0.5:
+        return prior
+    return CoarseMotion(linear, offset, True, score)
+
+
+def speckle_motion(reference: np.ndarray, image: np.ndarray, prior: CoarseMotion, search: float) -> CoarseMotion:
+    """A speckle frame's affine motion: translation by correlation within ``search`` px of the
+    ``prior``, then ECC affine refinement at half resolution. The whole images are used: edges
+    and holes move with the material and help; unsupported (score < 0.3): the prior."""
+    ref = ndimage.gaussian_filter(np.asarray(reference, np.float64), 1.5).astype(np.float32)
+    cur = ndimage.gaussian_filter(np.asarray(image, np.float64), 1.5).astype(np.float32)
+    offset, score = translation(ref, cur, prior.linear, prior.offset, search, step=2)
+    if score < 0.3:
+        return prior
+    warp = np.hstack([prior.linear, offset.reshape(2, 1) / 2.0]).astype(np.float32)
+    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-5)
+    try:
+        # the map of half-resolution pixels (every second one) is x'/2 = L x/2 + t/2
+        ecc, warp = cv2.findTransformECC(np.ascontiguousarray(ref[::2, ::2]), np.ascontiguousarray(cur[::2, ::2]),
+                                         warp, cv2.MOTION_AFFINE, criteria, None, 5)
+    except cv2.error:
+        return CoarseMotion(prior.linear, offset, True, score)
+    warp = warp.astype(np.float64)
+    if ecc < score or abs(np.linalg.det(warp[:, :2]) - 1.0) > 0.5:
+        return CoarseMotion(prior.linear, offset, True, score)
+    return CoarseMotion(warp[:, :2], 2.0 * warp[:, 2], True, float(ecc))

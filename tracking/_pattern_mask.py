@@ -1,0 +1,130 @@
+"""Where the pattern is: a mask of the painted grid's or speckle's extent, and its outline.
+
+A tracker must measure only on material: not inside a hole, not on the dark background beyond
+the specimen's edge, not under glare. The pattern shows as local texture at the pattern's own
+scale, so the mask is where that texture's local amplitude reaches half its typical level on the
+material (for a step in amplitude smoothed by a symmetric window, half level is where the step
+is, so the mask's edge sits on the material's edge):
+
+- grid: the amplitude of the image demodulated at each line family's wave vector, smoothed over
+  about a pitch (the minimum over the two families). A dark disc or background has none, and an
+  edge contributes little at the grid's frequency (unlike a band-pass energy, which edges light).
+- speckle: the local RMS of a band-passed image (image minus its Gaussian blur at 2 px),
+  smoothed over 3 px (or half a subset if smaller); the mask's cleaning closes the gaps between
+  speckles.
+
+Saturated patches (glare) are left out: pixels at the image's top grey level forming patches
+wider than a few pixels (isolated clipped speckles are not a patch).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from scipy import ndimage
+
+from ._errors import TrackingError
+
+
+def saturated(image: np.ndarray, width: int = 5) -> np.ndarray:
+    """(rows, cols) bool: patches of saturated pixels at least ``width`` px across.
+
+    Saturation is the image's top value when it is >= 250 (8-bit or wider images) and held by at
+    least 20 pixels; an image that never reaches it has no saturated patch.
+    """
+    top = float(image.max())
+    at_top = image >= top - 0.5
+    if top < 250.0 or np.count_nonzero(at_top) < 20:
+        return np.zeros(image.shape, bool)
+    return ndimage.binary_opening(at_top, np.ones((width, width), bool))
+
+
+def texture_amplitude(image: np.ndarray, scale: float, waves: np.ndarray | None = None) -> np.ndarray:
+    """Local amplitude (grey levels) of the pattern's texture, (rows, cols).
+
+    Args:
+        scale: smoothing of the amplitude (px): about a pitch for grids, half a subset for speckles.
+        waves: (2, 2) wave vectors (cycles/px, rows) of the grid's two line families; None for a
+            speckle (band-passed local RMS).
+    """
+    image = np.asarray(image, dtype=np.float64)
+    if waves is None:
+        band = image - ndimage.gaussian_filter(image, 2.0, mode="reflect")
+        return np.sqrt(ndimage.gaussian_filter(band ** 2, scale, mode="reflect"))
+    rows, cols = np.mgrid[0:image.shape[0], 0:image.shape[1]].astype(np.float64)
+    centred = image - ndimage.gaussian_filter(image, 2.0 * scale, mode="reflect")
+    amplitudes = []
+    for k in np.asarray(waves, dtype=np.float64):
+        phase = 2.0 * np.pi * (k[0] * cols + k[1] * rows)
+        re = ndimage.gaussian_filter(centred * np.cos(phase), scale, mode="reflect")
+        im = ndimage.gaussian_filter(centred * np.sin(phase), scale, mode="reflect")
+        amplitudes.append(np.hypot(re, im))
+    return np.minimum(*amplitudes)
+
+
+def pattern_mask(image: np.ndarray, scale: float, roi: np.ndarray | None = None,
+                 waves: np.ndarray | None = None) -> np.ndarray:
+    """(rows, cols) bool: where the pattern's texture is present (material in view), inside ``roi``.
+
+    Args:
+        image: (rows, cols) grey levels.
+        scale: the pattern's scale (px): the grid pitch, or the speckle subset size.
+        roi: (rows, cols) bool region to look in; None for the whole image.
+        waves: grid line families' wave vectors (see :func:`texture_amplitude`); None for speckles.
+
+    Raises:
+        TrackingError: no texture anywhere in the ROI.
+    """
+    roi = np.ones(image.shape, bool) if roi is None else np.asarray(roi, bool)
+    # a speckle's texture is fine, so its amplitude is smoothed over a few px only: an edge's step
+    # lights the band-passed image too, and a wide window would carry that far into a hole
+    smoothing = 0.75 * scale if waves is not None else min(0.5 * scale, 3.0)
+    amplitude = texture_amplitude(image, smoothing, waves)
+    glare = ndimage.binary_dilation(saturated(image), iterations=max(1, int(round(0.5 * scale))))
+    usable = roi & ~glare
+    if not usable.any() or not np.any(amplitude[usable] > 0):
+        raise TrackingError("no pattern texture in the region of interest; check the ROI and the images")
+    provisional = usable & (amplitude > 0.25 * np.percentile(amplitude[usable], 90))
+    typical = np.median(amplitude[provisional])
+    mask = usable & (amplitude > 0.5 * typical)
+    # specks of texture in the background and pinholes in the material are not features
+    size = max(3, int(round(0.5 * scale)) | 1)
+    mask = ndimage.binary_opening(mask, np.ones((size, size), bool))
+    mask = _without_small(mask, 4.0 * scale ** 2)
+    return ~_without_small(~mask, 0.5 * scale ** 2) & usable
+
+
+def _without_small(mask: np.ndarray, area: float) -> np.ndarray:
+    labels, n = ndimage.label(mask)
+    if n == 0:
+        return mask
+    sizes = ndimage.sum(mask, labels, index=np.arange(1, n + 1))
+    keep = np.concatenate([[False], sizes >= area])
+    return keep[labels]
+
+
+def material_outline(mask: np.ndarray, min_hole_area: float = 16.0, tolerance: float = 1.0) -> dict:
+    """The material's outline from a pattern mask: the largest region's outer polygon and its holes.
+
+    Args:
+        mask: (rows, cols) bool, True on material (see :func:`pattern_mask`).
+        min_hole_area: holes smaller than this (px^2) are left out.
+        tolerance: largest distance (px) of the simplified polygon from the mask's boundary.
+
+    Returns:
+        ``{"outer": (k, 2) float array, "holes": [(m, 2) float arrays]}``, vertices (x, y) in
+        pixels along the boundary pixels; empty arrays where the mask is empty.
+    """
+    contours, hierarchy = cv2.findContours(np.asarray(mask, np.uint8), cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+    if not contours:
+        return {"outer": np.zeros((0, 2)), "holes": []}
+    hierarchy = hierarchy[0]
+    outers = [k for k in range(len(contours)) if hierarchy[k][3] < 0]
+    outer = max(outers, key=lambda k: cv2.contourArea(contours[k]))
+
+    def polygon(k):
+        return cv2.approxPolyDP(contours[k], tolerance, True).reshape(-1, 2).astype(np.float64)
+
+    holes = [polygon(k) for k in range(len(contours))
+             if hierarchy[k][3] == outer and cv2.contourArea(contours[k]) >= min_hole_area]
+    return {"outer": polygon(outer), "holes": holes}
