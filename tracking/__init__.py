@@ -10,7 +10,7 @@ nothing here knows of finite elements.
 """
 
 from ._api import TRACKERS, make_tracker, track_images
-from ._errors import GridNotFoundError, ImageError, RoiError, TrackingError
+from ._errors import GridNotFoundError, ImageError, OptionError, RoiError, TrackingError
 from ._grid_tracker import REFINERS, GridTracker
 from ._images import load_images, roi_mask
 from ._range import points_3d, range_lookup
@@ -28,5 +28,5 @@ __all__ = [
     "assign_roles", "ROLES", "scale_from_grid", "render_grid", "render_speckle", "render_range",
     "render_pattern", "grid_truth", "deformed_points", "smooth_displacement", "creased_displacement", "scaled",
     "GridPattern", "SpecklePattern",
-    "TrackingError", "ImageError", "RoiError", "GridNotFoundError",
+    "TrackingError", "ImageError", "RoiError", "GridNotFoundError", "OptionError",
 ]

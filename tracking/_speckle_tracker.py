@@ -17,7 +17,7 @@ from scipy import ndimage
 
 from ._dic import icgn, reference_subsets
 from ._dic_search import integer_search
-from ._errors import RoiError, TrackingError
+from ._errors import OptionError, RoiError
 from ._grid_topology import fill_field
 from ._images import as_stack, roi_mask
 from ._interp import spline_image
@@ -83,9 +83,9 @@ class SpeckleTracker:
     def track(self, images, roi=None) -> Tracks:
         """Track a lattice of points in the ROI through ``images``; quality is the ZNCC (-1..1)."""
         if self.subset < 5 or self.subset % 2 == 0:
-            raise TrackingError(f"subset must be an odd number of pixels >= 5, got {self.subset}")
+            raise OptionError(f"subset must be an odd number of pixels >= 5, got {self.subset}")
         if self.reference not in ("first", "previous"):
-            raise TrackingError(f"reference must be 'first' or 'previous', got {self.reference!r}")
+            raise OptionError(f"reference must be 'first' or 'previous', got {self.reference!r}")
         stack = as_stack(images)
         if self.smoothing > 0:
             stack = np.stack([ndimage.gaussian_filter(im, self.smoothing) for im in stack])
