@@ -49,13 +49,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from refine import optimize
-from refine.model.objective import Compiled, Objective
-from refine.model.measured import MeasuredModel, domain_mesh  # noqa: E402
-from refine.paper.experiment import (BACKGROUND, INCLUSION, MIDDLE_POINTS, NAME, EmbeddedRectangle, PaperExperiment, displacement_error_function, evaluations_to_reach, solves_to_reach)
-from refine.model.parametrize import ModulusField, RegionModuli  # noqa: E402
+from refine import optimize  # noqa: E402
+from refine.model import MeasuredModel, ModulusField, Objective, RegionModuli, domain_mesh  # noqa: E402
 from refine.optimize import coordinate_brent_search  # noqa: E402
-from refine.synthetic.sheet import random_truth, synthetic_bundle  # noqa: E402
+from refine.paper import (BACKGROUND, INCLUSION, MIDDLE_POINTS, NAME, EmbeddedRectangle,  # noqa: E402
+                          PaperExperiment, solves_to_reach)
+from refine.paper.experiment import displacement_error_function, evaluations_to_reach  # noqa: E402
+from refine.synthetic import random_truth, synthetic_bundle  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "results"
 DATA = dict(spacing=10.0, noise=0.02, fractions=(0.5, 1.0), h=3.0)

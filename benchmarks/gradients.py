@@ -21,7 +21,7 @@ It compares the gradient overhead with the target "at most 0.5 x a forward solve
 cost of finite differences (one forward solve per parameter, extrapolated). Compile times are
 reported separately. Besides wall seconds it records the process's CPU seconds (all threads),
 which other jobs on a shared machine disturb far less. Writes benchmarks/results/gradients.json
-and gradients.png.
+(one entry per problem, and ``targets`` with pass/fail) and gradients.png.
 
     python benchmarks/gradients.py                    # ~15 CPU minutes (55 wall minutes at load 10)
     python benchmarks/gradients.py --only block-3d    # one problem; updates its entry in the json
@@ -218,8 +218,27 @@ def breakdown(solver, theta, u) -> dict:
     return {"wall": wall, "cpu": dict(CPU_SECONDS)}
 
 
+def problems(results: dict) -> dict:
+    """The per-problem entries of the results (every key but ``targets``)."""
+    return {name: r for name, r in results.items() if name != "targets"}
+
+
+def targets(results: dict) -> dict:
+    """Pass or fail of the target, computed from the problems measured: the gradient
+    (``value_and_grad``) costs at most TARGET_OVERHEAD forward solves beyond the forward solve, in
+    warm wall seconds (the CPU-seconds ratio is given for reference)."""
+    rows = [{"problem": name, "dofs": r["dofs"], "n_params_E": r["n_params_E"],
+             "overhead_in_forward_solves": r["gradient_overhead_in_forward_solves"],
+             "cpu_overhead_in_forward_solves": r["cpu_gradient_overhead_in_forward_solves"],
+             "pass": bool(r["gradient_overhead_in_forward_solves"] <= TARGET_OVERHEAD)}
+            for name, r in problems(results).items()]
+    return {f"gradient_overhead_at_most_{TARGET_OVERHEAD:g}_forward_solves": {
+        "threshold": TARGET_OVERHEAD, "rows": rows, "pass": bool(rows) and all(r["pass"] for r in rows)}}
+
+
 def plot(results: dict, path: Path):
     """Bars of wall and CPU seconds per problem, with the 0.5 x forward target for the overhead."""
+    results = problems(results)
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -263,6 +282,8 @@ def main():
             machine = {"cpus": os.cpu_count(), "load_average_at_start": os.getloadavg(), "jax": jax.__version__}
             results[key] = {"machine": machine, **run(build, args.quick, separate_batch)}
             results[key]["machine"]["load_average_at_end"] = os.getloadavg()
+    results["targets"] = targets(results)
+    print(json.dumps(results["targets"], indent=1), flush=True)
     path.write_text(json.dumps(results, indent=1))
     plot(results, path.with_suffix(".png"))
 

@@ -5,7 +5,8 @@ refiners (symmetric line fitting, Hessian extremum, snake crossings alone) and t
 centre-line shapes on fields with creases (straight, curved, adaptive), and both trackers with
 OpenCV's pyramidal Lucas-Kanade and scikit-image's upsampled phase correlation on the same 8-bit
 images and points, measures points per second, and runs the DIC Challenge Sample 3 images when
-../shared/ holds them. Writes benchmarks/results/tracking.json and tracking.png.
+../shared/ holds them. Writes benchmarks/results/tracking.json (with ``targets``: pass/fail per
+target) and tracking.png.
 
     python benchmarks/tracking.py            # a few minutes on 2 cores
     python benchmarks/tracking.py --quick    # fewer sweep points, for a smoke test
@@ -43,6 +44,9 @@ SHAPE = (256, 256)
 ROI = (16, 16, 240, 240)
 PITCH = 12.0
 FRAMES = 3            # frames from rest to the full deformation (ours track the sequence)
+TARGET_RMS_PX = 0.05  # the test suite's bound on generated images (tests/test_tracking_*.py)
+TARGET_NOISE = 2.0    # ... at the test suite's image noise (grey levels)
+OURS = {"grid": "lines", "speckle": "dic_icgn"}   # the default grid refiner, the speckle tracker
 
 
 def _rms(error):
@@ -270,10 +274,37 @@ def main(argv=None):
     report["dic_challenge_sample3"] = dic_challenge(folder) if folder.is_dir() else None
     report["seconds"] = time.perf_counter() - t_start
     report["load_average_1_5_15min"] = os.getloadavg()
+    report["targets"] = targets(report)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "tracking.json").write_text(json.dumps(report, indent=1))
     _plot(report, args.out / "tracking.png")
     _summary(report)
+
+
+def targets(report):
+    """Pass or fail per target, from the noise and strain sweeps: our trackers within TARGET_RMS_PX
+    RMS in the last frame at noise up to TARGET_NOISE (every stretch of the strain sweep, which
+    runs at that noise), and more accurate than both competitors in every row of both sweeps."""
+    out = {}
+    for pattern, ours in OURS.items():
+        rows = ([("noise_sigma", r["noise_sigma"], r) for r in report["noise_vs"][pattern]
+                 if r["noise_sigma"] <= TARGET_NOISE]
+                + [("stretch", r["stretch"], r) for r in report["strain_vs"][pattern]])
+        accuracy = [{key: value, "rms_px": r[ours]["deformed_rms_px"],
+                     "pass": bool(r[ours]["deformed_rms_px"] <= TARGET_RMS_PX)} for key, value, r in rows]
+        out[f"{pattern}_{ours}_rms_within_{TARGET_RMS_PX:g}_px"] = {
+            "threshold_px": TARGET_RMS_PX, "noise_up_to": TARGET_NOISE, "rows": accuracy,
+            "pass": bool(accuracy) and all(a["pass"] for a in accuracy)}
+        rows = ([("noise_sigma", r["noise_sigma"], r) for r in report["noise_vs"][pattern]]
+                + [("stretch", r["stretch"], r) for r in report["strain_vs"][pattern]])
+        compared = [{key: value, "rms_px": r[ours]["deformed_rms_px"],
+                     **{f"{m}_rms_px": r[m]["deformed_rms_px"] for m in ("opencv_lk", "phase_correlation")},
+                     "pass": bool(r[ours]["deformed_rms_px"] < min(r["opencv_lk"]["deformed_rms_px"],
+                                                                   r["phase_correlation"]["deformed_rms_px"]))}
+                    for key, value, r in rows]
+        out[f"{pattern}_{ours}_more_accurate_than_opencv_lk_and_phase_correlation"] = {
+            "rows": compared, "pass": bool(compared) and all(c["pass"] for c in compared)}
+    return out
 
 
 def _plot(report, path):
@@ -328,6 +359,8 @@ def _summary(report):
         for m in ("dic_icgn", "opencv_lk", "phase_correlation"):
             print(f"DIC challenge {m}: worst |mean| {dic[m]['worst_abs_mean_px']:.4f} px, "
                   f"worst std {dic[m]['worst_std_px']:.4f} px")
+    for name, target in report["targets"].items():
+        print(f"target {name}: {'pass' if target['pass'] else 'FAIL'}")
     print(f"total {report['seconds']:.0f} s")
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from tracking import (ImageError, TrackingError, deformed_points, grid_truth, load_images, render_grid,
+from tracking import (ImageError, OptionError, TrackingError, deformed_points, grid_truth, load_images, render_grid,
                       render_speckle, smooth_displacement, track_images)
 from tracking._synthetic import GridPattern, reference_points
 
@@ -58,3 +58,19 @@ def test_load_images_reads_png_and_tiff_as_float_grey(tmp_path):
         load_images([tmp_path / "missing.png"])
     tracks = track_images([tmp_path / "a.png", tmp_path / "a.png"], "speckle", spacing=20, subset=11)
     assert tracks.n_frames == 2
+
+
+def test_bad_options_raise_option_errors_that_are_value_errors():
+    image = render_speckle((80, 90), noise_sigma=1.0)
+    for options, message in (({"order": 7}, "spline order"), ({"subset": 20}, "odd number"),
+                             ({"reference": "last"}, "'first' or 'previous'")):
+        with pytest.raises(OptionError, match=message) as error:
+            track_images([image, image], "speckle", spacing=20, **{"subset": 21, **options})
+        assert isinstance(error.value, TrackingError) and isinstance(error.value, ValueError)
+
+
+def test_fill_field_with_nothing_measured_is_a_tracking_error():
+    from tracking._grid_topology import fill_field
+
+    with pytest.raises(TrackingError, match="no point of the lattice was measured"):
+        fill_field(np.zeros((3, 4, 2)), np.zeros((3, 4), bool))

@@ -10,7 +10,7 @@ nothing here knows of finite elements.
 """
 
 from ._api import TRACKERS, make_tracker, track_images
-from ._errors import GridNotFoundError, ImageError, RoiError, TrackingError
+from ._errors import GridNotFoundError, ImageError, OptionError, RoiError, TrackingError
 from ._exports import ExportError, read_dice, read_displacement_csv, write_dice
 from ._grid_tracker import REFINERS, GridTracker
 from ._images import image_paths, load_images, natural_key, roi_mask
@@ -31,7 +31,7 @@ __all__ = [
     "assign_roles", "ROLES", "scale_from_grid", "render_grid", "render_speckle", "render_range",
     "render_pattern", "grid_truth", "deformed_points", "smooth_displacement", "creased_displacement", "scaled",
     "GridPattern", "SpecklePattern",
-    "TrackingError", "ImageError", "RoiError", "GridNotFoundError",
+    "TrackingError", "ImageError", "RoiError", "GridNotFoundError", "OptionError",
     "read_dice", "write_dice", "read_displacement_csv", "ExportError", "image_paths", "natural_key",
     "Scene", "clamped_displacement", "LOST_REASONS", "pattern_mask", "material_outline",
 ]

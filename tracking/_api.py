@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from ._errors import TrackingError
+from ._errors import OptionError
 from ._grid_tracker import GridTracker
 from ._speckle_tracker import SpeckleTracker
 from ._tracks import Tracks
@@ -18,12 +18,12 @@ def make_tracker(pattern: str = "grid", **options):
     Options are the fields of :class:`GridTracker` or :class:`SpeckleTracker`.
     """
     if pattern not in TRACKERS:
-        raise TrackingError(f"unknown pattern {pattern!r}; use one of {sorted(TRACKERS)}")
+        raise OptionError(f"unknown pattern {pattern!r}; use one of {sorted(TRACKERS)}")
     kind = TRACKERS[pattern]
     names = {f.name for f in dataclasses.fields(kind)}
     unknown = sorted(set(options) - names)
     if unknown:
-        raise TrackingError(f"unknown option(s) {unknown} for pattern {pattern!r}; valid: {sorted(names)}")
+        raise OptionError(f"unknown option(s) {unknown} for pattern {pattern!r}; valid: {sorted(names)}")
     return kind(**options)
 
 

@@ -5,6 +5,7 @@ class TrackingError(ValueError):
     """Base class of every error the tracking package raises on purpose.
 
     The message names the problem and what to change (a region of interest, an option, an image).
+    It is a ``ValueError``, so callers that caught ``ValueError`` before still catch it.
     """
 
 
@@ -14,6 +15,10 @@ class ImageError(TrackingError):
 
 class RoiError(TrackingError):
     """The region of interest is malformed or lies (partly) outside the image."""
+
+
+class OptionError(TrackingError):
+    """An option of a tracker or of a function has a value it cannot take; the message lists the valid ones."""
 
 
 class GridNotFoundError(TrackingError):

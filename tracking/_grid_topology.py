@@ -12,7 +12,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from ._errors import GridNotFoundError
+from ._errors import GridNotFoundError, TrackingError
 from ._lattice import GridGeometry
 
 NEIGHBOURS = ((0, 1), (0, -1), (1, 0), (-1, 0))
@@ -96,7 +96,8 @@ def fill_field(field: np.ndarray, valid: np.ndarray, iterations: int = 500) -> n
     if valid.all():
         return field
     if not valid.any():
-        raise ValueError("fill_field needs at least one valid entry")
+        raise TrackingError("fill_field needs at least one valid entry: no point of the lattice was measured; "
+                            "check that the ROI covers the pattern")
     out = np.where(valid[..., None], field, np.nanmean(field[valid], axis=0))
     for _ in range(iterations):
         padded = np.pad(out, ((1, 1), (1, 1), (0, 0)), mode="edge")

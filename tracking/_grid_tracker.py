@@ -32,7 +32,7 @@ from scipy import ndimage
 from . import _lost as lost_codes
 from ._coarse import CoarseMotion, grid_motion, silhouette
 from ._crossings import CrossingGuess, GridFrame, Refined
-from ._errors import GridNotFoundError, TrackingError
+from ._errors import GridNotFoundError, OptionError
 from ._grid_motion import affine_fit, jumps, predict, propagate
 from ._grid_topology import crossing_candidates, fill_positions, interior_gaps, label_grid, lattice_spacing
 from ._images import as_stack, inside_mask, roi_mask
@@ -78,7 +78,7 @@ class GridTracker:
 
     def _refiner(self):
         if self.refiner not in REFINERS:
-            raise TrackingError(f"unknown grid refiner {self.refiner!r}; use one of {sorted(REFINERS)}")
+            raise OptionError(f"unknown grid refiner {self.refiner!r}; use one of {sorted(REFINERS)}")
         kind = REFINERS[self.refiner]
         options = {} if self.min_quality is None or kind is SnakeOnlyRefiner else {"min_quality": self.min_quality}
         if kind is LineFitRefiner:

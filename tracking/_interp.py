@@ -9,6 +9,8 @@ import numpy as np
 from scipy import ndimage
 from scipy.interpolate import BSpline
 
+from ._errors import OptionError
+
 _MODE = "mirror"
 
 
@@ -72,7 +74,8 @@ class SplineImage:
 def spline_image(image: np.ndarray, order: int = 3) -> SplineImage:
     """Prefilter ``image`` (rows, cols) for B-spline interpolation of the given order (2..5)."""
     if order not in (2, 3, 4, 5):
-        raise ValueError(f"spline order must be 2..5, got {order}")
+        raise OptionError(f"spline order must be 2, 3, 4 or 5, got {order}; "
+                          "pass one of them as the tracker's order option (3, cubic, is the default)")
     image = np.asarray(image, dtype=np.float64)
     coefficients = ndimage.spline_filter(image, order=order, mode=_MODE, output=np.float64)
     return SplineImage(image=image, coefficients=coefficients, order=order)

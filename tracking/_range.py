@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._errors import TrackingError
+from ._errors import OptionError, TrackingError
 from ._tracks import Tracks
 
 
@@ -42,7 +42,7 @@ def range_lookup(range_image: np.ndarray, positions: np.ndarray, order: int = 1,
     if z_image.ndim != 2:
         raise TrackingError(f"range image must be (rows, cols), got shape {z_image.shape}")
     if order not in (1, 3):
-        raise TrackingError(f"range_lookup order must be 1 (bilinear) or 3 (bicubic), got {order}")
+        raise OptionError(f"range_lookup order must be 1 (bilinear) or 3 (bicubic), got {order}")
     positions = np.asarray(positions, dtype=np.float64)
     if positions.shape[-1] != 2:
         raise TrackingError(f"positions must be (..., 2) (x, y), got shape {positions.shape}")

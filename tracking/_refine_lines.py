@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._crossings import CrossingGuess, GridFrame, Refined, spacing_or
-from ._errors import TrackingError
+from ._errors import OptionError
 
 SHAPES = ("straight", "curved", "adaptive")
 # weight of the parameter count in the information criterion of shape="adaptive" (x log n, n the
@@ -64,7 +64,7 @@ class LineFitRefiner:
 
     def __post_init__(self):
         if self.shape not in SHAPES:
-            raise TrackingError(f"unknown centre-line shape {self.shape!r}; use one of {', '.join(SHAPES)}")
+            raise OptionError(f"unknown centre-line shape {self.shape!r}; use one of {', '.join(SHAPES)}")
 
     def refine(self, frame: GridFrame, guess: CrossingGuess) -> Refined:
         n = len(guess.xy)

@@ -24,7 +24,7 @@ from . import _lost as lost_codes
 from ._coarse import CoarseMotion, speckle_motion
 from ._dic import icgn, reference_subsets
 from ._dic_search import integer_search
-from ._errors import RoiError, TrackingError
+from ._errors import OptionError, RoiError
 from ._grid_topology import fill_field
 from ._images import as_stack, roi_mask
 from ._interp import spline_image
@@ -101,9 +101,9 @@ class SpeckleTracker:
         ``coarse_motion`` (per frame: the global affine (2, 3) and whether the data supported it).
         """
         if self.subset < 5 or self.subset % 2 == 0:
-            raise TrackingError(f"subset must be an odd number of pixels >= 5, got {self.subset}")
+            raise OptionError(f"subset must be an odd number of pixels >= 5, got {self.subset}")
         if self.reference not in ("first", "previous"):
-            raise TrackingError(f"reference must be 'first' or 'previous', got {self.reference!r}")
+            raise OptionError(f"reference must be 'first' or 'previous', got {self.reference!r}")
         raw = as_stack(images)
         stack = raw
         if self.smoothing > 0:
