@@ -18,7 +18,7 @@ what a camera would give (blur, noise, 8-bit PNG files), nothing else crosses fr
 the analysis.
 
 A coarse grid (8 mm) and two deformed frames keep this notebook to a few minutes."""),
-    ("code", """import argparse, json, tempfile, time
+    ("code", """import json, tempfile, time
 from pathlib import Path
 
 import cv2
@@ -27,8 +27,8 @@ import numpy as np
 from IPython.display import Image, display
 
 from refine.diagnosis import report
-from refine.cli import track as track_cmd
-from refine.bundle.io import read_bundle
+from refine.bundle import ModelSkeleton
+from refine.cli import track
 from refine.diagnosis import diagnose
 from refine.synthetic.render import render_sheet_images
 from refine.synthetic.sheet import Inclusion, Truth
@@ -65,18 +65,16 @@ for ax, k in zip(axes, (0, len(images) - 1)):
     ax.axis("off")"""),
     ("md", """## 2. Track the grid: `nonrigid track`
 
-The same code as the command line
+`refine.cli.track` is the command line
 
     nonrigid track --pattern grid --scale 0.5 --roi X0,Y0,X1,Y1 frame_0.png frame_1.png frame_2.png --out bundle
 
+called from Python; it writes the bundle directory and returns the bundle read back from it.
+
 The first image is the reference; bundle coordinates are x = column * scale, y = row * scale. The
 outer ring of crossings becomes the boundary that drives the model."""),
-    ("code", """parser = argparse.ArgumentParser(prog="nonrigid")
-track_cmd.add_parser(parser.add_subparsers(dest="command"))
-bundle_dir = work / "bundle"
-argv = ["track", "--pattern", "grid", "--scale", str(scale), "--roi", ",".join(f"{v:g}" for v in roi_px),
-        *map(str, paths), "--out", str(bundle_dir), "--E", str(truth.E)]
-assert track_cmd.run(parser.parse_args(argv)) == 0"""),
+    ("code", """bundle_dir = work / "bundle"
+bundle = track(paths, bundle_dir, pattern="grid", scale=scale, roi=roi_px, model=ModelSkeleton(E=truth.E))"""),
     ("md", """The overlays the command wrote (orange: boundary, green: guide, blue: validate points; a lost
 point would be a red x; frame 0 also shows the ROI, dashed, and the bundle's domain):"""),
     ("code", """for k in (0, len(images) - 1):
@@ -88,8 +86,7 @@ print("\\n".join((bundle_dir / "points.csv").read_text().splitlines()[:6]), "\\n
 The uniform model is driven by the boundary points; its misfit at the guide points is compared with
 what noise explains, then a modulus field localises the problem and hypotheses (a stiffer or softer
 region, a hole, another law) compete on held-out points."""),
-    ("code", """bundle = read_bundle(bundle_dir)
-d = diagnose(bundle)
+    ("code", """d = diagnose(bundle)
 report.write(d, work / "diagnosis")
 print(report.summary(d))"""),
     ("code", """for name in ("regions.png", "residuals.png"):

@@ -10,7 +10,6 @@ when given the exact crossing positions (seed 1, measured): the disc spans too f
 model's mesh (half the point spacing). At 3 mm exact positions give 1.8 %.
 """
 
-import argparse
 import dataclasses
 import os
 
@@ -18,8 +17,8 @@ import cv2
 import numpy as np
 import pytest
 
-from refine.cli import track as track_cmd
-from refine.bundle.io import read_bundle
+from refine.cli import track
+from refine.bundle import ModelSkeleton
 from refine.diagnosis import diagnose
 from refine.synthetic.render import render_sheet_images
 from refine.synthetic.sheet import random_truth
@@ -43,13 +42,7 @@ def test_a_stiff_disc_is_found_from_tracked_grid_images(tmp_path, seed):
     for k, image in enumerate(images):
         paths.append(tmp_path / f"frame_{k}.png")
         cv2.imwrite(str(paths[-1]), np.clip(np.rint(image), 0, 255).astype(np.uint8))
-    parser = argparse.ArgumentParser()
-    track_cmd.add_parser(parser.add_subparsers(dest="command"))
-    args = parser.parse_args(["track", "--scale", str(scale), "--roi", ",".join(map(str, roi)), *map(str, paths),
-                              "--out", str(tmp_path / "bundle"), "--E", str(truth.E)])
-    assert track_cmd.run(args) == 0
-
-    bundle = read_bundle(tmp_path / "bundle")
+    bundle = track(paths, tmp_path / "bundle", scale=scale, roi=roi, model=ModelSkeleton(E=truth.E))
     d = diagnose(bundle)
     domain = bundle.experiment.domain
     diagonal = np.hypot(domain.xmax - domain.xmin, domain.ymax - domain.ymin)

@@ -1,4 +1,4 @@
-"""``nonrigid track``: images -> measurement bundle (refine.cli.track)."""
+"""``nonrigid track``: images -> measurement bundle (refine.cli.track; refine.bundle.from_tracks)."""
 
 import argparse
 import csv
@@ -9,7 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from refine.cli import track as track_cmd
+from refine.bundle.from_tracks import bundle_from_tracks, lattice_outline
+from refine.cli.track import _tracker_options, add_parser, run as run_command
 from refine.bundle.io import read_bundle
 from refine.bundle.experiment import PolygonDomain, RectangleDomain
 from tracking import render_grid, render_speckle, scaled, smooth_displacement, track_images
@@ -23,12 +24,12 @@ OCCLUDED = (slice(80, 115), slice(140, 175))  # rows, cols painted over in the l
 
 def parse(*argv):
     parser = argparse.ArgumentParser(prog="nonrigid")
-    track_cmd.add_parser(parser.add_subparsers(dest="command"))
+    add_parser(parser.add_subparsers(dest="command"))
     return parser.parse_args(["track", *map(str, argv)])
 
 
 def run(*argv):
-    return track_cmd.run(parse(*argv))
+    return run_command(parse(*argv))
 
 
 def write_png(path, image):
@@ -57,7 +58,7 @@ def tracked(grid_images, tmp_path_factory):
     out = tmp_path_factory.mktemp("bundle") / "sheet"
     args = parse("--pattern", "grid", "--scale", SCALE, "--roi", ",".join(map(str, ROI)), *paths, "--out", out,
                  "--E", 2.5, "--nu", 0.25, "--validate-fraction", 0.25, "--seed", 3)
-    assert track_cmd.run(args) == 0
+    assert run_command(args) == 0
     tracks = track_images(paths, "grid", roi=ROI)
     return out, tracks, field
 
@@ -222,7 +223,7 @@ def test_outline_of_a_lattice_with_a_notch_and_a_single_corner_contact():
     # a 4 x 4 lattice without its 2 x 2 corner (i < 2, j >= 2), and a square touching it at (3, 3) only
     cells = [(i, j) for i in range(4) for j in range(4) if not (i < 2 and j >= 2)] + [(3, 4), (4, 3), (4, 4)]
     index = np.array(cells)
-    loop = [tuple(int(v) for v in index[k]) for k in track_cmd.lattice_outline(index)]
+    loop = [tuple(int(v) for v in index[k]) for k in lattice_outline(index)]
     assert len(loop) == len(set(loop)) == 12  # every outline point once, the touching square left out
     expected = {(0, 0), (0, 1), (1, 1), (2, 1), (2, 2), (2, 3), (3, 3), (3, 2), (3, 1), (3, 0), (2, 0), (1, 0)}
     assert set(loop) == expected
@@ -234,7 +235,7 @@ def test_a_rotated_grid_gets_a_polygon_through_its_outer_ring(tmp_path):
     shape = (160, 200)
     images = [render_grid(shape, 12.0, 2.0, None, angle_deg=12.0, noise_sigma=1.0, seed=k) for k in range(2)]
     tracks = track_images(images, "grid", roi=(20, 20, 180, 140)).to_length(0.5)
-    bundle, dropped = track_cmd.bundle_from_tracks(tracks, "rotated")
+    bundle, dropped = bundle_from_tracks(tracks, "rotated")
     domain, obs = bundle.experiment.domain, bundle.observations
     assert isinstance(domain, PolygonDomain)
     # points that belong to no cell of the lattice (corners of the staircase) are left out
@@ -253,9 +254,9 @@ def test_a_rotated_grid_gets_a_polygon_through_its_outer_ring(tmp_path):
 
 def test_line_shape_flag_reaches_the_grid_tracker_and_is_refused_for_speckle():
     parser = argparse.ArgumentParser()
-    track_cmd.add_parser(parser.add_subparsers(dest="command"))
+    add_parser(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["track", "a.png", "b.png", "--out", "x", "--scale", "0.5", "--line-shape", "curved"])
-    assert track_cmd._tracker_options(args)["line_shape"] == "curved"
+    assert _tracker_options(args)["line_shape"] == "curved"
     with pytest.raises(SystemExit):  # argparse names the allowed shapes
         parser.parse_args(["track", "a.png", "--out", "x", "--scale", "0.5", "--line-shape", "wavy"])
     from tracking import TrackingError

@@ -4,7 +4,6 @@ Images go in, :class:`Tracks` (identities, positions per frame, lost flags, qual
 nothing here knows of finite elements.
 
     tracks = track_images(load_images(paths), pattern="grid", roi=(40, 30, 600, 420))
-    roles = assign_roles(tracks.reference, validate_fraction=0.2, seed=0, grid_index=tracks.grid_index)
     xyz, lost = points_3d(tracks, range_images)            # with range images
     mm = tracks.to_length(scale_from_grid(tracks, pitch_mm=2.0))
 """
@@ -17,7 +16,6 @@ from ._images import image_paths, load_images, natural_key, roi_mask
 from ._lost import LOST_REASONS
 from ._pattern_mask import material_outline, pattern_mask
 from ._range import points_3d, range_lookup
-from ._roles import ROLES, assign_roles
 from ._snake import SnakeOptions
 from ._speckle_tracker import SpeckleTracker
 from ._synthetic import (GridPattern, Scene, SpecklePattern, clamped_displacement, creased_displacement,
@@ -28,7 +26,7 @@ from ._tracks import Tracks, scale_from_grid
 __all__ = [
     "Tracks", "track_images", "make_tracker", "TRACKERS", "GridTracker", "SpeckleTracker",
     "SnakeOptions", "REFINERS", "load_images", "roi_mask", "range_lookup", "points_3d",
-    "assign_roles", "ROLES", "scale_from_grid", "render_grid", "render_speckle", "render_range",
+    "scale_from_grid", "render_grid", "render_speckle", "render_range",
     "render_pattern", "grid_truth", "deformed_points", "smooth_displacement", "creased_displacement", "scaled",
     "GridPattern", "SpecklePattern",
     "TrackingError", "ImageError", "RoiError", "GridNotFoundError", "OptionError",

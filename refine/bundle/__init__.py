@@ -1,9 +1,13 @@
-"""Measurement bundles: the experiment (model sections), the observations and their roles, and
-reading and writing the format of ``docs/measurement-bundle.md``. Imports neither JAX nor jaxfem."""
+"""Measurement bundles: the experiment (model sections), the observations and their roles,
+reading and writing the format of ``docs/measurement-bundle.md``, and building a bundle from
+tracked points. Imports neither JAX nor jaxfem."""
 
 from refine.bundle.experiment import Experiment, MeshDomain, PolygonDomain, RectangleDomain
+from refine.bundle.from_tracks import ModelSkeleton, bundle_from_tracks
 from refine.bundle.io import Bundle, read_bundle, write_bundle, write_displacements_csv
-from refine.bundle.observations import ROLES, Forces, Observations
+from refine.bundle.observations import Forces, Observations
+from refine.bundle.roles import ROLES, assign_roles
 
-__all__ = ["Bundle", "Experiment", "Forces", "MeshDomain", "Observations", "PolygonDomain", "ROLES",
-           "RectangleDomain", "read_bundle", "write_bundle", "write_displacements_csv"]
+__all__ = ["Bundle", "Experiment", "Forces", "MeshDomain", "ModelSkeleton", "Observations", "PolygonDomain",
+           "ROLES", "RectangleDomain", "assign_roles", "bundle_from_tracks", "read_bundle", "write_bundle",
+           "write_displacements_csv"]

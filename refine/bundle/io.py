@@ -19,7 +19,8 @@ import tomli_w
 
 from refine.exceptions import BundleError, ExperimentError, ObservationError
 from refine.bundle.experiment import RECTANGLE_EDGES, Experiment, MeshDomain, RectangleDomain
-from refine.bundle.observations import ROLES, Forces, Observations
+from refine.bundle.observations import Forces, Observations
+from refine.bundle.roles import ROLES
 
 __all__ = ["Bundle", "Experiment", "read_bundle", "write_bundle", "write_displacements_csv"]
 

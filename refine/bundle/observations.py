@@ -12,9 +12,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from refine.bundle.roles import ROLES
 from refine.exceptions import ObservationError
-
-ROLES = ("boundary", "guide", "validate")
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,5 +1,19 @@
-"""The ``nonrigid`` command line: one module per command, each with a public function."""
+"""The ``nonrigid`` command line: one module per command, each with a public function.
+
+    simulate(bundle, out, h=None, quiet=False) -> dict           nonrigid simulate
+    diagnose(bundle, out, config=None, quiet=False) -> Diagnosis nonrigid diagnose
+    track(images, out, pattern=..., scale=..., roi=..., ...) -> Bundle   nonrigid track
+    demo(out, seed=None) -> Diagnosis                             nonrigid demo
+
+The functions shadow their modules' names here; reach a module with
+``from refine.cli.track import add_parser`` or ``importlib.import_module("refine.cli.track")``.
+Importing this package imports neither JAX nor jaxfem (the functions import them when called).
+"""
 
 from refine.cli.main import main
+from refine.cli.demo import demo
+from refine.cli.diagnose import diagnose
+from refine.cli.simulate import simulate
+from refine.cli.track import track
 
-__all__ = ["main"]
+__all__ = ["demo", "diagnose", "main", "simulate", "track"]

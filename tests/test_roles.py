@@ -1,9 +1,10 @@
-"""Roles of points: outer ring is boundary, a seeded fraction of the interior validates."""
+"""Roles of points (refine.bundle.roles): outer ring is boundary, a seeded fraction of the interior validates."""
 
 import numpy as np
 import pytest
 
-from tracking import TrackingError, assign_roles
+from refine.bundle import ROLES, assign_roles
+from refine.exceptions import ObservationError
 
 
 def _lattice(rows, cols, hole=None):
@@ -49,5 +50,17 @@ def test_convex_hull_without_topology_and_seeded_draw():
 
 def test_bad_fraction_raises():
     xy, index = _lattice(4, 4)
-    with pytest.raises(TrackingError):
+    with pytest.raises(ObservationError, match="validate_fraction"):
         assign_roles(xy, 1.5)
+    with pytest.raises(ValueError):  # as before, when tracking raised it
+        assign_roles(xy[:, :1])
+
+
+def test_one_roles_registry():
+    import refine.bundle.io
+    import refine.bundle.observations
+    import tracking
+
+    assert ROLES == ("boundary", "guide", "validate")
+    assert refine.bundle.observations.ROLES is ROLES and refine.bundle.io.ROLES is ROLES
+    assert not hasattr(tracking, "ROLES") and not hasattr(tracking, "assign_roles")
