@@ -28,6 +28,29 @@ failed), MATCH (non-zero: not matched), STATUS_FLAG (kept in meta), GAMMA (match
 0 best: the tracks' quality is -GAMMA)."""
 
 
+def lattice_index(reference: np.ndarray, tol: float = 1e-3) -> np.ndarray:
+    """(n, 2) (row, column) of points that lie on a regular axis-aligned lattice (a DIC code's
+    step), -1 everywhere if they do not: the lattice's topology then gives the outline of the
+    measured region, holes and notches included, as for a tracker's own lattice."""
+    xy = np.asarray(reference, dtype=np.float64)
+    none = np.full((len(xy), 2), -1, dtype=np.int64)
+    if len(xy) < 4:
+        return none
+    index = []
+    for axis in (1, 0):  # rows from y, columns from x
+        values = np.unique(np.round(xy[:, axis], 9))
+        steps = np.diff(values)
+        if steps.size == 0:
+            return none
+        step = steps.min()
+        k = (xy[:, axis] - values[0]) / step
+        if not step > 0 or np.max(np.abs(k - np.rint(k))) > tol:
+            return none
+        index.append(np.rint(k).astype(np.int64))
+    out = np.stack(index, axis=1)
+    return out if len({tuple(r) for r in out}) == len(out) else none
+
+
 def _dice_files(sources) -> list[Path]:
     if isinstance(sources, (str, Path)):
         sources = [sources]
@@ -112,7 +135,7 @@ def read_dice(sources: str | Path | Sequence[str | Path]) -> Tracks:
         if "STATUS_FLAG" in t:
             status[k] = t["STATUS_FLAG"][rows]
     return Tracks(ids=ids, reference=ref, positions=positions, lost=lost, quality=quality,
-                  grid_index=np.full((n, 2), -1), units="px", quality_kind="-gamma (DICe, 0 best)",
+                  grid_index=lattice_index(ref), units="px", quality_kind="-gamma (DICe, 0 best)",
                   meta={"source": "DICe", "files": [str(p) for p in files], "status_flag": status})
 
 
@@ -206,5 +229,5 @@ def read_displacement_csv(sources: str | Path | Sequence[str | Path]) -> Tracks:
     ids = (np.array([int(k) for k in keys], dtype=np.int64) if all(isinstance(k, str) for k in keys)
            else np.arange(n, dtype=np.int64))
     return Tracks(ids=ids, reference=ref, positions=positions, lost=lost, quality=np.zeros(lost.shape),
-                  grid_index=np.full((n, 2), -1), units="", quality_kind="none (CSV export)",
+                  grid_index=lattice_index(ref), units="", quality_kind="none (CSV export)",
                   meta={"source": "csv", "files": [str(p) for p in paths]})

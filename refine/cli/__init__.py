@@ -3,6 +3,7 @@
     simulate(bundle, out, h=None, quiet=False) -> dict           nonrigid simulate
     diagnose(bundle, out, config=None, quiet=False) -> Diagnosis nonrigid diagnose
     track(images, out, pattern=..., scale=..., roi=..., ...) -> Bundle   nonrigid track
+    import_export(sources, out, format="dice"|"csv", scale=...) -> Bundle   nonrigid import
     demo(out, seed=None) -> Diagnosis                             nonrigid demo
 
 The functions shadow their modules' names here; reach a module with
@@ -13,7 +14,8 @@ Importing this package imports neither JAX nor jaxfem (the functions import them
 from refine.cli.main import main
 from refine.cli.demo import demo
 from refine.cli.diagnose import diagnose
+from refine.cli.import_export import import_export
 from refine.cli.simulate import simulate
 from refine.cli.track import track
 
-__all__ = ["demo", "diagnose", "main", "simulate", "track"]
+__all__ = ["demo", "diagnose", "import_export", "main", "simulate", "track"]

@@ -25,7 +25,7 @@ import tracking
 from refine.bundle.io import Bundle, read_bundle, write_bundle
 from refine.bundle.roles import ROLES
 from refine.exceptions import RefineError
-from refine.bundle.experiment import LAWS, Experiment, PolygonDomain, RectangleDomain
+from refine.bundle.experiment import LAWS, Experiment, RectangleDomain
 from refine.bundle.from_tracks import ModelSkeleton, bundle_from_tracks
 
 TRACKER_FLAGS = ("spacing", "subset", "search", "min_zncc", "refiner", "line_shape", "max_jump", "min_quality")
@@ -52,13 +52,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--name", help="experiment name (default: the bundle directory's name)")
     p.add_argument("--validate-fraction", type=float, default=0.2, help="share of interior points held out")
     p.add_argument("--seed", type=int, default=0, help="seed of the choice of validation points")
-    p.add_argument("--noise-std", default="auto", metavar="auto|MM",
-                   help="displacement noise in mm, or 'auto' (estimated by diagnose)")
-    p.add_argument("--kind", choices=("plane-stress", "plane-strain"), default="plane-stress")
-    p.add_argument("--law", choices=LAWS, default="neo-hookean")
-    p.add_argument("--E", type=float, default=1.0, help="background modulus (relative without forces)")
-    p.add_argument("--nu", type=float, default=0.3)
-    p.add_argument("--thickness", type=float, default=1.0, help="sheet thickness, mm")
+    add_model_arguments(p)
     p.add_argument("--overlays", metavar="DIR", help="directory of the overlay images (default: BUNDLE/overlays)")
     t = p.add_argument_group("tracker options (see tracking.GridTracker / tracking.SpeckleTracker)")
     t.add_argument("--spacing", type=float, help="speckle: distance between correlation points, px")
@@ -75,11 +69,27 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
+def add_model_arguments(p: argparse.ArgumentParser) -> None:
+    """The flags of the initial model a command writes to experiment.toml (track, import)."""
+    p.add_argument("--noise-std", default="auto", metavar="auto|MM",
+                   help="displacement noise in mm, or 'auto' (estimated by diagnose)")
+    p.add_argument("--kind", choices=("plane-stress", "plane-strain"), default="plane-stress")
+    p.add_argument("--law", choices=LAWS, default="neo-hookean")
+    p.add_argument("--E", type=float, default=1.0, help="background modulus (relative without forces)")
+    p.add_argument("--nu", type=float, default=0.3)
+    p.add_argument("--thickness", type=float, default=1.0, help="sheet thickness, mm")
+
+
+def model_from_arguments(args: argparse.Namespace) -> ModelSkeleton:
+    """The :class:`ModelSkeleton` the flags of :func:`add_model_arguments` describe."""
+    return ModelSkeleton(args.kind, args.law, args.E, args.nu, args.thickness, _noise(args.noise_std))
+
+
 def run(args: argparse.Namespace) -> int:
     """Carry out ``nonrigid track`` (``args`` from the parser of :func:`add_parser`); 0 on success,
     2 with a message on stderr when the input cannot be used."""
     try:
-        model = ModelSkeleton(args.kind, args.law, args.E, args.nu, args.thickness, _noise(args.noise_std))
+        model = model_from_arguments(args)
         track(args.images, args.out, pattern=args.pattern, scale=args.scale, grid_pitch=args.grid_pitch,
               roi=args.roi, origin=args.origin, name=args.name, model=model,
               validate_fraction=args.validate_fraction, seed=args.seed, overlays=args.overlays,
