@@ -24,7 +24,8 @@ import tracking
 
 from refine.bundle.io import Bundle, write_bundle
 from refine.exceptions import RefineError
-from refine.bundle.experiment import LAWS, Experiment, PolygonDomain, RectangleDomain
+from jaxfem.materials import LAWS
+from refine.bundle.experiment import Experiment, PolygonDomain, RectangleDomain
 from refine.bundle.observations import Observations
 
 RECTANGLE_TOLERANCE = 0.02  # of the point spacing: how far ring points may stray from a rectangle
