@@ -61,13 +61,13 @@ FACTORISATIONS = {"n": 0}
 def _install_counters():
     """Count the host-side factorisations of SuperLU and PARDISO (numeric factorisations of
     :class:`jaxfem.linsolve.PardisoHandle`, whose symbolic analysis runs once per pattern)."""
-    splu = linsolve.spla.splu
+    splu = linsolve.superlu.spla.splu
 
     def counted_splu(*a, **kw):
         FACTORISATIONS["n"] += 1
         return splu(*a, **kw)
 
-    linsolve.spla.splu = counted_splu
+    linsolve.superlu.spla.splu = counted_splu
     factor = linsolve.PardisoHandle.factor
 
     def counted_factor(self, a):

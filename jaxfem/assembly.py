@@ -125,11 +125,9 @@ def element_matrices(dNdX, A, w):
         ``A[c, q, j, L, i, K] = dP_iK / dF_jL``; w: ``(n_cells, n_qp)``.
 
     With few terms (n_qp x dim^2 <= 16: tri3, tri6, quad4, tet4) the sum is written term by term
-    with the cells on the minor axis, which XLA turns into one vectorised loop over the cells;
-    measured on 2 cores 4.1x faster than ``einsum`` for tri3 (1,920 cells: 0.062 vs 0.258 ms),
-    4.4x for quad4, 2.0x for tri6, 3.0x for tet4. ``einsum`` (batched small matrix products) stays
-    for hex8 (72 terms), where the term-by-term form was 4x slower. Inside the whole residual and
-    tangent pass of the 2k-unknown sheet (tri3, plane stress) the pass went from 0.87 to 0.72 ms.
+    with the cells on the minor axis, which XLA turns into one vectorised loop over the cells
+    (several times faster than ``einsum`` there); ``einsum`` (batched small matrix products) stays
+    for more terms (hex8: 72), where the term-by-term form was slower. Timings: benchmarks/README.md.
     """
     nq, dim = dNdX.shape[1], dNdX.shape[3]
     if nq * dim * dim > 16:

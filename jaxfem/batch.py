@@ -26,6 +26,7 @@ import jax
 import jax.numpy as jnp
 
 from . import _config  # noqa: F401
+from .exceptions import OptionError, UnknownParameterError
 from .solver import Solver
 
 
@@ -51,13 +52,14 @@ def batch_displacement(solver: Solver, batched: Sequence[str] | None = None,
         whose solve failed is NaN (solve it alone with :meth:`Solver.solve` for the reason).
     """
     if method not in ("vmap", "map"):
-        raise ValueError(f"method must be 'vmap' or 'map', not {method!r}")
+        raise OptionError(f"method must be 'vmap' or 'map', not {method!r}")
 
     def axes(thetas):
         keys = thetas.keys() if batched is None else batched
         unknown = set(keys) - set(thetas)
         if unknown:
-            raise KeyError(f"batched keys {sorted(unknown)} are not parameters; known: {sorted(thetas)}")
+            raise UnknownParameterError(f"batched keys {sorted(unknown)} are not parameters; name only keys of "
+                                        f"theta: {sorted(thetas)}")
         return {k: 0 if k in keys else None for k in thetas}
 
     def run(thetas):

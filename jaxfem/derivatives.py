@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _config  # noqa: F401
+from .exceptions import OptionError
 
 
 @dataclass(frozen=True)
@@ -64,7 +65,7 @@ def taylor_test(f, theta, direction, h0: float = 1e-2, steps: int = 5, mode: str
     elif mode == "forward":
         dfd = float(jax.jvp(f, (theta,), (direction,))[1])
     else:
-        raise ValueError(f"mode must be 'reverse' or 'forward', not {mode!r}")
+        raise OptionError(f"mode must be 'reverse' or 'forward', not {mode!r}")
     h = h0 * 0.5 ** np.arange(steps)
     fh = np.array([float(f(_axpy(hi, direction, theta))) for hi in h])
     r0 = np.abs(fh - f0)

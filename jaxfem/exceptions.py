@@ -32,3 +32,12 @@ class SolverError(JaxfemError, RuntimeError):
         self.step = step
         self.load_factor = load_factor
         self.reason = reason
+
+
+class OptionError(JaxfemError, ValueError):
+    """An option names something jaxfem does not have: a linear solver (or one not installed here),
+    a batching method, a differentiation mode."""
+
+
+class UnknownParameterError(JaxfemError, KeyError):
+    """A parameter pytree key that the problem does not have."""

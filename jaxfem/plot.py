@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .exceptions import MeshError
 from .mesh import Mesh
 
 _TRI_SPLIT = {"tri3": [[0, 1, 2]], "tri6": [[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]],
@@ -24,7 +25,7 @@ def cell_map(mesh: Mesh, values, u=None, ax=None, cmap="viridis", label=None, po
     import matplotlib.pyplot as plt
 
     if mesh.dim != 2:
-        raise ValueError("cell_map() draws 2D meshes")
+        raise MeshError("cell_map() draws 2D meshes; write a 3D mesh with jaxfem.write_vtu and view it in ParaView")
     ax = ax or plt.subplots(figsize=(7, 4.5))[1]
     xy = mesh.nodes + (0.0 if u is None else np.asarray(u))
     tri, owner = _triangles(mesh)

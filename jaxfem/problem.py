@@ -120,8 +120,8 @@ class Problem:
         """
         nc, dim = self.mesh.n_cells, self.mesh.dim
         cellwise = {"E": E, "nu": nu, "thickness": thickness if dim == 2 else 1.0}
-        for k, default in self.material.extra.items():
-            cellwise[k] = extra.pop(k, default)
+        for q in self.material.extra:
+            cellwise[q.name] = extra.pop(q.name, q.default)
         if extra:
             raise ProblemError(f"unknown parameters {sorted(extra)} for the {self.material.name} law")
         p = {k: jnp.broadcast_to(jnp.asarray(v, jnp.float64), (nc,)) for k, v in cellwise.items()}

@@ -64,8 +64,8 @@ class Solver:
 
     Args:
         problem: the problem.
-        linear_solver: ``"auto"`` (default), ``"pardiso"``, ``"superlu"``, ``"klu"``, ``"cg"`` or
-            ``"dense"`` (see :mod:`jaxfem.linsolve`).
+        linear_solver: ``"auto"`` (default) or a name of :data:`jaxfem.linsolve.SOLVERS` that is
+            installed (:func:`jaxfem.linsolve.available`).
         options: :class:`~jaxfem.newton.NewtonOptions`.
     """
 

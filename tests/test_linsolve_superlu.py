@@ -12,7 +12,7 @@ import jax
 import numpy as np
 
 import jaxfem as jf
-from jaxfem import linsolve
+from jaxfem.linsolve import _base, superlu
 
 
 def _sheet_solver():
@@ -38,8 +38,8 @@ def test_factorisations_are_made_and_freed_on_one_thread(monkeypatch):
         def __del__(self):
             freed.add(threading.get_ident())
 
-    original = linsolve._superlu_factor
-    monkeypatch.setattr(linsolve, "_superlu_factor", lambda pattern, vals: Factor(original(pattern, vals)))
+    original = superlu.superlu_factor
+    monkeypatch.setattr(superlu, "superlu_factor", lambda pattern, vals: Factor(original(pattern, vals)))
     solver, theta = _sheet_solver()
     E0 = theta["E"]
     for k in range(4):  # Newton solves, then a Jacobian (tangent solves on the vmapped directions)
@@ -62,7 +62,7 @@ def test_memory_stays_flat_over_many_factorisations():
 
 def test_a_matrix_that_is_not_finite_is_not_factorised():
     calls = []
-    cache = linsolve._FactorCache(lambda vals: calls.append(vals) or (lambda b: b), one_thread=True)
+    cache = _base._FactorCache(lambda vals: calls.append(vals) or (lambda b: b), one_thread=True)
     x = cache(np.array([1.0, np.nan]), np.ones(3))
     assert np.isnan(x).all() and x.shape == (3,) and not calls
     assert np.array_equal(cache(np.array([1.0, 2.0]), np.ones(3)), np.ones(3)) and len(calls) == 1

@@ -13,8 +13,6 @@ from typing import Any, Union
 
 from refine.exceptions import ExperimentError
 
-MODEL_KINDS = ("plane-stress", "plane-strain", "solid")
-LAWS = ("neo-hookean", "linear-elastic", "saint-venant-kirchhoff", "mooney-rivlin")
 RECTANGLE_EDGES = ("left", "right", "bottom", "top")
 
 
@@ -116,14 +114,15 @@ class Experiment:
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name:
             raise ExperimentError(f"experiment.name must be a non-empty string, got {self.name!r}")
-        if self.kind not in MODEL_KINDS:
-            raise ExperimentError(f"model.kind {self.kind!r} is unknown; use one of {list(MODEL_KINDS)}")
+        kinds, laws = _registries()
+        if self.kind not in kinds:
+            raise ExperimentError(f"model.kind {self.kind!r} is unknown; use one of {list(kinds)}")
         if not isinstance(self.domain, (RectangleDomain, PolygonDomain, MeshDomain)):
             raise ExperimentError(f"domain must be a RectangleDomain, PolygonDomain or MeshDomain, got {self.domain!r}")
         if self.kind == "solid" and not isinstance(self.domain, MeshDomain):
             raise ExperimentError('a "solid" model needs domain = { mesh = "FILE" }')
-        if self.law not in LAWS:
-            raise ExperimentError(f"material.law {self.law!r} is unknown; use one of {list(LAWS)}")
+        if self.law not in laws:
+            raise ExperimentError(f"material.law {self.law!r} is unknown; use one of {list(laws)}")
         object.__setattr__(self, "E", _number(self.E, "material.E", positive=True))
         nu = _number(self.nu, "material.nu")
         if not -1.0 < nu < 0.5:
@@ -134,7 +133,7 @@ class Experiment:
         if self.noise_std is not None:
             object.__setattr__(self, "noise_std", _number(self.noise_std, "measurement.noise_std", positive=True))
         if not isinstance(self.units, dict) or not all(isinstance(v, str) for v in self.units.values()):
-            raise ExperimentError(f'experiment.units must be a table of strings, e.g. {{ length = "mm" }}')
+            raise ExperimentError('experiment.units must be a table of strings, e.g. {{ length = "mm" }}')
 
     @property
     def dim(self) -> int:
@@ -226,3 +225,12 @@ def _merge(into: dict, extra: dict) -> None:
             raise ExperimentError(f"extra key {key!r} would overwrite a key the library writes itself")
         else:
             into[key] = value
+
+
+def _registries() -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """jaxfem's model kinds and law names (imported here, on first use, so that reading the bundle
+    package does not load JAX)."""
+    from jaxfem.kinematics import KINDS
+    from jaxfem.materials import LAWS
+
+    return KINDS, tuple(LAWS)

@@ -31,7 +31,7 @@ class ModelSkeleton:
 
     Attributes:
         kind: ``"plane-stress"`` or ``"plane-strain"``.
-        law: a material law of :data:`refine.bundle.experiment.LAWS`.
+        law: a material law of :data:`jaxfem.materials.LAWS`.
         E: background Young's modulus (relative when the bundle has no measured forces).
         nu: Poisson's ratio.
         thickness: sheet thickness, in the bundle's length unit.

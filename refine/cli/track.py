@@ -25,7 +25,7 @@ import tracking
 from refine.bundle.io import Bundle, read_bundle, write_bundle
 from refine.bundle.roles import ROLES
 from refine.exceptions import RefineError
-from refine.bundle.experiment import LAWS, Experiment, RectangleDomain
+from refine.bundle.experiment import Experiment, RectangleDomain
 from refine.bundle.from_tracks import ModelSkeleton, bundle_from_tracks
 
 TRACKER_FLAGS = ("spacing", "subset", "search", "min_zncc", "refiner", "line_shape", "max_jump", "min_quality")
@@ -74,7 +74,9 @@ def add_model_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--noise-std", default="auto", metavar="auto|MM",
                    help="displacement noise in mm, or 'auto' (estimated by diagnose)")
     p.add_argument("--kind", choices=("plane-stress", "plane-strain"), default="plane-stress")
-    p.add_argument("--law", choices=LAWS, default="neo-hookean")
+    # no choices: the law registry lives in jaxfem, and the parser must not import JAX; the model is
+    # checked against the registry before any tracking (an unknown law's message lists the known ones)
+    p.add_argument("--law", default="neo-hookean", help="material law of jaxfem's registry (default neo-hookean)")
     p.add_argument("--E", type=float, default=1.0, help="background modulus (relative without forces)")
     p.add_argument("--nu", type=float, default=0.3)
     p.add_argument("--thickness", type=float, default=1.0, help="sheet thickness, mm")

@@ -2,27 +2,26 @@
 
 from __future__ import annotations
 
+from jaxfem.materials import LAWS, alternatives, get_material
+
 from refine.diagnosis.fitted import Fitted, _fit
 from refine.model.measured import MeasuredModel
 from refine.model.objective import Compiled
 from refine.model.parametrize import Combined, UniformParameter
 
-
-ALTERNATIVE_LAWS = {"neo-hookean": ("mooney-rivlin", "saint-venant-kirchhoff"),
-                    "mooney-rivlin": ("neo-hookean", "saint-venant-kirchhoff"),
-                    "saint-venant-kirchhoff": ("neo-hookean", "mooney-rivlin"),
-                    "linear-elastic": ("neo-hookean",)}
+#: law -> the laws a diagnosis tries instead, in order (derived from jaxfem's registry:
+#: :func:`jaxfem.materials.alternatives`)
+ALTERNATIVE_LAWS = {law: alternatives(law) for law in LAWS}
 
 
 def fit_law(base: MeasuredModel, law: str, fit_mask, hold_mask, sigma) -> Fitted:
-    """A different homogeneous material law, with its Poisson's ratio (and for Mooney-Rivlin its
-    second-invariant share) fitted."""
+    """A different homogeneous material law, with its Poisson's ratio and the law's extra
+    parameters (its :attr:`jaxfem.Material.extra`, from their defaults within their bounds) fitted."""
     from dataclasses import replace
 
     ex = replace(base.experiment, law=law)
     model = MeasuredModel(ex, base.obs, mesh=base.mesh, h=base.h)
     parts = [UniformParameter("nu", float(ex.nu), 0.0, 0.499)]
-    if law == "mooney-rivlin":
-        parts.append(UniformParameter("c01_fraction", 0.25, 0.0, 0.95))
+    parts += [UniformParameter(q.name, q.default, q.lower, q.upper) for q in get_material(law).extra]
     param = Combined(tuple(parts))
     return _fit("material-law", Compiled(model, param), fit_mask, hold_mask, sigma, law=law)

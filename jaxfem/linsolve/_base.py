@@ -1,0 +1,140 @@
+"""The interface every linear solver implements, and the host-side factorisation cache."""
+
+from __future__ import annotations
+
+import importlib.util
+from abc import ABC, abstractmethod
+import threading
+import weakref
+from concurrent.futures import ThreadPoolExecutor
+from typing import Callable, ClassVar
+
+import jax
+import numpy as np
+import scipy.sparse as sp
+
+from ..assembly import Pattern
+
+
+class LinearSolver(ABC):
+    """A sparse linear solver for one :class:`~jaxfem.assembly.Pattern`, callable inside ``jax.jit``.
+
+    Its life has three stages: the constructor analyses the pattern (once), then each matrix is
+    factorised and each right-hand side solved. A solver called as ``solver(values, rhs, arrays)
+    -> x`` gets the matrix entries on the pattern ``(nnz,)``, the right-hand side ``(n_dofs,)`` and
+    the solver's device arrays (``rows``, ``cols``, ``diag``...) and returns ``x (n_dofs,)``. The
+    matrices jaxfem hands over are symmetric (Dirichlet rows and columns replaced by the identity).
+    A matrix that cannot be solved gives NaN, which Newton reads as a failed solve.
+
+    A solver that factorises on the host subclasses :class:`HostSolver` and writes ``factor``; one
+    that runs in XLA writes ``__call__``. A subclass in its own module of :mod:`jaxfem.linsolve`
+    is registered by its ``name``.
+
+    Class attributes:
+        name: the name ``Solver(..., linear_solver=name)`` takes.
+        rank: its place in :func:`~jaxfem.linsolve.available`'s list (lower first).
+        requires: the module it needs (None: always installed).
+    """
+
+    name: ClassVar[str]
+    rank: ClassVar[int] = 100
+    requires: ClassVar[str | None] = None
+
+    def __init__(self, pattern: Pattern):
+        self.pattern = pattern
+
+    @classmethod
+    def installed(cls) -> bool:
+        """Whether this solver works on this machine."""
+        return cls.requires is None or importlib.util.find_spec(cls.requires) is not None
+
+    @abstractmethod
+    def __call__(self, values, rhs, arrays):
+        """``x (n_dofs,)`` with A(values) x = rhs, traceable inside ``jax.jit``."""
+
+
+class HostSolver(LinearSolver):
+    """A solver that factorises on the host (through a JAX callback) and keeps the last factorisation.
+
+    Subclasses write :meth:`factor`; ``one_thread`` runs every call on the solver's own host
+    thread (see :class:`_FactorCache`).
+    """
+
+    one_thread: ClassVar[bool] = False
+
+    def __init__(self, pattern: Pattern):
+        super().__init__(pattern)
+        self._cache = _FactorCache(self.factor, one_thread=self.one_thread)
+
+    @abstractmethod
+    def factor(self, values: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+        """Factorise the matrix with entries ``values (nnz,)``; return its solve ``b -> x`` (NaN if singular)."""
+
+    def __call__(self, values, rhs, arrays):
+        out = jax.ShapeDtypeStruct(rhs.shape, rhs.dtype)
+        return jax.pure_callback(self._cache, out, values, rhs, vmap_method="sequential")
+
+
+def csr(pattern: Pattern, vals) -> sp.csr_matrix:
+    """The matrix with entries ``vals`` on ``pattern`` (scipy CSR, float64)."""
+    n = pattern.n_dofs
+    return sp.csr_matrix((np.asarray(vals, dtype=np.float64), pattern.cols, pattern.indptr), shape=(n, n))
+
+
+def nan_solve(b):
+    """The solve of a matrix that has no factorisation: NaN of ``b``'s shape."""
+    return np.full(b.shape, np.nan)
+
+
+class _FactorCache:
+    """Keeps the last factorisation and the matrix values it belongs to: repeated solves with the
+    same tangent (tangent and adjoint solves after Newton, a Jacobian's many directions) cost one
+    factorisation and many cheap triangular solves. Comparing the values costs one pass over them
+    (cheaper than hashing them).
+
+    With ``one_thread`` every call runs on a host thread of the cache's own. SciPy's SuperLU
+    (1.17) leaks a factorisation that is freed on another thread than the one that made it (it
+    tracks its allocations per thread), and XLA runs callbacks on whichever of its threads is
+    free: a diagnosis leaked ~2.7 MB per factorisation until the kernel killed it at 24 GB. On one
+    thread the memory stays flat (tests/test_linsolve_superlu.py); the hand-over costs some
+    microseconds. A thread per cache (per solver), not one for all: two models solved side by
+    side (the diagnosis fits hypotheses in parallel) factorise side by side."""
+
+    def __init__(self, factor: Callable, one_thread: bool = False):
+        self.factor = factor
+        self.vals = None
+        # XLA may run two callbacks of one program at once (independent solves, e.g. of a third
+        # derivative): the cache and a solver's handle (PARDISO's) take one call at a time, or MKL
+        # segfaults on the shared handle
+        self._lock = threading.Lock()
+        self._slot = [None]  # the solve of the last factorisation (a list: see the finaliser)
+        self._thread = None
+        if one_thread:  # the last factorisation is freed on its own thread too, then the thread ends
+            self._thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="jaxfem-factor")
+            weakref.finalize(self, _retire, self._slot, self._thread).atexit = False
+
+    def __call__(self, vals, rhs):
+        if self._thread is not None:
+            return self._thread.submit(self._call, vals, rhs).result()
+        with self._lock:
+            return self._call(vals, rhs)
+
+    def _call(self, vals, rhs):
+        v = np.asarray(vals, dtype=np.float64)
+        if not np.isfinite(v).all():
+            # A state that does not solve has no factorisation; Newton reads NaN as a failed solve
+            return np.full(np.shape(rhs), np.nan)
+        if self.vals is None or not np.array_equal(v, self.vals):
+            self.vals, self._slot[0] = None, None
+            self._slot[0] = self.factor(v)
+            self.vals = v.copy()
+        return self._slot[0](np.asarray(rhs, dtype=np.float64))
+
+
+def _retire(slot: list, thread: ThreadPoolExecutor) -> None:
+    """Free the last factorisation on the thread that made it, then let that thread end."""
+    try:
+        thread.submit(slot.clear)
+        thread.shutdown(wait=False)
+    except RuntimeError:  # the interpreter is shutting down
+        pass
