@@ -133,7 +133,7 @@ class Experiment:
         if self.noise_std is not None:
             object.__setattr__(self, "noise_std", _number(self.noise_std, "measurement.noise_std", positive=True))
         if not isinstance(self.units, dict) or not all(isinstance(v, str) for v in self.units.values()):
-            raise ExperimentError('experiment.units must be a table of strings, e.g. {{ length = "mm" }}')
+            raise ExperimentError('experiment.units must be a table of strings, e.g. { length = "mm" }')
 
     @property
     def dim(self) -> int:
