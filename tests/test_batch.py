@@ -105,24 +105,26 @@ def test_batch_matches_one_by_one_records_the_broken_bundle_and_resumes(bundles,
     a, broken, b = bundles
     out = tmp_path / "out"
     config = DiagnoseConfig(workers=1)
-    # a first run stopped after two bundles (as if interrupted): the broken one fails, the batch goes on
-    first = diagnose_many([a, broken], out, config=config, workers=2, progress=False, figures=False)
-    rows = first.by_bundle()
+    table = diagnose_many([a, broken, b], out, config=config, workers=2, progress=False, figures=False)
+    rows = table.by_bundle()
+    assert [r["name"] for r in table.rows] == ["sheet-a", "sheet-broken", "sheet-b"]
+    # the broken bundle is recorded and the batch goes on
     assert rows[str(broken)]["error"]["type"] == "BundleError"
     assert "displacements.csv" in rows[str(broken)]["error"]["message"]
     assert (out / "sheet-broken" / "error.txt").is_file()
-    assert rows[str(a)]["error"] is None and rows[str(a)]["cause"] == "none"
-
-    # the whole batch again: only the new bundle runs
-    table = diagnose_many([a, broken, b], out, config=config, workers=2, progress=False, figures=False)
-    lines = (out / "results.jsonl").read_text().splitlines()
-    assert [json.loads(line)["name"] for line in lines][2:] == ["sheet-b"] and len(lines) == 3
-    assert [r["name"] for r in table.rows] == ["sheet-a", "sheet-broken", "sheet-b"]
-    assert len(table.failed) == 1 and Table.read(out).by_bundle() == table.by_bundle()
+    assert len(table.failed) == 1 and Table.read(out).by_bundle() == rows
+    assert all(rows[str(p)]["error"] is None and rows[str(p)]["cause"] == "none" for p in (a, b))
+    assert {rows[str(p)]["worker"][:16] for p in (a, b)} == {"tcp://127.0.0.1:"}
     assert (out / "summary.txt").read_text().count("ERROR BundleError") == 1
     assert (out / "batch.png").stat().st_size > 0
-    workers = {table.by_bundle()[str(p)]["worker"] for p in (a, b)}
-    assert all(w and w.startswith("tcp://127.0.0.1") for w in workers)
+
+    # the batch again with one bundle more (as after an interruption): only the new one runs
+    new = a.parent / "sheet-never-written"
+    again = diagnose_many([a, broken, b, new], out, config=config, workers=1, progress=False, figures=False)
+    lines = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    assert len(lines) == 4 and lines[-1]["name"] == "sheet-never-written"
+    assert "not a directory" in again.by_bundle()[str(new)]["error"]["message"]
+    assert {k: v for k, v in again.by_bundle().items() if k != str(new)} == rows
 
     # the same reports as one-by-one runs in this process (same seeds)
     for p in (a, b):
