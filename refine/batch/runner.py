@@ -135,6 +135,9 @@ def diagnose_many(bundles: Iterable[str | Path], out: str | Path, config=None, s
     and ``out/batch.png`` (causes and seconds) are written. The numbers of each report are those
     of ``diagnose`` run on its own with the same config (same seeds).
 
+    The local workers are spawned processes, which import the calling script as a module: a script
+    that calls ``diagnose_many`` must do so under ``if __name__ == "__main__":``.
+
     Args:
         bundles: bundle directories or glob patterns (see :func:`bundle_paths`).
         out: output directory (created).
