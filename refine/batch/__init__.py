@@ -1,0 +1,19 @@
+"""Batch diagnosis: many bundles diagnosed on a Dask cluster (this machine's cores or GPUs, or a
+cluster of many machines), each bundle's report in its own folder and one row per bundle streamed
+to a JSONL table; resumable, a failed bundle recorded and the batch going on.
+
+    from refine.batch import diagnose_many
+    table = diagnose_many(["runs/*/bundle"], "reports")        # a local cluster, one worker per core
+    print(table.summary())
+
+Needs the optional extra ``pip install nonrigid[batch]`` (Dask distributed). From the command
+line: ``nonrigid batch diagnose BUNDLES... --out DIR [--scheduler ADDRESS]``.
+"""
+
+from refine.batch.cluster import visible_gpus, worker_env, worker_plan
+from refine.batch.errors import BatchError
+from refine.batch.runner import bundle_paths, diagnose_many, diagnose_one
+from refine.batch.table import RESULTS, Table, row_from_report
+
+__all__ = ["BatchError", "RESULTS", "Table", "bundle_paths", "diagnose_many", "diagnose_one", "row_from_report",
+           "visible_gpus", "worker_env", "worker_plan"]
