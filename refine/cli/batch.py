@@ -41,6 +41,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     d.add_argument("--no-figures", action="store_true", help="write report.json and summary.txt only")
     d.add_argument("--retry-failed", action="store_true", help="run the bundles that failed before again")
     d.add_argument("--quiet", action="store_true", help="no progress bar and no summary table")
+    p.set_defaults(run=run)
     return p
 
 

@@ -4,6 +4,7 @@
     nonrigid diagnose BUNDLE --out DIR    find what the initial model gets wrong, and the gain
     nonrigid track --pattern grid|speckle --scale MM_PER_PX --roi X0,Y0,X1,Y1 IMAGES... --out BUNDLE
     nonrigid import --format dice|csv --scale MM_PER_UNIT EXPORT... --out BUNDLE
+    nonrigid batch diagnose BUNDLES... --out DIR   many bundles on a Dask cluster (extra: nonrigid[batch])
     nonrigid demo [--out DIR]             a synthetic sheet with a hidden inclusion, end to end
 
 Each command is a module of :mod:`refine.cli` with ``add_parser(subparsers)``, ``run(args)`` and a
@@ -17,7 +18,7 @@ import importlib
 import sys
 from importlib.metadata import PackageNotFoundError, version
 
-COMMANDS = ("simulate", "diagnose", "track", "import_export", "demo")  # modules of refine.cli, in the order of --help
+COMMANDS = ("simulate", "diagnose", "track", "import_export", "batch", "demo")  # modules of refine.cli, in the order of --help
 
 
 def build_parser() -> argparse.ArgumentParser:
