@@ -16,14 +16,44 @@ from refine.exceptions import ExperimentError
 RECTANGLE_EDGES = ("left", "right", "bottom", "top")
 
 
+def _loop(vertices, what: str) -> tuple[tuple[float, float], ...]:
+    """A closed polygon as a tuple of (x, y), checked: at least 3 finite vertices, not degenerate."""
+    try:
+        verts = tuple((float(x), float(y)) for x, y in vertices)
+    except (TypeError, ValueError):
+        raise ExperimentError(f"{what} must be a list of [x, y] pairs") from None
+    if len(verts) < 3:
+        raise ExperimentError(f"{what} needs at least 3 vertices, got {len(verts)}")
+    if not all(math.isfinite(c) for v in verts for c in v):
+        raise ExperimentError(f"{what} has a NaN or inf coordinate")
+    return verts
+
+
+def _signed_area2(verts) -> float:
+    return sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(verts, verts[1:] + verts[:1]))
+
+
+def _holes(holes) -> tuple[tuple[tuple[float, float], ...], ...]:
+    out = []
+    for k, h in enumerate(holes or ()):
+        verts = _loop(h, f"domain.holes[{k}]")
+        area = _signed_area2(verts)
+        if area == 0:
+            raise ExperimentError(f"domain.holes[{k}] is degenerate (zero area)")
+        out.append(verts if area > 0 else verts[::-1])  # counter-clockwise, as the outline
+    return tuple(out)
+
+
 @dataclass(frozen=True)
 class RectangleDomain:
-    """Axis-aligned rectangular domain ``[xmin, xmax] x [ymin, ymax]``, length unit."""
+    """Axis-aligned rectangular domain ``[xmin, xmax] x [ymin, ymax]``, length unit, minus the
+    polygons ``holes`` (known holes: no material there; each a tuple of (x, y))."""
 
     xmin: float
     ymin: float
     xmax: float
     ymax: float
+    holes: tuple = ()
 
     def __post_init__(self):
         for name in ("xmin", "ymin", "xmax", "ymax"):
@@ -33,35 +63,35 @@ class RectangleDomain:
                 f"domain.rectangle must be [xmin, ymin, xmax, ymax] with xmin < xmax and ymin < ymax, "
                 f"got {[self.xmin, self.ymin, self.xmax, self.ymax]}"
             )
+        object.__setattr__(self, "holes", _holes(self.holes))
 
     def to_toml(self) -> dict:
-        return {"rectangle": [self.xmin, self.ymin, self.xmax, self.ymax]}
+        return {"rectangle": [self.xmin, self.ymin, self.xmax, self.ymax], **_holes_toml(self.holes)}
 
 
 @dataclass(frozen=True)
 class PolygonDomain:
-    """Polygonal 2-D domain; ``vertices`` is a tuple of (x, y), counter-clockwise, length unit."""
+    """Polygonal 2-D domain; ``vertices`` is a tuple of (x, y), counter-clockwise, length unit,
+    minus the polygons ``holes`` (known holes, as for :class:`RectangleDomain`)."""
 
     vertices: tuple[tuple[float, float], ...]
+    holes: tuple = ()
 
     def __post_init__(self):
-        try:
-            verts = tuple((float(x), float(y)) for x, y in self.vertices)
-        except (TypeError, ValueError):
-            raise ExperimentError("domain.polygon must be a list of [x, y] pairs") from None
-        if len(verts) < 3:
-            raise ExperimentError(f"domain.polygon needs at least 3 vertices, got {len(verts)}")
-        if not all(math.isfinite(c) for v in verts for c in v):
-            raise ExperimentError("domain.polygon has a NaN or inf coordinate")
-        doubled_area = sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(verts, verts[1:] + verts[:1]))
-        if doubled_area <= 0:
+        verts = _loop(self.vertices, "domain.polygon")
+        if _signed_area2(verts) <= 0:
             raise ExperimentError(
                 "domain.polygon is clockwise or degenerate (signed area <= 0); list its vertices counter-clockwise"
             )
         object.__setattr__(self, "vertices", verts)
+        object.__setattr__(self, "holes", _holes(self.holes))
 
     def to_toml(self) -> dict:
-        return {"polygon": [list(v) for v in self.vertices]}
+        return {"polygon": [list(v) for v in self.vertices], **_holes_toml(self.holes)}
+
+
+def _holes_toml(holes) -> dict:
+    return {"holes": [[list(v) for v in h] for h in holes]} if holes else {}
 
 
 @dataclass(frozen=True)
@@ -186,21 +216,29 @@ class Experiment:
 
 
 def _domain_from_toml(table: Any) -> Domain:
-    if not isinstance(table, dict) or len(table) != 1:
+    if not isinstance(table, dict):
+        raise ExperimentError(f"model.domain must be a table, e.g. {{ rectangle = [0, 0, 100, 60] }}; got {table!r}")
+    table = dict(table)
+    holes = table.pop("holes", [])
+    if len(table) != 1:
         raise ExperimentError(
             "model.domain must hold exactly one of rectangle = [xmin, ymin, xmax, ymax], "
-            f"polygon = [[x, y], ...] or mesh = \"FILE\"; got {table!r}"
+            f"polygon = [[x, y], ...] or mesh = \"FILE\" (and optionally holes = [[[x, y], ...], ...]); got {table!r}"
         )
+    if not isinstance(holes, list):
+        raise ExperimentError(f"domain.holes must be a list of polygons [[[x, y], ...], ...], got {holes!r}")
     (kind, value), = table.items()
     if kind == "rectangle":
         if not isinstance(value, list) or len(value) != 4:
             raise ExperimentError(f"domain.rectangle must be [xmin, ymin, xmax, ymax], got {value!r}")
-        return RectangleDomain(*value)
+        return RectangleDomain(*value, holes=holes)
     if kind == "polygon":
         if not isinstance(value, list) or not all(isinstance(v, list) and len(v) == 2 for v in value):
             raise ExperimentError(f"domain.polygon must be a list of [x, y] pairs, got {value!r}")
-        return PolygonDomain(tuple(tuple(v) for v in value))
+        return PolygonDomain(tuple(tuple(v) for v in value), holes=holes)
     if kind == "mesh":
+        if holes:
+            raise ExperimentError("domain.holes goes with a rectangle or a polygon; a mesh has its holes already")
         return MeshDomain(value)
     raise ExperimentError(f"model.domain kind {kind!r} is unknown; use rectangle, polygon or mesh")
 

@@ -47,14 +47,16 @@ class ModelSkeleton:
 
 
 def bundle_from_tracks(tracks: Tracks, name: str, model: ModelSkeleton = ModelSkeleton(),
-                       validate_fraction: float = 0.2, seed: int = 0) -> tuple[Bundle, np.ndarray]:
+                       validate_fraction: float = 0.2, seed: int = 0, holes=()) -> tuple[Bundle, np.ndarray]:
     """A bundle of tracked points in length units (see :meth:`tracking.Tracks.to_length`).
 
     The boundary is the outline through the outer ring of the lattice (``grid_index``; the convex
     hull without a lattice); interior points are split into guide and validate points by
     :func:`refine.bundle.roles.assign_roles` (``validate_fraction`` of them, drawn under ``seed``).
     Points outside that outline (tracked crossings that belong to no cell of the lattice) cannot be
-    compared with a model and are left out.
+    compared with a model and are left out. ``holes`` (polygons ``(m, 2)`` in the tracks' length
+    unit, e.g. a tracker's ``meta["outline"]["holes"]`` converted) are cut from the domain where
+    they lie inside its outline; points inside a hole are left out too.
 
     Returns:
         The bundle (not written; see :func:`refine.bundle.io.write_bundle`) and the ids of the
@@ -72,6 +74,10 @@ def bundle_from_tracks(tracks: Tracks, name: str, model: ModelSkeleton = ModelSk
         loop, ring = loop[::-1], ring[::-1]
     inside = _strictly_inside(ring, reference)
     inside[loop] = True
+    cut = [np.asarray(h, dtype=np.float64) for h in holes
+           if len(h) >= 3 and _strictly_inside(ring, np.asarray(h, dtype=np.float64)).all()]
+    for h in cut:
+        inside &= ~_strictly_inside(h if _signed_area(h) > 0 else h[::-1], reference)
     roles = assign_roles(reference, validate_fraction, seed, tracks.grid_index)
     roles[(roles == "boundary")] = "guide"  # only the outline's own points drive the model
     roles[loop] = "boundary"
@@ -79,9 +85,9 @@ def bundle_from_tracks(tracks: Tracks, name: str, model: ModelSkeleton = ModelSk
     lo, hi = reference[keep].min(axis=0), reference[keep].max(axis=0)
     off = np.min(np.abs(np.concatenate([ring - lo, ring - hi], axis=1)), axis=1)
     if off.max() <= RECTANGLE_TOLERANCE * point_spacing(reference[keep]):
-        domain = RectangleDomain(*lo, *hi)
+        domain = RectangleDomain(*lo, *hi, holes=tuple(tuple(map(tuple, h)) for h in cut))
     else:
-        domain = PolygonDomain(tuple(map(tuple, ring)))
+        domain = PolygonDomain(tuple(map(tuple, ring)), holes=tuple(tuple(map(tuple, h)) for h in cut))
     obs = Observations(ids=tracks.ids[keep], reference=reference[keep], roles=roles[keep],
                        displacements=tracks.displacements()[1:, keep])
     experiment = Experiment(name=name, kind=model.kind, domain=domain, law=model.law, E=model.E, nu=model.nu,

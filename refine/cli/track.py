@@ -54,6 +54,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the choice of validation points")
     add_model_arguments(p)
     p.add_argument("--overlays", metavar="DIR", help="directory of the overlay images (default: BUNDLE/overlays)")
+    p.add_argument("--keep-holes", action="store_true",
+                   help="do not cut holes found in the pattern from the model's domain (let diagnose find them)")
     t = p.add_argument_group("tracker options (see tracking.GridTracker / tracking.SpeckleTracker)")
     t.add_argument("--spacing", type=float, help="speckle: distance between correlation points, px")
     t.add_argument("--subset", type=int, help="speckle: subset side, px (odd)")
@@ -95,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
         track(args.images, args.out, pattern=args.pattern, scale=args.scale, grid_pitch=args.grid_pitch,
               roi=args.roi, origin=args.origin, name=args.name, model=model,
               validate_fraction=args.validate_fraction, seed=args.seed, overlays=args.overlays,
-              tracker_options=_tracker_options(args))
+              tracker_options=_tracker_options(args), cut_holes=not args.keep_holes)
     except (tracking.TrackingError, RefineError, OSError) as e:
         print(f"nonrigid track: error: {e}", file=sys.stderr)
         return 2
@@ -105,7 +107,8 @@ def run(args: argparse.Namespace) -> int:
 def track(images: Sequence[str | Path], out: str | Path, *, pattern: str = "grid", scale: float | None = None,
           grid_pitch: float | None = None, roi=None, origin=(0.0, 0.0), name: str | None = None,
           model: ModelSkeleton = ModelSkeleton(), validate_fraction: float = 0.2, seed: int = 0,
-          overlays: str | Path | None = None, tracker_options: dict | None = None, quiet: bool = False) -> Bundle:
+          overlays: str | Path | None = None, tracker_options: dict | None = None, cut_holes: bool = True,
+          quiet: bool = False) -> Bundle:
     """Track a painted grid or a speckle pattern through image files and write a measurement bundle.
 
     What ``nonrigid track`` does. ``images[0]`` is the reference (frame 0); bundle coordinates are
@@ -126,6 +129,9 @@ def track(images: Sequence[str | Path], out: str | Path, *, pattern: str = "grid
         overlays: directory of the overlay PNGs ``frame_000.png``, ...; None: ``out/overlays``.
         tracker_options: further fields of the tracker (``tracking.GridTracker`` /
             ``tracking.SpeckleTracker``), e.g. ``{"spacing": 12.0, "subset": 21}``.
+        cut_holes: holes the tracker found in the pattern (``meta["outline"]["holes"]``) are cut
+            from the bundle's domain (``model.domain.holes``), so the model follows the material;
+            False leaves the domain whole (to let ``nonrigid diagnose`` find a hole).
         quiet: do not print the summary.
 
     Returns:
@@ -153,8 +159,10 @@ def track(images: Sequence[str | Path], out: str | Path, *, pattern: str = "grid
     tracks = tracking.track_images(stack, pattern, roi=roi, **(tracker_options or {}))
     scale = scale if grid_pitch is None else tracking.scale_from_grid(tracks, grid_pitch)
     out = Path(out)
+    found = (tracks.meta.get("outline") or {}).get("holes", []) if cut_holes else []
+    holes = [(np.asarray(h, dtype=np.float64) - np.asarray(origin)) * scale for h in found]
     bundle, dropped = bundle_from_tracks(tracks.to_length(scale, origin), name or out.resolve().name, model,
-                                         validate_fraction, seed)
+                                         validate_fraction, seed, holes=holes)
     write_bundle(out, bundle)
     _comment_experiment(out / "experiment.toml", pattern, images, scale, origin)
     from refine.cli.track_overlays import write_overlays
@@ -226,6 +234,8 @@ def _summary(tracks: tracking.Tracks, bundle: Bundle, scale: float, dropped: np.
     if dropped.size:
         print(f"  left out {dropped.size} points outside the lattice's outline (ids {dropped[:8].tolist()}"
               f"{'...' if dropped.size > 8 else ''})")
+    if getattr(domain, "holes", ()):
+        print(f"  {len(domain.holes)} hole(s) in the pattern cut from the domain (--keep-holes leaves them in)")
     if isinstance(domain, RectangleDomain):
         print(f"  domain: rectangle [{domain.xmin:.4g}, {domain.ymin:.4g}, {domain.xmax:.4g}, {domain.ymax:.4g}] mm")
     else:

@@ -49,6 +49,9 @@ def write_overlays(stack: np.ndarray, tracks, bundle: Bundle, scale: float, orig
         if k == 0:
             outline_px = _domain_outline(bundle.experiment.domain) / scale + np.asarray(origin)
             ax.plot(*np.vstack([outline_px, outline_px[:1]]).T, "k-", lw=1)
+            for hole in getattr(bundle.experiment.domain, "holes", ()):
+                hole_px = np.asarray(hole) / scale + np.asarray(origin)
+                ax.plot(*np.vstack([hole_px, hole_px[:1]]).T, "k--", lw=1)
             if roi is not None:
                 x0, y0, x1, y1 = roi
                 ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], "y--", lw=1)

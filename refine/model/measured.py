@@ -19,7 +19,7 @@ from scipy.spatial import cKDTree
 import jaxfem as jf
 
 from refine.exceptions import ObservationError
-from refine.bundle.experiment import Experiment, PolygonDomain, RectangleDomain
+from refine.bundle.experiment import Experiment, MeshDomain, RectangleDomain
 from refine.bundle.observations import Observations
 
 
@@ -31,9 +31,14 @@ def grid_spacing(points: np.ndarray) -> float:
 
 def domain_mesh(experiment: Experiment, h: float, element: str = "tri3", inclusions=(), holes=(),
                 root=None) -> jf.Mesh:
-    """A mesh of the experiment's domain with target element size ``h``; optional inclusions and
-    holes (``jaxfem.Ellipse``/``Rect``) are followed by the mesh."""
+    """A mesh of the experiment's domain with target element size ``h``, minus the domain's known
+    holes; optional inclusions and further holes (``jaxfem.Ellipse``/``Rect``) are followed by
+    the mesh."""
     dom = experiment.domain
+    if isinstance(dom, MeshDomain):
+        path = dom.path if root is None else f"{root}/{dom.path}"
+        return jf.read_mesh(path)
+    holes = [*(jf.Polygon(np.asarray(v)) for v in dom.holes), *holes]
     if isinstance(dom, RectangleDomain):
         if not inclusions and not holes:
             nx = max(2, int(round((dom.xmax - dom.xmin) / h)))
@@ -41,13 +46,10 @@ def domain_mesh(experiment: Experiment, h: float, element: str = "tri3", inclusi
             return jf.rectangle(dom.xmin, dom.ymin, dom.xmax, dom.ymax, nx, ny, element)
         return jf.plate(dom.xmin, dom.ymin, dom.xmax, dom.ymax, h, holes=holes, inclusions=inclusions,
                         element=element)
-    if isinstance(dom, PolygonDomain):
-        from jaxfem.mesher import domain
-        from jaxfem.shapes import Polygon as Outline
+    from jaxfem.mesher import domain
+    from jaxfem.shapes import Polygon as Outline
 
-        return domain(Outline(np.asarray(dom.vertices)), h, holes=holes, inclusions=inclusions, element=element)
-    path = dom.path if root is None else f"{root}/{dom.path}"
-    return jf.read_mesh(path)
+    return domain(Outline(np.asarray(dom.vertices)), h, holes=holes, inclusions=inclusions, element=element)
 
 
 @dataclass(frozen=True, eq=False)
