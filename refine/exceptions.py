@@ -44,3 +44,8 @@ class ExperimentError(RefineError, ValueError):
 class IdentifiabilityError(RefineError, ValueError):
     """A quantity was asked for that the data cannot determine, e.g. an absolute modulus without a
     measured force (only ratios of E times thickness are identifiable then)."""
+
+
+class ParametrizationError(RefineError, ValueError):
+    """A parametrisation was set up wrongly: an unknown regulariser or shape kind, kinds that do
+    not match the shapes."""

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from refine.diagnosis.fitted import Fitted, _fit
+from refine.diagnosis.fitted import Fitted, fit_compiled, material_law
 from refine.model.measured import MeasuredModel
 from refine.model.objective import Compiled
 from refine.model.parametrize import Combined, UniformParameter
@@ -25,4 +25,4 @@ def fit_law(base: MeasuredModel, law: str, fit_mask, hold_mask, sigma) -> Fitted
     if law == "mooney-rivlin":
         parts.append(UniformParameter("c01_fraction", 0.25, 0.0, 0.95))
     param = Combined(tuple(parts))
-    return _fit("material-law", Compiled(model, param), fit_mask, hold_mask, sigma, law=law)
+    return fit_compiled(material_law(law), Compiled(model, param), fit_mask, hold_mask, sigma)
