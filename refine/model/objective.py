@@ -15,6 +15,7 @@ from functools import cached_property
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Float
 
 from refine.measures import Residuals, displacement_error
 from refine.model.measured import MeasuredModel
@@ -128,15 +129,16 @@ class Compiled:
         self._evaluate = jax.jit(jax.jacfwd(lambda z: (f(z), f(z)), has_aux=True))
         self._last = None
 
-    def evaluate(self, z) -> tuple[np.ndarray, np.ndarray]:
+    def evaluate(self, z) -> tuple[Float[np.ndarray, "frames n_points dim"],
+                                   Float[np.ndarray, "frames n_points dim k"]]:
         z = np.asarray(z, float)
         if self._last is None or not np.array_equal(self._last[0], z):
             J, pred = self._evaluate(jnp.asarray(z))
             self._last = (z.copy(), np.asarray(pred), np.asarray(J))
         return self._last[1], self._last[2]
 
-    def predict(self, z) -> np.ndarray:
+    def predict(self, z) -> Float[np.ndarray, "frames n_points dim"]:
         return self.evaluate(z)[0]
 
-    def jacobian(self, z) -> np.ndarray:
+    def jacobian(self, z) -> Float[np.ndarray, "frames n_points dim k"]:
         return self.evaluate(z)[1]

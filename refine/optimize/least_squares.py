@@ -46,8 +46,10 @@ def least_squares(objective: Objective, z0=None, method: str = "lm", rtol: float
         objective.n_gradient += 1
         return np.asarray(r)
 
-    def jacobian(zz):  # came with the evaluation at zz
-        return last["J"] if np.array_equal(last["z"], zz) else np.asarray(objective.residuals_and_jacobian(jnp.asarray(zz))[0])
+    def jacobian(zz):  # came with the evaluation at zz (the loop asks at accepted points only)
+        if not np.array_equal(last["z"], zz):
+            residuals(zz)
+        return last["J"]
 
     def record(zz, chi2):
         history.append({"step": len(history), "z": np.asarray(zz).tolist(), "misfit": 0.5 * chi2})
