@@ -49,3 +49,8 @@ class IdentifiabilityError(RefineError, ValueError):
 class FitError(RefineError, ValueError):
     """A fit cannot be set up or started as asked: a method given a parametrisation it does not
     handle (too many unknowns, a regulariser), or a model that does not solve at the start."""
+
+
+class ParametrizationError(RefineError, ValueError):
+    """A parametrisation was set up wrongly: an unknown regulariser or shape kind, kinds that do
+    not match the shapes."""

@@ -12,9 +12,11 @@ given either way for eq. (1); eq. (9) needs displacements (its denominator is |q
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
+from jaxtyping import Bool, Float
 
 from refine.exceptions import ObservationError
 
@@ -92,7 +94,8 @@ def weighted_residuals(predicted, measured, noise_std=None) -> tuple[Any, np.nda
     """Residuals r = (u~ - u) / sigma of every tracked component, flattened, for least squares.
 
     Works on numpy or jax arrays for ``predicted`` (the selection is a static integer index, so it
-    can be differentiated and jitted with ``measured`` fixed).
+    can be differentiated and jitted with ``measured`` fixed). For residuals at a subset of the
+    points, prepared once for many predictions, use :class:`Residuals`.
 
     Args:
         predicted: ``(..., dim)`` predicted displacements, length unit (numpy or jax).
@@ -115,7 +118,67 @@ def weighted_residuals(predicted, measured, noise_std=None) -> tuple[Any, np.nda
         if not np.all(np.isfinite(full) & (full > 0)):
             raise ObservationError(f"noise_std must be positive and finite, got {noise_std!r}")
         sigma = full.reshape(-1)[index]
-    return (predicted.reshape(-1)[index] - meas.reshape(-1)[index]) / sigma, mask
+    return _weighted(predicted.reshape(-1)[index], meas.reshape(-1)[index], sigma), mask
+
+
+def _weighted(predicted, measured, sigma):
+    """(predicted - measured) / sigma: the one formula of a noise-weighted residual."""
+    return (predicted - measured) / sigma
+
+
+@dataclass(frozen=True, eq=False)
+class Residuals:
+    """Noise-weighted residuals of predicted against measured displacements at a set of points,
+    over all frames, lost points removed: the residuals every least-squares fit and chi^2 in
+    refine use (prepared once, applied to many predictions).
+
+    Attributes:
+        points: ``(n_points,)`` bool, the matched points among all the bundle's points.
+        measured: ``(frames, m, dim)`` measured displacements at them, length unit (0 where lost).
+        valid: ``(frames, m)`` bool, True where the point was tracked in that frame.
+        sigma: noise standard deviation, length unit (the residuals are in its units).
+    """
+
+    points: Bool[np.ndarray, "n_points"]
+    measured: Float[np.ndarray, "frames m dim"]
+    valid: Bool[np.ndarray, "frames m"]
+    sigma: float
+
+    @classmethod
+    def at(cls, displacements: Float[np.ndarray, "frames n_points dim"], points, sigma: float = 1.0) -> "Residuals":
+        """The residuals at ``points`` (a bool mask over all points) of measured ``displacements``
+        (NaN rows: lost), weighted by ``sigma``."""
+        points = np.asarray(points, bool)
+        meas = np.asarray(displacements)[:, points]
+        return cls(points, np.nan_to_num(meas), np.isfinite(meas).all(axis=-1), float(sigma))
+
+    @property
+    def n(self) -> int:
+        """Number of residuals: tracked (frame, point) pairs times the dimension."""
+        return int(self.valid.sum()) * self.measured.shape[-1]
+
+    def __call__(self, predicted) -> Float[Any, "n"]:
+        """``(n,)`` residuals of predicted displacements of all points ``(frames, n_points, dim)``
+        (numpy, or jax: the selection is static, so it can be jitted and differentiated)."""
+        return _weighted(predicted[:, self.points], self.measured, self.sigma)[self.valid].reshape(-1)
+
+    def chi2(self, predicted) -> float:
+        """The sum of the squared residuals (chi^2, dimensionless)."""
+        r = self(np.asarray(predicted))
+        return float(r @ r)
+
+    def difference(self, predicted) -> Float[np.ndarray, "frames m dim"]:
+        """Predicted minus measured at the points, unweighted (anything where lost: see ``valid``)."""
+        return predicted[:, self.points] - self.measured
+
+    def weighted(self, values) -> Float[Any, "n"]:
+        """Point values ``(frames, n_points, dim)`` weighted and selected like the residuals: their
+        linear part (e.g. terms of a series of predicted displacements)."""
+        return (values[:, self.points] / self.sigma)[self.valid].reshape(-1)
+
+    def jacobian(self, jacobian: Float[np.ndarray, "frames n_points dim k"]) -> Float[np.ndarray, "n k"]:
+        """The residuals' Jacobian from the prediction's ``(frames, n_points, dim, k)``."""
+        return jacobian[:, self.points][self.valid].reshape(self.n, -1) / self.sigma
 
 
 def misfit(residuals):

@@ -120,9 +120,10 @@ def test_rectangles_are_tried_only_where_the_points_resolve_corners():
     from types import SimpleNamespace
 
     from refine.diagnosis.pipeline import DiagnoseConfig, _rectangles_wanted
+    from refine.diagnosis.shapes import RegionShape
 
     model = SimpleNamespace(spacing=5.0)
-    region = lambda a, b: SimpleNamespace(shapes=[("ellipse", 50.0, 30.0, a, b, 0.3, 8.0)])  # noqa: E731
+    region = lambda a, b: SimpleNamespace(shapes=[RegionShape((50.0, 30.0), (a, b), 0.3, "ellipse", 8.0)])  # noqa: E731
     auto = DiagnoseConfig(try_rectangles=None)
     assert _rectangles_wanted(region(11.6, 7.5), model, auto)  # 5 mm grid, 1.5 spacings: a corner is seen
     assert not _rectangles_wanted(region(11.6, 7.4), model, auto)
@@ -138,6 +139,7 @@ def test_a_soft_region_over_tracked_material_is_not_renamed_a_hole():
     from types import SimpleNamespace
 
     from refine.diagnosis.pipeline import DiagnoseConfig, _hole_if_as_likely
+    from refine.diagnosis.shapes import RegionShape
     from refine.bundle.experiment import Experiment, RectangleDomain
     from refine.synthetic.sheet import grid_points
 
@@ -146,7 +148,8 @@ def test_a_soft_region_over_tracked_material_is_not_renamed_a_hole():
     ex = Experiment(name="t", kind="plane-stress", domain=RectangleDomain(20.0, 10.0, 120.0, 70.0), law="neo-hookean",
                     E=1.0, nu=0.3, thickness=1.0)
     model = SimpleNamespace(experiment=ex, spacing=5.0, obs=SimpleNamespace(reference=grid_points((20, 10, 120, 70), 5.0)))
-    soft = SimpleNamespace(cause="softer-region", shapes=[("ellipse", cx, cy, a, b, 0.3, 0.05)], bic=100.0)
+    soft = SimpleNamespace(cause="softer-region", shapes=[RegionShape((cx, cy), (a, b), 0.3, "ellipse", 0.05)], bic=100.0)
     said = []
-    kept = _hole_if_as_likely(model, soft, None, None, 1.0, DiagnoseConfig(), said.append)
+    trials = SimpleNamespace(model=model, hold=None, sigma=1.0, cfg=DiagnoseConfig(), log=said.append)
+    kept = _hole_if_as_likely(trials, soft, None)
     assert kept is soft and "no hole" in said[0], said

@@ -239,6 +239,7 @@ def test_no_hole_is_tried_where_material_was_tracked(monkeypatch):
 
     import jaxfem as jf
     from refine.diagnosis import holes as hypotheses
+    from refine.diagnosis.shapes import Hole
     from refine.bundle.experiment import RectangleDomain
 
     xs, ys = np.meshgrid(np.arange(20.0, 121.0, 5.0), np.arange(10.0, 71.0, 5.0))
@@ -249,7 +250,7 @@ def test_no_hole_is_tried_where_material_was_tracked(monkeypatch):
         return SimpleNamespace(experiment=ex, obs=SimpleNamespace(reference=points), spacing=spacing, h=spacing / 2)
 
     with pytest.raises(hypotheses.NotApplicable, match=r"tracked point at \(90.0, 45.0\)"):
-        hypotheses.fit_hole(base(pts, 5.0), (90.4, 44.6, 7.7, 7.0, 0.0), None, None, 0.02)
+        hypotheses.fit_hole(base(pts, 5.0), Hole((90.4, 44.6), (7.7, 7.0), 0.0), None, None, 0.02)
 
     class Meshed(Exception):
         pass
@@ -260,7 +261,7 @@ def test_no_hole_is_tried_where_material_was_tracked(monkeypatch):
     monkeypatch.setattr(hypotheses, "domain_mesh", stop)
     hole = jf.Ellipse(92.5, 42.5, 7.0, 6.0)  # a real hole: no tracked points inside
     with pytest.raises(Meshed):
-        hypotheses.fit_hole(base(pts[~hole.contains(pts)], 5.0), (92.5, 42.5, 9.0, 8.0, 0.0), None, None, 0.02)
+        hypotheses.fit_hole(base(pts[~hole.contains(pts)], 5.0), Hole((92.5, 42.5), (9.0, 8.0), 0.0), None, None, 0.02)
 
 
 @pytest.mark.slow  # three meshes compiled (~45 s, GBs held by the worker); run by benchmarks
@@ -272,6 +273,7 @@ def test_hole_fit_finds_orientation_and_area_from_a_round_start():
     import jaxfem as jf
     from refine.diagnosis.fitted import refit
     from refine.diagnosis.holes import fit_hole
+    from refine.diagnosis.shapes import Hole
     from refine.synthetic.sheet import Truth
 
     rng = np.random.default_rng(int(np.random.default_rng(2611).integers(1 << 30)))
@@ -281,11 +283,12 @@ def test_hole_fit_finds_orientation_and_area_from_a_round_start():
     bundle = synthetic_bundle(Truth(holes=(hole,)), seed=3, **DATA)
     ex, obs = bundle.experiment, bundle.observations
     r = np.sqrt(hole.rx * hole.ry)
-    start = (hole.cx + rng.uniform(-1, 1), hole.cy + rng.uniform(-1, 1), r, r, 0.0)
+    start = Hole((hole.cx + rng.uniform(-1, 1), hole.cy + rng.uniform(-1, 1)), (r, r), 0.0)
     guide, held = obs.roles == "guide", obs.roles == "validate"
     first = fit_hole(MeasuredModel(ex, obs), start, guide, held, DATA["noise"])  # from a start shrunk free of points
     f = refit(first, guide, held, DATA["noise"], element="tri6")  # remeshed at the fitted hole, as the diagnosis does
-    _, cx, cy, fa, fb, ang, _ = f.shapes[0]
+    [found] = f.shapes
+    (cx, cy), (fa, fb), ang = found.centre, found.axes, found.angle
     # on four draws of any orientation: area within 3 %, centre within 0.12 mm; with the orientation
     # kept at the start's, 0.2-17 % and 0.1-0.45 mm (and this draw fails: a 5.8 x 5.6 mm circle-like hole)
     assert abs(np.pi * fa * fb / hole.area - 1) < 0.05, (f.shapes, hole.params)

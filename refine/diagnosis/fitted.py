@@ -1,130 +1,181 @@
 """A fitted hypothesis (:class:`Fitted`), how one is fitted and scored, refitted on other points
 with standard errors, and the initial model as the baseline every hypothesis is compared with.
 
-A hypothesis is a way the initial model may be wrong: regions of other stiffness
-(:mod:`refine.diagnosis.regions`), a hole (:mod:`refine.diagnosis.holes`) or a different material
-law (:mod:`refine.diagnosis.laws`). Each builds its own model (a mesh that follows the shapes), is
-fitted on the guide points chosen for fitting, and is scored on held-out guide points and by an
-information criterion.
+A hypothesis (:class:`Hypothesis`) is a way the initial model may be wrong: regions of other
+stiffness (:mod:`refine.diagnosis.regions`), a hole (:mod:`refine.diagnosis.holes`) or a different
+material law (:mod:`refine.diagnosis.laws`). Each builds its own model (a mesh that follows the
+shapes), is fitted on the guide points chosen for fitting, and is scored on held-out guide points
+and by an information criterion.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
+from typing import Protocol
 
 import numpy as np
+from jaxtyping import Bool, Float
 
+from refine.diagnosis.shapes import Hole, RegionShape
+from refine.exceptions import RefineError
+from refine.measures import Residuals
 from refine.model.measured import MeasuredModel
 from refine.model.objective import Compiled
 from refine.optimize.levenberg_marquardt import levenberg_marquardt
+from refine.optimize.result import RefineResult
+
+Shape = RegionShape | Hole
+Mask = Bool[np.ndarray, "n_points"]
 
 
-@dataclass
+class NotApplicable(RefineError, ValueError):
+    """A hypothesis the data rule out before any fit (e.g. a hole where material was tracked)."""
+
+
+class Hypothesis(Protocol):
+    """What is tried: its cause, its material law, the shapes it reads from fitted unknowns, and
+    (where it has shapes) the same hypothesis remeshed at fitted shapes.
+
+    Regions and holes also say how their model and parametrisation are built (``build``)."""
+
+    law: str
+    remeshable: bool
+
+    def cause_of(self, shapes: tuple[Shape, ...]) -> str:
+        """The cause the fitted ``shapes`` name (``"none"``, ``"stiffer-region"``,
+        ``"softer-region"``, ``"regions"``, ``"hole"`` or ``"material-law"``)."""
+
+    def shapes_at(self, compiled: Compiled, z: np.ndarray) -> tuple[Shape, ...]:
+        """The shapes at the fitted unknowns ``z`` (none for a material law)."""
+
+    def at(self, shapes: tuple[Shape, ...], element: str) -> Hypothesis | None:
+        """The same hypothesis on a new mesh of ``element`` built at ``shapes`` (None: it has no
+        shapes to remesh at)."""
+
+
+@dataclass(frozen=True)
+class Unchanged:
+    """The initial model, or another homogeneous law (``cause`` ``"material-law"``): no shapes."""
+
+    law: str
+    cause: str = "none"
+    remeshable = False
+
+    def cause_of(self, shapes) -> str:
+        return self.cause
+
+    def shapes_at(self, compiled, z) -> tuple:
+        return ()
+
+    def at(self, shapes, element) -> None:
+        return None
+
+
+def material_law(law: str) -> Unchanged:
+    """The hypothesis that the material follows ``law``."""
+    return Unchanged(law, "material-law")
+
+
+@dataclass(frozen=True, eq=False)
 class Fitted:
     """A fitted hypothesis.
 
     Attributes:
-        cause: ``"none"``, ``"stiffer-region"``, ``"softer-region"``, ``"hole"``, ``"regions"`` or
-            ``"material-law"``.
+        hypothesis: what was fitted.
         k: number of fitted parameters.
         chi2_fit: whitened squared misfit on the fitting points; chi2_holdout: on held-out points.
         bic: chi2_fit + k ln(n_fit).
         predicted: displacements of all points ``(frames, n_points, dim)``.
-        shapes: fitted shapes ``[(kind, cx, cy, a, b, angle, relative_elasticity)]``, kind
-            ``"ellipse"`` (a, b semi-axes), ``"rectangle"`` (a, b half sides) or ``"hole"``.
-        law: the material law of the model.
+        model: the model fitted (its mesh follows the shapes); theta: its fitted parameters.
+        sigma: the noise the residuals were weighted with (length unit).
+        shapes: the fitted shapes (none for a material law or the initial model).
+        compiled, z, result: the compiled model, its fitted unknowns and the fit (None for the
+            initial model); z_std: standard errors of z (after :func:`refit`).
     """
 
-    cause: str
+    hypothesis: Hypothesis
     k: int
     chi2_fit: float
     chi2_holdout: float
     bic: float
-    predicted: np.ndarray
-    shapes: list = field(default_factory=list)
-    law: str = ""
-    result: object = None
-    model: object = None
-    theta: object = None
-    compiled: object = None
-    z: object = None
-    shapes_from: object = None
-    z_std: object = None
-    remesh: object = None
+    predicted: Float[np.ndarray, "frames n_points dim"]
+    model: MeasuredModel
+    theta: dict
+    sigma: float
+    shapes: tuple[Shape, ...] = ()
+    compiled: Compiled | None = None
+    z: Float[np.ndarray, "k"] | None = None
+    result: RefineResult | None = None
+    z_std: Float[np.ndarray, "k"] | None = None
+
+    @property
+    def cause(self) -> str:
+        return self.hypothesis.cause_of(self.shapes)
+
+    @property
+    def law(self) -> str:
+        return self.hypothesis.law
 
     def describe(self) -> str:
-        parts = [f"{s[0]} at ({s[1]:.1f}, {s[2]:.1f}) {'half sides' if s[0] == 'rectangle' else 'axes'} "
-                 f"({s[3]:.1f}, {s[4]:.1f}) angle {np.degrees(s[5]):.0f} deg ratio {s[6]:.2f}" for s in self.shapes]
+        parts = [s.describe() for s in self.shapes]
         return f"{self.cause} [{'; '.join(parts) or self.law}] chi2 {self.chi2_fit:.0f} holdout {self.chi2_holdout:.0f}"
 
 
-def _chi2(pred, obs, points, sigma) -> float:
-    meas = obs.displacements[:, points]
-    ok = np.isfinite(meas).all(-1)
-    r = ((pred[:, points] - np.nan_to_num(meas)) / sigma)[ok]
-    return float(np.sum(r * r))
-
-
-def _fit(cause, compiled: Compiled, fit_mask, hold_mask, sigma, z0=None, shapes_from=None, **kw) -> Fitted:
-    """Fit by Levenberg-Marquardt on the fitting points, score on both sets."""
+def fit_compiled(hypothesis: Hypothesis, compiled: Compiled, fit_mask: Mask, hold_mask: Mask, sigma: float,
+                 z0=None) -> Fitted:
+    """Fit ``compiled`` by Levenberg-Marquardt on the fitting points, score on both sets."""
     res = levenberg_marquardt(compiled, fit_mask, sigma, z0=z0)
     z = np.asarray(res.values["z"])
     pred = compiled.predict(z)
-    obs = compiled.model.obs
-    chi2 = _chi2(pred, obs, fit_mask, sigma)
-    n = int(np.isfinite(obs.displacements[:, fit_mask]).all(-1).sum()) * pred.shape[-1]
-    k = compiled.param.size
-    return Fitted(cause, k, chi2, _chi2(pred, obs, hold_mask, sigma), chi2 + k * np.log(max(n, 2)), pred,
-                  shapes=shapes_from(z) if shapes_from else [], result=res, model=compiled.model,
-                  theta=compiled.param.apply(compiled.theta, z), compiled=compiled, z=z,
-                  shapes_from=shapes_from, **kw)
+    fit, hold = (Residuals.at(compiled.model.obs.displacements, m, sigma) for m in (fit_mask, hold_mask))
+    chi2, k = fit.chi2(pred), compiled.param.size
+    return Fitted(hypothesis, k, chi2, hold.chi2(pred), chi2 + k * np.log(max(fit.n, 2)), pred, compiled.model,
+                  compiled.param.apply(compiled.theta, z), sigma, shapes=hypothesis.shapes_at(compiled, z),
+                  compiled=compiled, z=z, result=res)
 
 
-def refit(f: Fitted, points, hold_mask, sigma, max_remesh: int = 2, element: str = "tri3") -> Fitted:
+def fit(hypothesis, fit_mask: Mask, hold_mask: Mask, sigma: float) -> Fitted:
+    """Build ``hypothesis``' model (a region or hole hypothesis) and fit it."""
+    compiled, z0 = hypothesis.build()
+    return fit_compiled(hypothesis, compiled, fit_mask, hold_mask, sigma, z0=z0)
+
+
+def refit(f: Fitted, points: Mask, hold_mask: Mask, sigma: float, max_remesh: int = 2,
+          element: str = "tri3") -> Fitted:
     """The same hypothesis refitted on other points (e.g. all guide points), with the standard
     errors of its unknowns.
 
     A hypothesis with fitted shapes is remeshed at them first and refitted from there, again
     while its shapes still move by more than a fifth of the element size: a morph of the first
     mesh can only take a shape so far (its cells distort, then invert), which leaves a region
-    fitted too small with too large a ratio, or a hole too small. The new meshes use ``element``
-    (quadratic triangles are far less stiff in a strongly strained region than linear ones at
-    the same size). Without shapes the compiled model is reused."""
+    fitted too small with too large a ratio, or a hole too small. The new meshes use
+    ``element`` (quadratic triangles are far less stiff in a strongly strained region than
+    linear ones at the same size). Without shapes the compiled model is reused."""
     g = None
-    if f.remesh is not None and f.shapes:
+    if f.shapes and f.hypothesis.remeshable:
         start = f
         for _ in range(max(1, max_remesh)):
             try:
-                h = f.remesh(start.shapes, points, hold_mask, element)
+                h = fit(f.hypothesis.at(start.shapes, element), points, hold_mask, sigma)
             except Exception:  # noqa: BLE001 - e.g. a remesh at a runaway ratio that no longer solves
                 h = None
             if h is None or not np.isfinite(h.chi2_fit):
                 break
             if g is None or h.chi2_fit < g.chi2_fit:
                 g = h
-            moved = max(_moved(a, b) for a, b in zip(start.shapes, h.shapes))
+            moved = max(a.moved(b) for a, b in zip(start.shapes, h.shapes))
             if moved < 0.2 * f.model.h:
                 break
             start = h
     if g is None:  # no shapes, or no remesh could be fitted: refit the compiled model as it is
-        g = _fit(f.cause, f.compiled, points, hold_mask, sigma, z0=f.z, shapes_from=f.shapes_from, law=f.law)
-    g.z_std = standard_errors(g, points, sigma)
-    return g
+        g = fit_compiled(f.hypothesis, f.compiled, points, hold_mask, sigma, z0=f.z)
+    return replace(g, z_std=standard_errors(g, points, sigma))
 
 
-def _moved(s, t) -> float:
-    """How far a fitted shape ``(kind, cx, cy, a, b, angle, ratio)`` moved: its largest change of
-    centre or axis, or of the outline by its turn (``|a - b|`` times the angle)."""
-    turn = abs(np.angle(np.exp(2j * (t[5] - s[5])))) / 2 * abs(t[3] - t[4])
-    return float(max(np.max(np.abs(np.subtract(s[1:5], t[1:5]))), turn))
-
-
-def standard_errors(f: Fitted, points, sigma) -> np.ndarray:
+def standard_errors(f: Fitted, points: Mask, sigma: float) -> Float[np.ndarray, "k"]:
     """Standard errors of the fitted unknowns z from the Gauss-Newton covariance
     (J^T J)^-1 scaled by the reduced chi^2 (at least 1): how well the data fix each one."""
-    obs = f.compiled.model.obs
-    valid = np.isfinite(obs.displacements[:, points]).all(-1)
-    J = f.compiled.jacobian(f.z)[:, points][valid].reshape(-1, len(f.z)) / sigma
+    J = Residuals.at(f.compiled.model.obs.displacements, points, sigma).jacobian(f.compiled.jacobian(f.z))
     n, k = J.shape
     scale = max(f.chi2_fit / max(n - k, 1), 1.0)
     try:
@@ -133,14 +184,10 @@ def standard_errors(f: Fitted, points, sigma) -> np.ndarray:
         return np.full(k, np.nan)
 
 
-def baseline(model: MeasuredModel, fit_mask, hold_mask, sigma) -> Fitted:
+def baseline(model: MeasuredModel, fit_mask: Mask, hold_mask: Mask, sigma: float) -> Fitted:
     """The initial model, nothing fitted (under pure displacement driving a uniform modulus
     cancels out, so there is nothing to fit without measured forces)."""
     pred = np.asarray(model.predict(model.params()))
-    chi2 = _chi2(pred, model.obs, fit_mask, sigma)
-    return Fitted("none", 0, chi2, _chi2(pred, model.obs, hold_mask, sigma), chi2, pred, law=model.experiment.law,
-                  model=model, theta=model.params())
-
-
-class NotApplicable(ValueError):
-    """A hypothesis the data rule out before any fit (e.g. a hole where material was tracked)."""
+    fit, hold = (Residuals.at(model.obs.displacements, m, sigma) for m in (fit_mask, hold_mask))
+    chi2 = fit.chi2(pred)
+    return Fitted(Unchanged(model.experiment.law), 0, chi2, hold.chi2(pred), chi2, pred, model, model.params(), sigma)

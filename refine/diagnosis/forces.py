@@ -87,8 +87,7 @@ class ForcedObjective(Objective):
         """Displacement residuals (noise units) followed by the force residuals ``(frames * dim,)``."""
         theta = self.param.apply(self.theta, z)
         U = self.model.solve_frames(theta)
-        pred = self.model.at_points(U, theta)[:, self.points]
-        r = ((pred - self.measured) / self.sigma)[self.valid].reshape(-1)
+        r = self.residuals_of(self.model.at_points(U, theta))
         rf = (self.predicted_force(theta, U) - self.measured_force) / self.force_sigma
         return jnp.concatenate([r, rf.reshape(-1)])
 

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 import jaxfem as jf
 
-from refine.diagnosis.fitted import Fitted, NotApplicable, _fit
-from refine.diagnosis.regions import _clamp_shape, _mesh_size
+from refine.diagnosis.fitted import Fitted, NotApplicable, fit
+from refine.diagnosis.regions import _mesh_size
+from refine.diagnosis.shapes import Hole
 from refine.model.measured import MeasuredModel, domain_mesh
 from refine.model.objective import Compiled
 from refine.model.parametrize import ShapeGeometry
@@ -18,15 +21,54 @@ HOLE_MIN_SHRINK = 0.25
 centre, is free of tracked points (a true hole has none inside)."""
 
 
-def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | None = None,
-             element: str = "tri3") -> Fitted:
-    """A hole: an ellipse removed from the domain, centre, axes and orientation fitted. The
-    starting ellipse is shrunk until no tracked point lies inside it (material was seen there); a
-    candidate that has to shrink below ``HOLE_MIN_SHRINK`` of its size has tracked material near
-    its middle and is no hole (:class:`NotApplicable`, not fitted: such a start is a pinhole that
-    needs a very fine mesh, and its fit cost minutes to lose)."""
+@dataclass(frozen=True, eq=False)
+class HoleHypothesis:
+    """The hypothesis of a hole in ``base`` at ``hole`` (a ``jaxfem.Ellipse`` free of tracked
+    points), meshed at element size ``h`` (None: :func:`_mesh_size`) with ``element``."""
+
+    base: MeasuredModel
+    hole: jf.Ellipse
+    h: float | None = None
+    element: str = "tri3"
+    remeshable = True
+
+    @property
+    def law(self) -> str:
+        return self.base.experiment.law
+
+    def build(self) -> tuple[Compiled, None]:
+        """The model on a mesh with the hole cut out, and its geometry as the unknowns (start:
+        the hole as given)."""
+        base = self.base
+        ex, hole = base.experiment, self.hole
+        size = self.h or _mesh_size(base, [hole])
+        mesh = domain_mesh(ex, size, self.element, holes=[hole])
+        model = MeasuredModel(ex, base.obs, mesh=mesh, h=size)
+        param = ShapeGeometry(jf.morph(mesh, [hole]), hole.params[None], scale=0.5 * base.spacing, rotate=True,
+                              mesh=mesh, outside=base.obs.reference, min_axis=0.1 * base.spacing)
+        return Compiled(model, param), None
+
+    def shapes_at(self, compiled: Compiled, z) -> tuple[Hole]:
+        g = np.asarray(compiled.param.shape_params(z))[0]
+        return (Hole((g[0], g[1]), (g[2], g[3]), g[4]),)
+
+    def cause_of(self, shapes) -> str:
+        return "hole"
+
+    def at(self, shapes, element: str) -> HoleHypothesis:
+        return hole_hypothesis(self.base, shapes[0], h=self.h, element=element)
+
+
+def hole_hypothesis(base: MeasuredModel, shape, h: float | None = None, element: str = "tri3") -> HoleHypothesis:
+    """The :class:`HoleHypothesis` started at ``shape`` (a :class:`Hole` or
+    :class:`~refine.diagnosis.shapes.RegionShape`), kept inside the domain and shrunk until no
+    tracked point lies inside it (material was seen there). A candidate that has to shrink below
+    ``HOLE_MIN_SHRINK`` of its size has tracked material near its middle and is no hole
+    (:class:`NotApplicable`: such a start is a pinhole that needs a very fine mesh, and its fit
+    costs minutes to lose)."""
     ex, obs = base.experiment, base.obs
-    cx, cy, a, b, ang = _clamp_shape(shape, ex, base.spacing)
+    start = shape.clamped(ex.domain, base.spacing)
+    (cx, cy), (a, b), ang = start.centre, start.axes, start.angle
     pts = obs.reference
     size = max(a, b)
     for _ in range(30):
@@ -39,18 +81,11 @@ def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | 
     if max(a, b) < HOLE_MIN_SHRINK * size:
         near = pts[np.argmin(np.linalg.norm(pts - [cx, cy], axis=1))]
         raise NotApplicable(f"no hole at ({cx:.1f}, {cy:.1f}): the tracked point at ({near[0]:.1f}, {near[1]:.1f}) "
-                         "lies near its middle (material was seen there)")
-    hole = jf.Ellipse(cx, cy, a, b, ang)
-    size = h or _mesh_size(base, [hole])
-    mesh = domain_mesh(ex, size, element, holes=[hole])
-    model = MeasuredModel(ex, obs, mesh=mesh, h=size)
-    param = ShapeGeometry(jf.morph(mesh, [hole]), hole.params[None], scale=0.5 * base.spacing, rotate=True,
-                          mesh=mesh, outside=pts, min_axis=0.1 * base.spacing)
+                            "lies near its middle (material was seen there)")
+    return HoleHypothesis(base, jf.Ellipse(cx, cy, a, b, ang), h, element)
 
-    def shapes_from(z):
-        g = np.asarray(param.shape_params(z))[0]
-        return [("hole", *g[:4], g[4], 0.0)]
 
-    out = _fit("hole", Compiled(model, param), fit_mask, hold_mask, sigma, shapes_from=shapes_from, law=ex.law)
-    out.remesh = lambda fitted, pts, hold, el: fit_hole(base, fitted[0][1:6], pts, hold, sigma, h=h, element=el)
-    return out
+def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | None = None,
+             element: str = "tri3") -> Fitted:
+    """A hole (:func:`hole_hypothesis`), its centre, axes and orientation fitted."""
+    return fit(hole_hypothesis(base, shape, h, element), fit_mask, hold_mask, sigma)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from jaxfem.materials import LAWS, alternatives, get_material
 
-from refine.diagnosis.fitted import Fitted, _fit
+from refine.diagnosis.fitted import Fitted, fit_compiled, material_law
 from refine.model.measured import MeasuredModel
 from refine.model.objective import Compiled
 from refine.model.parametrize import Combined, UniformParameter
@@ -24,4 +24,4 @@ def fit_law(base: MeasuredModel, law: str, fit_mask, hold_mask, sigma) -> Fitted
     parts = [UniformParameter("nu", float(ex.nu), 0.0, 0.499)]
     parts += [UniformParameter(q.name, q.default, q.lower, q.upper) for q in get_material(law).extra]
     param = Combined(tuple(parts))
-    return _fit("material-law", Compiled(model, param), fit_mask, hold_mask, sigma, law=law)
+    return fit_compiled(material_law(law), Compiled(model, param), fit_mask, hold_mask, sigma)

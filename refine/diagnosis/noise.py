@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from jaxtyping import Bool, Float
 from scipy import stats
 from scipy.spatial import cKDTree
 
@@ -73,7 +74,8 @@ class NullTest:
         return self.statistic / max(self.dof, 1)
 
 
-def propagated_noise(model, theta, sigma: float, points: np.ndarray, samples: int = 12, seed: int = 0) -> np.ndarray:
+def propagated_noise(model, theta, sigma: float, points: Bool[np.ndarray, "n_points"], samples: int = 12,
+                     seed: int = 0) -> Float[np.ndarray, "samples frames m dim"]:
     """How noise on the driving boundary points moves the predictions at ``points``: predictions
     for ``samples`` noisy copies of the measured boundary motion (Monte Carlo through the
     nonlinear model, reusing its compiled solve). Returns the deviations
@@ -88,8 +90,8 @@ def propagated_noise(model, theta, sigma: float, points: np.ndarray, samples: in
     return np.stack(out)
 
 
-def null_test(residuals: np.ndarray, valid: np.ndarray, sigma: float, sigma_model: float,
-              propagated: np.ndarray) -> NullTest:
+def null_test(residuals: Float[np.ndarray, "frames m dim"], valid: Bool[np.ndarray, "frames m"], sigma: float,
+              sigma_model: float, propagated: Float[np.ndarray, "samples frames m dim"]) -> NullTest:
     """Test whether ``residuals (frames, n, dim)`` are explained by noise and model error.
 
     The covariance of the residuals under the null is ``(sigma^2 + sigma_model^2) I + V V^T``,

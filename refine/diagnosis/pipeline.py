@@ -17,20 +17,23 @@ name the cause, extend the model, and measure the gain on held-out points.
 from __future__ import annotations
 
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
 from refine.bundle.io import Bundle
-from refine.measures import mean_position_error, tracking_error
+from refine.measures import Residuals, mean_position_error, tracking_error
 from refine.diagnosis.forces import ForceScale, force_scale
 from refine.diagnosis.config import DiagnoseConfig
+from refine.diagnosis.findings import Finding, findings
 from refine.diagnosis.fitted import Fitted, NotApplicable, baseline, refit
 from refine.diagnosis.holes import fit_hole
 from refine.diagnosis.laws import ALTERNATIVE_LAWS, fit_law
 from refine.diagnosis.regions import fit_rectangle, fit_regions, refit_ellipse
-from refine.diagnosis.localize import Candidate, fit_field, segment, shape_outline
+from refine.diagnosis.shapes import RegionShape, report_row
+from refine.diagnosis.localize import Candidate, fit_field, segment
 from refine.model.measured import MeasuredModel
 from refine.diagnosis.noise import NullTest, estimate_noise, null_test, propagated_noise
 
@@ -62,30 +65,9 @@ class Diagnosis:
         return None if self.force is None else float(self.bundle.experiment.E * self.force.scale)
 
     @property
-    def findings(self) -> list[dict]:
-        out = []
-        if self.chosen.cause == "none":
-            return out
-        if self.chosen.cause == "material-law":
-            return [{"cause": "material-law", "region": None, "relative_elasticity": None, "modulus": None,
-                     "law": self.chosen.law, "evidence": self._evidence()}]
-        std = self.chosen.z_std
-        for i, (kind, cx, cy, a, b, ang, ratio) in enumerate(self.chosen.shapes):
-            cause = "hole" if kind == "hole" else ("stiffer-region" if ratio > 1 else "softer-region")
-            # z holds log ratios first, then 5 geometry unknowns per shape (centre, shape matrix)
-            unc = {}
-            if std is not None and kind != "hole":
-                unc["relative_elasticity_std"] = round(float(ratio * std[i]), 4)
-            area, polygon = shape_outline(kind, cx, cy, a, b, ang)
-            out.append({"cause": cause,
-                        "region": {"centroid": [round(float(cx), 4), round(float(cy), 4)],
-                                   "area": round(area, 4), "polygon": polygon,
-                                   "shape": "rectangle" if kind == "rectangle" else "ellipse",
-                                   "axes": [round(float(a), 4), round(float(b), 4)], "angle": round(float(ang), 4)},
-                        "relative_elasticity": round(float(ratio), 4),
-                        "modulus": None if not self.absolute else round(float(ratio) * self.background_modulus, 4),
-                        **unc, "evidence": self._evidence()})
-        return out
+    def findings(self) -> list[Finding]:
+        """What was found, one :class:`Finding` per cause (none when the initial model stands)."""
+        return findings(self.chosen, self._evidence(), self.background_modulus if self.absolute else None)
 
     def _evidence(self) -> str:
         b, c = self.baseline, self.chosen
@@ -108,15 +90,15 @@ class Diagnosis:
         return {"bundle": self.bundle.experiment.name,
                 "background": {"modulus": None if not self.absolute else round(self.background_modulus, 4),
                                "relative_elasticity": 1.0},
-                "baseline": e["baseline"], "findings": self.findings, "refined": e["refined"],
+                "baseline": e["baseline"], "findings": [f.to_json() for f in self.findings], "refined": e["refined"],
                 "gain": {"validation_error": e["gain"]},
                 "decision": {"null_statistic": self.null.statistic, "dof": self.null.dof,
                              "p_value": self.null.p_value, "noise_std": self.null.sigma,
                              "model_error_std": self.null.sigma_model,
                              "hypotheses": [{"cause": f.cause, "k": f.k, "bic": f.bic, "chi2_fit": f.chi2_fit,
                                              "chi2_holdout": f.chi2_holdout, "law": f.law,
-                                             "shapes": [list(map(float, s[1:])) for s in f.shapes],
-                                             "kinds": [s[0] for s in f.shapes]}
+                                             "shapes": [report_row(s) for s in f.shapes],
+                                             "kinds": [s.kind for s in f.shapes]}
                                             for f in self.tried]},
                 "note": self._modulus_note(),
                 "seconds": round(self.seconds, 2)}
@@ -166,26 +148,28 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
         f"error {sigma_model:.3g}")
     base = baseline(model, fit, hold, sigma_eff)
     V = propagated_noise(model, model.params(), sigma, guide, seed=cfg.seed) if sigma > 0 else np.zeros((0,))
-    meas = obs.displacements[:, guide]
-    null = null_test(base.predicted[:, guide] - np.nan_to_num(meas), np.isfinite(meas).all(-1), sigma,
-                     sigma_model, V.reshape((-1,) + meas.shape) if V.size else np.zeros((0,) + meas.shape))
+    at_guide = Residuals.at(obs.displacements, guide)
+    shape = at_guide.measured.shape
+    null = null_test(at_guide.difference(base.predicted), at_guide.valid, sigma, sigma_model,
+                     V.reshape((-1,) + shape) if V.size else np.zeros((0,) + shape))
     log(f"initial model: misfit {null.ratio:.2f}x its null level over {null.dof} residuals (p = {null.p_value:.3g})")
     tried, candidates, z = [base], [], None
     chosen = base
     if null.p_value < cfg.alpha:
-        n_res = int(np.isfinite(obs.displacements[:, fit]).all(-1).sum()) * model.mesh.dim
+        n_res = Residuals.at(obs.displacements, fit).n
         z, _ = fit_field(model, weight=cfg.field_weight * n_res / model.mesh.n_cells, sigma=sigma_eff, points=fit)
         candidates = segment(model.mesh, z, min_area=0.5 * model.spacing**2, max_regions=cfg.max_regions)
         candidates = [c for c in candidates if c.strength >= 0.2 * candidates[0].strength]
         log(f"field: {len(candidates)} candidate regions " +
             ", ".join(f"{'stiffer' if c.sign > 0 else 'softer'} at ({c.centroid[0]:.1f}, {c.centroid[1]:.1f})"
                       for c in candidates))
-        tried += _try_hypotheses(model, candidates, fit, hold, sigma_eff, cfg, log, null, n_res, pool)
+        trials = Trials(model, fit, hold, sigma_eff, cfg, null, n_res, log, pool)
+        tried += _try_hypotheses(trials, candidates)
         chosen = _choose(base, tried, cfg)
         if chosen is not base:  # refit the chosen model on every guide point
             chosen = refit(chosen, guide, hold, sigma_eff, element=cfg.refit_element)
-            if chosen.cause == "softer-region" and chosen.shapes[0][6] < cfg.hole_refit_below:
-                chosen = _hole_if_as_likely(model, chosen, guide, hold, sigma_eff, cfg, log)
+            if chosen.cause == "softer-region" and chosen.shapes[0].ratio < cfg.hole_refit_below:
+                chosen = _hole_if_as_likely(trials, chosen, guide)
     pool.shutdown()
     log(f"chosen: {chosen.describe()}")
     d = Diagnosis(bundle, null, base, chosen, tried, candidates, z, model, seconds=0.0)
@@ -201,97 +185,119 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
     return d
 
 
-def _hole_if_as_likely(model, soft: Fitted, points, hold, sigma, cfg, log) -> Fitted:
+@dataclass(frozen=True)
+class Trials:
+    """What every hypothesis of one diagnosis is fitted and judged with.
+
+    Attributes:
+        model: the initial model; fit, hold: ``(n_points,)`` masks of the fitting and held-out
+        guide points; sigma: the noise the residuals are weighted with (noise and model error);
+        cfg: the settings; null: the initial model's null test; n_fit: residuals on the fitting
+        points; log: where progress lines go; pool: the threads that fit hypotheses side by side.
+    """
+
+    model: MeasuredModel
+    fit: np.ndarray
+    hold: np.ndarray
+    sigma: float
+    cfg: DiagnoseConfig
+    null: NullTest
+    n_fit: int
+    log: Callable[[str], None]
+    pool: Executor
+
+    def explains(self, f: Fitted) -> bool:
+        """Whether a fit leaves no more misfit than noise, its propagation and model error would."""
+        return f.chi2_fit / max(self.n_fit, 1) < 1.5 * (1.0 + self.null.propagation)
+
+
+def _hole_if_as_likely(trials: Trials, soft: Fitted, points) -> Fitted:
     """A softer region refitted to a very low ratio may be a hole: the hole fitted at its
-    outline on the same points (and remeshed the same way) is chosen if its BIC is as low (it
-    has one unknown fewer). On 10 mm grids two random holes were first scored as soft regions
-    (ratios 0.14 and 0.28, their held-out misfit lower than the first hole fits') whose refits
-    on every guide point then went to ratio 0.00: holes in all but name. Where points were
-    tracked near the region's middle (material was seen) no hole is fitted (:class:`NotApplicable`)."""
-    ratio = soft.shapes[0][6]
+    outline on ``points`` (and remeshed the same way) is chosen if its BIC is as low (it has one
+    unknown fewer): a refit on every guide point can take a soft region to ratio 0, a hole in
+    all but name. Where points were tracked near the region's middle (material was seen) no
+    hole is fitted (:class:`NotApplicable`)."""
+    log, region = trials.log, soft.shapes[0]
     try:
-        hole = refit(fit_hole(model, tuple(soft.shapes[0][1:6]), points, hold, sigma), points, hold, sigma,
-                     element=cfg.refit_element)
+        hole = refit(fit_hole(trials.model, region, points, trials.hold, trials.sigma), points, trials.hold,
+                     trials.sigma, element=trials.cfg.refit_element)
     except NotApplicable as e:
-        log(f"  the soft region (ratio {ratio:.2f}) is no hole: {e}")
+        log(f"  the soft region (ratio {region.ratio:.2f}) is no hole: {e}")
         return soft
     except Exception as e:  # noqa: BLE001 - a hole that cannot be fitted leaves the soft region chosen
-        log(f"  could not fit the soft region (ratio {ratio:.2f}) as a hole: {e}")
+        log(f"  could not fit the soft region (ratio {region.ratio:.2f}) as a hole: {e}")
         return soft
-    log(f"  the soft region (ratio {ratio:.2f}, BIC {soft.bic:.0f}) as a hole: {hole.describe()}, BIC {hole.bic:.0f}")
+    log(f"  the soft region (ratio {region.ratio:.2f}, BIC {soft.bic:.0f}) as a hole: {hole.describe()}, "
+        f"BIC {hole.bic:.0f}")
     return hole if hole.bic <= soft.bic else soft
 
 
-def _shape_of(c: Candidate):
-    return (float(c.centroid[0]), float(c.centroid[1]), float(c.axes[0]), float(c.axes[1]), c.angle)
+def _shape_of(c: Candidate, ratio: float) -> RegionShape:
+    """A candidate's ellipse, started at ``ratio``."""
+    return RegionShape((float(c.centroid[0]), float(c.centroid[1])), (float(c.axes[0]), float(c.axes[1])), c.angle,
+                       "ellipse", ratio)
 
 
-def _explains(f: Fitted, n_fit: int, null: NullTest) -> bool:
-    """Whether a fit leaves no more misfit than noise, its propagation and model error would."""
-    return f.chi2_fit / max(n_fit, 1) < 1.5 * (1.0 + null.propagation)
-
-
-def _try_hypotheses(model, candidates, fit, hold, sigma, cfg, log, null, n_fit, pool) -> list[Fitted]:
+def _try_hypotheses(trials: Trials, candidates: list[Candidate]) -> list[Fitted]:
     """Greedy: the strongest candidate region first (as a stiffer/softer region, and as a hole
     when softer, the two fitted side by side); add the next candidate only while the misfit is
     still above the null level; other material laws (side by side) only if no region explains
     the data."""
     out = []
+    model, fit, hold, sigma, cfg, log = trials.model, trials.fit, trials.hold, trials.sigma, trials.cfg, trials.log
 
-    def attempt(fn, *args):
+    def attempt(name, job):
         try:
-            f = fn(*args)
+            f = job()
             log(f"  tried {f.describe()}")
             return f
         except NotApplicable as e:
             log(f"  not tried: {e}")
             return None
         except Exception as e:  # noqa: BLE001 - a hypothesis that cannot be fitted is reported and skipped
-            log(f"  could not fit {fn.__name__}: {e}")
+            log(f"  could not fit {name}: {e}")
             return None
 
-    def side_by_side(*jobs):
-        """Fit ``(fn, *args)`` jobs in the pool; their results in the order given (None: not fitted)."""
-        fits = [f.result() for f in [pool.submit(attempt, *job) for job in jobs]]
-        out.extend(f for f in fits if f is not None)
+    def side_by_side(**jobs):
+        """Fit the jobs (name: a function of nothing) in the pool; their fits by name (None: not fitted)."""
+        futures = {name: trials.pool.submit(attempt, name, job) for name, job in jobs.items()}
+        fits = {name: f.result() for name, f in futures.items()}
+        out.extend(f for f in fits.values() if f is not None)
         return fits
 
     best = None
     used: list[Candidate] = []
     for c in candidates:
         trial = used + [c]
-        # the first region starts x3 or /3 at its candidate's outline; later ones start where
-        # the last fit left the others, the new one at x1.5 or /1.5, so the extended model starts
-        # close to the last one (a start at /3 sent a spurious second region's fit to chi2 1717
-        # from the single region's 302, and moved that region too)
-        shapes = [tuple(s[1:6]) for s in best.shapes] if used else []
-        ratios = [s[6] for s in best.shapes] if used else []
-        kinds = [s[0] for s in best.shapes] if used else []
-        shapes.append(_shape_of(c))
-        ratios.append((1.5 if used else 3.0) ** c.sign)
+        # the first region starts x3 or /3 at its candidate's outline; later ones start where the
+        # last fit left the others, the new one at x1.5 or /1.5, so the extended model starts
+        # close to the last one (a start at /3 could send a spurious second region's fit astray)
+        shapes = [*(best.shapes if used else ()), _shape_of(c, (1.5 if used else 3.0) ** c.sign)]
         signs = [k.sign for k in trial]
-        jobs = {"ellipse": (fit_regions, model, shapes, signs, fit, hold, sigma, True, None, ratios, "tri3",
-                            kinds + ["ellipse"])}
+        jobs = {"ellipse": lambda: fit_regions(model, shapes, signs, fit, hold, sigma)}
         if c.sign < 0 and not used:
-            jobs["hole"] = (fit_hole, model, _shape_of(c), fit, hold, sigma)
-        fits = dict(zip(jobs, side_by_side(*jobs.values())))
+            jobs["hole"] = lambda: fit_hole(model, _shape_of(c, None), fit, hold, sigma)
+        fits = side_by_side(**jobs)
         soft, hole = fits.get("ellipse"), fits.get("hole")
         # A very soft region may be a hole whose fit from the candidate's rough outline settled
         # badly: try the hole again from the soft region's fitted outline, unless the first
         # hole fit was far off (over twice the soft region's misfit: the outline is not it).
-        if ("hole" in jobs and soft is not None and soft.cause == "softer-region" and soft.shapes[0][6] < cfg.hole_below
+        if ("hole" in jobs and soft is not None and soft.cause == "softer-region"
+                and soft.shapes[0].ratio < cfg.hole_below
                 and (hole is None or (soft.bic < hole.bic and hole.chi2_fit < 2.0 * soft.chi2_fit))):
-            fits["hole from region"] = side_by_side((fit_hole, model, tuple(soft.shapes[0][1:6]), fit, hold, sigma))[0]
+            fits.update(side_by_side(**{"hole from region": lambda: fit_hole(model, soft.shapes[0], fit, hold, sigma)}))
         region = fits.get("ellipse")
         if (not used and region is not None and _rectangles_wanted(region, model, cfg)  # one region: never "regions"
                 and min((f for f in fits.values() if f is not None), key=_score) is region):
             # the region as a rectangle, from the fitted ellipse, turned 0 and pi/4 from it, beside
             # the ellipse remeshed at its fit (each rectangle is remeshed at its fit too)
-            more = side_by_side(*[(fit_rectangle, model, region, turn, fit, hold, sigma) for turn in (0.0, np.pi / 4)],
-                                (refit_ellipse, region, fit, hold))
-            fits.update(zip(("rectangle", "rectangle turned"), more[:2]))
-            if more[-1] is not None:  # the ellipse as first fitted is superseded by its remeshed fit
-                fits["ellipse"] = more[-1]
+            more = side_by_side(
+                **{"rectangle": lambda: fit_rectangle(model, region, 0.0, fit, hold, sigma),
+                   "rectangle turned": lambda: fit_rectangle(model, region, np.pi / 4, fit, hold, sigma),
+                   "ellipse remeshed": lambda: refit_ellipse(region, fit, hold)})
+            fits.update(rectangle=more["rectangle"], **{"rectangle turned": more["rectangle turned"]})
+            if more["ellipse remeshed"] is not None:  # the ellipse as first fitted is superseded by its remeshed fit
+                fits["ellipse"] = more["ellipse remeshed"]
                 out.remove(region)  # (listed once, also when the remesh kept it)
         fits = [f for f in fits.values() if f is not None]
         if not fits:
@@ -300,10 +306,11 @@ def _try_hypotheses(model, candidates, fit, hold, sigma, cfg, log, null, n_fit, 
         if best is not None and top.bic > best.bic - cfg.bic_margin:
             break  # the extra region does not pay for its parameters
         best, used = top, trial
-        if _explains(best, n_fit, null) or best.cause == "hole":
+        if trials.explains(best) or best.cause == "hole":
             break
-    if cfg.try_laws and (best is None or not _explains(best, n_fit, null)):
-        side_by_side(*[(fit_law, model, law, fit, hold, sigma) for law in ALTERNATIVE_LAWS.get(model.experiment.law, ())])
+    if cfg.try_laws and (best is None or not trials.explains(best)):
+        side_by_side(**{law: (lambda law=law: fit_law(model, law, fit, hold, sigma))
+                        for law in ALTERNATIVE_LAWS.get(model.experiment.law, ())})
     return out
 
 
@@ -314,8 +321,7 @@ def _rectangles_wanted(region: Fitted, model, cfg: DiagnoseConfig) -> bool:
     corner from a curve)."""
     if cfg.try_rectangles is not None:
         return bool(cfg.try_rectangles)
-    _, _, _, a, b, _, _ = region.shapes[0]
-    return min(a, b) >= cfg.rectangle_spacings * model.spacing
+    return min(region.shapes[0].axes) >= cfg.rectangle_spacings * model.spacing
 
 
 def _score(f: Fitted) -> float:

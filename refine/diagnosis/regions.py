@@ -3,32 +3,29 @@ and moduli are fitted by exact gradients, on meshes that follow them."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 import jaxfem as jf
 
-from refine.diagnosis.fitted import Fitted, NotApplicable, _fit, _moved
+from refine.diagnosis.fitted import Fitted, NotApplicable, fit
+from refine.diagnosis.shapes import RegionShape
+from refine.exceptions import RefineError
 from refine.model.measured import MeasuredModel, domain_mesh
 from refine.model.objective import Compiled
 from refine.model.parametrize import Combined, RegionModuli, ShapeGeometry, make_shape
 
 
-def _clamp_shape(shape, ex, spacing):
-    """Keep a candidate ellipse inside the domain, at least about one grid spacing across."""
-    dom = ex.domain
-    a, b = max(shape[2], 0.6 * spacing), max(shape[3], 0.6 * spacing)
-    m = 0.5 * spacing
-    cx = float(np.clip(shape[0], dom.xmin + a + m, dom.xmax - a - m)) if dom.xmax - dom.xmin > 2 * (a + m) else shape[0]
-    cy = float(np.clip(shape[1], dom.ymin + b + m, dom.ymax - b - m)) if dom.ymax - dom.ymin > 2 * (b + m) else shape[1]
-    return cx, cy, a, b, shape[4]
+class OverlappingRegions(RefineError, ValueError):
+    """Candidate regions that still overlap after shrinking them (the hypothesis is not fitted)."""
 
 
 def _mesh_size(base: MeasuredModel, ells) -> float:
     """Element size of a hypothesis' mesh: the base model's (half the grid spacing), but fine
     enough to resolve each shape (its smaller semi-axis over 2.5), and not below a quarter of
     the spacing. Linear triangles too coarse around a hole or a region are too stiff there, and
-    the fit makes up for it with a larger hole or a softer region (+21 % hole area at 5 mm
-    elements, +12 % at 2.5 mm, on one 10 mm-grid bundle)."""
+    the fit makes up for it with a larger hole or a softer region."""
     smallest = min(min(e.params[2], e.params[3]) for e in ells)
     return float(min(base.h, max(smallest / 2.5, 0.25 * base.spacing)))
 
@@ -53,12 +50,12 @@ def _disjoint(shapes, gap):
                     shapes[i], shapes[j] = _shrunk(a, 0.85), _shrunk(b, 0.85)
         if not clash:
             return shapes
-    raise ValueError("candidate regions overlap")
+    raise OverlappingRegions("candidate regions overlap")
 
 
 MIN_AXIS = 0.25
 """Smallest semi-axis of a fitted region, in grid spacings: a thinner one is not resolved by the
-tracked points (a fit once flattened a spurious second region to 1.7 x 19.6 mm on an 8 mm grid)."""
+tracked points."""
 
 
 RECTANGLE_SIDE = np.sqrt(3.0) / 2.0
@@ -82,40 +79,74 @@ def region_model(base: MeasuredModel, regions, h: float, element: str = "tri3", 
     return model, Combined(tuple(parts))
 
 
+@dataclass(frozen=True, eq=False)
+class Regions:
+    """The hypothesis of regions of other stiffness in ``base``: the ``jaxfem`` shapes its mesh
+    follows (kept inside the domain and apart), the signs of their starting log moduli (x3 for
+    stiffer, /3 for softer) or their starting ``ratios``, whether their geometry is fitted, and
+    the mesh's element size ``h`` (None: :func:`_mesh_size`) and ``element``."""
+
+    base: MeasuredModel
+    regions: tuple
+    signs: tuple
+    ratios: tuple | None = None
+    geometry: bool = True
+    h: float | None = None
+    element: str = "tri3"
+
+    @property
+    def law(self) -> str:
+        return self.base.experiment.law
+
+    @property
+    def remeshable(self) -> bool:
+        return self.geometry
+
+    def build(self) -> tuple[Compiled, np.ndarray]:
+        """The compiled model (:func:`region_model`) and its start: the log ratios, then zero
+        changes of the shapes."""
+        model, param = region_model(self.base, self.regions, self.h or _mesh_size(self.base, self.regions),
+                                    self.element, self.geometry)
+        z0 = np.zeros(param.size)
+        n = len(self.regions)
+        z0[:n] = np.log(3.0) * np.asarray(self.signs, float) if self.ratios is None else np.log(self.ratios)
+        return Compiled(model, param), z0
+
+    def shapes_at(self, compiled: Compiled, z) -> tuple[RegionShape, ...]:
+        n = len(self.regions)
+        ratios = np.exp(z[:n])
+        if not self.geometry:
+            return tuple(RegionShape.of(e, float(r)) for e, r in zip(self.regions, ratios))
+        geo = np.asarray(compiled.param.parts[1].shape_params(z[n:]))
+        return tuple(RegionShape((g[0], g[1]), (g[2], g[3]), g[4], RegionShape.of(e).kind, float(r))
+                     for e, g, r in zip(self.regions, geo, ratios))
+
+    def cause_of(self, shapes) -> str:
+        causes = {s.cause for s in shapes}
+        return causes.pop() if len(causes) == 1 and len(shapes) == 1 else "regions"
+
+    def at(self, shapes, element: str) -> Regions:
+        return regions_hypothesis(self.base, shapes, self.signs, h=self.h, element=element)
+
+
+def regions_hypothesis(base: MeasuredModel, shapes, signs, geometry: bool = True, h: float | None = None,
+                       element: str = "tri3") -> Regions:
+    """The :class:`Regions` hypothesis started at ``shapes`` (:class:`RegionShape`: ellipses or
+    rectangles, their ``ratio`` the starting relative elasticity; None in all: x3 or /3 by
+    ``signs``), kept inside the domain, about a grid spacing across at least, and apart."""
+    regions = _disjoint([s.clamped(base.experiment.domain, base.spacing).geometry() for s in shapes], base.spacing)
+    ratios = None if all(s.ratio is None for s in shapes) else tuple(s.ratio for s in shapes)
+    return Regions(base, tuple(regions), tuple(signs), ratios, geometry, h, element)
+
+
 def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, geometry: bool = True,
-                h: float | None = None, ratios=None, element: str = "tri3", kinds=None) -> Fitted:
-    """Regions of other stiffness: shapes ``[(cx, cy, a, b, angle)]`` of ``kinds`` (``"ellipse"``,
-    the default, or ``"rectangle"``: then ``a, b`` are half sides) with fitted log moduli (start:
-    ``ratios``, default x3 for stiffer, /3 for softer) and, with ``geometry``, fitted centres,
-    axes or sides, and orientations.
+                h: float | None = None, element: str = "tri3") -> Fitted:
+    """Regions of other stiffness (:func:`regions_hypothesis`) with fitted log moduli and, with
+    ``geometry``, fitted centres, axes or sides, and orientations.
 
     A rectangle is worth its own hypothesis: fitted as an ellipse, a stiff rectangle (the paper's
-    scar) comes out larger and too soft, its corners' load paths missing (ratios 12-30 % low on
-    random rectangles of ratio 10, at 2-7 of their standard errors)."""
-    ex = base.experiment
-    kinds = tuple(kinds or ("ellipse",) * len(shapes))
-    regions = _disjoint([make_shape(k, _clamp_shape(s, ex, base.spacing)) for k, s in zip(kinds, shapes)],
-                        base.spacing)
-    model, param = region_model(base, regions, h or _mesh_size(base, regions), element, geometry)
-    parts = param.parts
-    z0 = np.zeros(param.size)
-    z0[: len(regions)] = np.log(3.0) * np.asarray(signs, float) if ratios is None else np.log(ratios)
-    n = len(regions)
-
-    def shapes_from(z):
-        ratios = np.exp(z[:n])
-        geo = np.asarray(parts[1].shape_params(z[n:])) if geometry else np.stack([e.params for e in regions])
-        return [(kinds[k], *geo[k, :4], geo[k, 4], float(ratios[k])) for k in range(n)]
-
-    out = _fit("regions", Compiled(model, param), fit_mask, hold_mask, sigma, z0=z0, shapes_from=shapes_from,
-               law=ex.law)
-    causes = {"stiffer-region" if s[6] > 1 else "softer-region" for s in out.shapes}
-    out.cause = causes.pop() if len(causes) == 1 and n == 1 else "regions"
-    if geometry:
-        out.remesh = lambda fitted, pts, hold, el: fit_regions(base, [f[1:6] for f in fitted], signs, pts, hold,
-                                                               sigma, h=h, ratios=[f[6] for f in fitted], element=el,
-                                                               kinds=[f[0] for f in fitted])
-    return out
+    scar) comes out larger and too soft, its corners' load paths missing."""
+    return fit(regions_hypothesis(base, shapes, signs, geometry, h, element), fit_mask, hold_mask, sigma)
 
 
 def remeshed(f: Fitted, fit_mask, hold_mask, max_remesh: int = 1, start=None) -> Fitted:
@@ -124,11 +155,11 @@ def remeshed(f: Fitted, fit_mask, hold_mask, max_remesh: int = 1, start=None) ->
     they are now); the best fit is returned (``f`` itself if it did not move that far)."""
     start = f.shapes if start is None else start
     for _ in range(max_remesh):
-        if f.remesh is None or max(_moved(a, b) for a, b in zip(start, f.shapes)) < 0.2 * f.model.h:
+        if not f.hypothesis.remeshable or max(a.moved(b) for a, b in zip(start, f.shapes)) < 0.2 * f.model.h:
             break
         start = f.shapes
         try:
-            g = f.remesh(f.shapes, fit_mask, hold_mask, "tri3")
+            g = fit(f.hypothesis.at(f.shapes, "tri3"), fit_mask, hold_mask, f.sigma)
         except Exception:  # noqa: BLE001 - a remesh that no longer solves: keep what there is
             break
         if not np.isfinite(g.chi2_fit) or g.chi2_fit >= f.chi2_fit:
@@ -144,22 +175,19 @@ def fit_rectangle(base: MeasuredModel, region: Fitted, turn: float, fit_mask, ho
     (a near-circular ellipse says nothing of a square's orientation: try 0 and a quarter turn
     of it, pi / 4), its ratio as fitted. Remeshed at the fitted rectangle and refitted while it
     moves by more than a fifth of an element (:func:`remeshed`): a morph that turns a rectangle
-    shears the cells at its corners, and from a start 17 degrees off a rectangle of ratio 10
-    stopped 4 degrees off (chi2 1413, against 999 at the true rectangle; no descent on that
-    mesh). Compare it with the ellipse remeshed the same way: a remeshed fit has the advantage
-    of a fresh mesh (on 10 mm grids rectangles beat the first ellipse fits of true ellipses)."""
-    kind, cx, cy, a, b, ang, ratio = region.shapes[0]
-    if kind != "ellipse" or len(region.shapes) != 1:
+    shears the cells at its corners and stops short. Compare it with the ellipse remeshed the
+    same way (:func:`refit_ellipse`): a remeshed fit has the advantage of a fresh mesh."""
+    if len(region.shapes) != 1 or region.shapes[0].kind != "ellipse":
         raise NotApplicable("a rectangle is started from a single fitted ellipse")
-    start = ("rectangle", cx, cy, RECTANGLE_SIDE * a, RECTANGLE_SIDE * b, ang + turn, ratio)
-    f = fit_regions(base, [start[1:6]], [1 if ratio > 1 else -1], fit_mask, hold_mask, sigma, ratios=[ratio],
-                    kinds=["rectangle"])
+    ellipse = region.shapes[0]
+    start = RegionShape(ellipse.centre, (RECTANGLE_SIDE * ellipse.axes[0], RECTANGLE_SIDE * ellipse.axes[1]),
+                        ellipse.angle + turn, "rectangle", ellipse.ratio)
+    f = fit_regions(base, [start], [1 if ellipse.ratio > 1 else -1], fit_mask, hold_mask, sigma)
     return remeshed(f, fit_mask, hold_mask, max_remesh, start=[start])
 
 
 def refit_ellipse(region: Fitted, fit_mask, hold_mask, max_remesh: int = 1) -> Fitted:
     """The fitted ellipse remeshed at its fit and refitted (:func:`remeshed`, from the shapes its
     mesh was built at), to be compared with :func:`fit_rectangle` on equal terms."""
-    geo = region.compiled.param.parts[-1] if isinstance(region.compiled.param, Combined) else region.compiled.param
-    built = [(s[0], *np.asarray(geo.params0)[k], s[6]) for k, s in enumerate(region.shapes)]
+    built = [RegionShape.of(e, s.ratio) for e, s in zip(region.hypothesis.regions, region.shapes)]
     return remeshed(region, fit_mask, hold_mask, max_remesh, start=built)

@@ -101,10 +101,10 @@ def figures(d, out: Path) -> None:
         jf.plot.cell_map(d.model.mesh, np.exp(d.field), ax=ax, cmap="coolwarm", label="relative modulus (field)")
     ax.plot(ref[:, 0], ref[:, 1], "k.", ms=2)
     for f in d.findings:
-        if f["region"]:
-            p = np.array(f["region"]["polygon"] + f["region"]["polygon"][:1])
+        if f.region:
+            p = np.array(f.region.polygon + f.region.polygon[:1])
             ax.plot(p[:, 0], p[:, 1], "k-", lw=2)
-            ax.annotate(f["cause"], f["region"]["centroid"], ha="center")
+            ax.annotate(f.cause, f.region.centroid, ha="center")
     ax.set_title("found regions over the localisation field")
     ax.set_aspect("equal")
     fig.savefig(out / "regions.png", dpi=110, bbox_inches="tight")

@@ -10,11 +10,14 @@ point sets. The optimisers that take them are in :mod:`refine.optimize`.
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Float
 
-from refine.measures import displacement_error
+from refine.measures import Residuals, displacement_error
 from refine.model.measured import MeasuredModel
 
 
@@ -28,6 +31,9 @@ class Objective:
         role: which points are matched (``"guide"``; a subset mask may be given as ``points``).
         points: optional boolean mask over all points overriding ``role``.
         noise_std: weight of the residuals (default: the bundle's noise, or 1).
+
+    Its compiled pieces (:attr:`residuals_and_jacobian`, :attr:`value_and_grad`) are compiled on
+    first use and kept, so later fits of the same objective are warm.
     """
 
     def __init__(self, model: MeasuredModel, param, theta=None, role: str = "guide", points=None,
@@ -35,18 +41,34 @@ class Objective:
         self.model, self.param = model, param
         self.theta = model.params() if theta is None else theta
         obs = model.obs
-        self.points = obs.mask(role) if points is None else np.asarray(points, bool)
-        meas = obs.displacements[:, self.points]
-        self.valid = np.isfinite(meas).all(axis=-1)  # (frames, points)
-        self.measured = jnp.asarray(np.nan_to_num(meas))
         sigma = noise_std if noise_std is not None else (model.experiment.noise_std or 0.0)
-        self.sigma = float(sigma) if sigma and sigma > 0 else 1.0
+        sigma = float(sigma) if sigma and sigma > 0 else 1.0
+        self.at_points = Residuals.at(obs.displacements, obs.mask(role) if points is None else points, sigma)
         self.n_forward = 0
         self.n_gradient = 0
 
     @property
+    def points(self) -> np.ndarray:
+        """``(n_points,)`` bool: the matched points."""
+        return self.at_points.points
+
+    @property
+    def valid(self) -> np.ndarray:
+        """``(frames, m)`` bool: where the matched points were tracked."""
+        return self.at_points.valid
+
+    @property
+    def measured(self) -> np.ndarray:
+        """``(frames, m, dim)`` measured displacements at the matched points (0 where lost)."""
+        return self.at_points.measured
+
+    @property
+    def sigma(self) -> float:
+        return self.at_points.sigma
+
+    @property
     def n_residuals(self) -> int:
-        return int(self.valid.sum()) * self.model.mesh.dim
+        return self.at_points.n
 
     def predict(self, z):
         """Predicted displacements of all points ``(frames, n_points, dim)``."""
@@ -59,32 +81,34 @@ class Objective:
     def residuals_of(self, predicted):
         """The residuals of predicted displacements of all points ``(frames, n_points, dim)``
         (for a caller that solved already)."""
-        r = (predicted[:, self.points] - self.measured) / self.sigma
-        return r[self.valid].reshape(-1)
+        return self.at_points(predicted)
 
     def weighted(self, values):
         """Point values ``(frames, n_points, dim)`` noise-weighted at the matched, tracked points,
         ``(n_residuals,)``: the residuals' linear part (e.g. a series of predicted displacements)."""
-        return (values[:, self.points] / self.sigma)[self.valid].reshape(-1)
+        return self.at_points.weighted(values)
 
     def value(self, z):
         r = self.residuals(z)
         return 0.5 * jnp.sum(r * r) + self.param.regularization(z)
+
+    @cached_property
+    def residuals_and_jacobian(self):
+        """``z -> (J, r)``, compiled: the Jacobian ``(n_residuals, k)`` of the residuals (forward
+        mode, one tangent solve per unknown and frame at the converged state) and the residuals
+        ``(n_residuals,)``, from one solve."""
+        return jax.jit(jax.jacfwd(lambda z: (self.residuals(z),) * 2, has_aux=True))
+
+    @cached_property
+    def value_and_grad(self):
+        """``z -> (value, gradient)``, compiled (the gradient by one adjoint solve per frame)."""
+        return jax.jit(jax.value_and_grad(self.value))
 
     def paper_error(self, z) -> float:
         """The paper's eq. (1): sum of distances between predicted and measured positions."""
         pred = np.asarray(self.predict(z))[:, self.points]
         meas = np.where(self.valid[..., None], np.asarray(self.measured), np.nan)
         return displacement_error(pred, meas).value
-
-    def _count(self, kind: str):
-        def bump():
-            if kind == "forward":  # one evaluation of the model over all frames, as a search counts it
-                self.n_forward += 1
-            else:
-                self.n_gradient += 1
-
-        jax.debug.callback(bump)
 
 
 class Compiled:
@@ -95,10 +119,8 @@ class Compiled:
     per unknown and frame at the converged state, next to the forward solve); ``predict`` and
     ``jacobian`` are its halves.
 
-    One program, not two: a hypothesis' model is compiled once per mesh, and compiling the
-    prediction apart from its Jacobian cost as much again (measured: 3.7 s of 12 s per fit on a
-    ~1,200-node mesh), while the tangent solves add little to a solve (one back-substitution per
-    unknown)."""
+    One program, not two: compiling the prediction apart from its Jacobian costs about as much
+    again, while the tangent solves add little to a solve (one back-substitution per unknown)."""
 
     def __init__(self, model: MeasuredModel, param, theta=None):
         self.model, self.param = model, param
@@ -107,15 +129,16 @@ class Compiled:
         self._evaluate = jax.jit(jax.jacfwd(lambda z: (f(z), f(z)), has_aux=True))
         self._last = None
 
-    def evaluate(self, z) -> tuple[np.ndarray, np.ndarray]:
+    def evaluate(self, z) -> tuple[Float[np.ndarray, "frames n_points dim"],
+                                   Float[np.ndarray, "frames n_points dim k"]]:
         z = np.asarray(z, float)
         if self._last is None or not np.array_equal(self._last[0], z):
             J, pred = self._evaluate(jnp.asarray(z))
             self._last = (z.copy(), np.asarray(pred), np.asarray(J))
         return self._last[1], self._last[2]
 
-    def predict(self, z) -> np.ndarray:
+    def predict(self, z) -> Float[np.ndarray, "frames n_points dim"]:
         return self.evaluate(z)[0]
 
-    def jacobian(self, z) -> np.ndarray:
+    def jacobian(self, z) -> Float[np.ndarray, "frames n_points dim k"]:
         return self.evaluate(z)[1]

@@ -15,6 +15,8 @@ import numpy as np
 
 import jaxfem as jf
 
+from refine.exceptions import ParametrizationError
+
 
 @dataclass(frozen=True, eq=False)
 class RegionModuli:
@@ -112,7 +114,7 @@ class ModulusField:
 
     def __post_init__(self):
         if self.kind not in ("tikhonov", "tv"):
-            raise ValueError(f"kind must be 'tikhonov' or 'tv', not {self.kind!r}")
+            raise ParametrizationError(f"the regulariser's kind must be 'tikhonov' or 'tv', not {self.kind!r}")
         if self.pairs is None:
             object.__setattr__(self, "pairs", cell_adjacency(self.mesh))
 
@@ -194,7 +196,7 @@ def make_shape(kind: str, params):
         return jf.Ellipse(cx, cy, a, b, ang)
     if kind == "rectangle":
         return jf.Rect(cx - a, cy - b, cx + a, cy + b, ang)
-    raise ValueError(f"unknown shape kind {kind!r}; known: ellipse, rectangle")
+    raise ParametrizationError(f"unknown shape kind {kind!r}; use 'ellipse' or 'rectangle'")
 
 
 @dataclass(frozen=True, eq=False)
@@ -258,7 +260,7 @@ class ShapeGeometry:
         """Each shape's kind (``kinds``, by default all ellipses)."""
         kinds = tuple(self.kinds) or ("ellipse",) * len(self.params0)
         if len(kinds) != len(self.params0) or set(kinds) - {"ellipse", "rectangle"}:
-            raise ValueError(f"kinds must name 'ellipse' or 'rectangle' for each of {len(self.params0)} shapes, "
+            raise ParametrizationError(f"kinds must name 'ellipse' or 'rectangle' for each of {len(self.params0)} shapes, "
                              f"got {kinds}")
         return kinds
 

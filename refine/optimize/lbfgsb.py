@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import time
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -26,9 +25,7 @@ def lbfgsb(objective: Objective, z0=None, bounds=None, maxiter: int = 100, tol: 
 
     z = np.asarray(objective.param.z0 if z0 is None else z0, float)
     lo, hi = (-np.inf, np.inf) if bounds is None else bounds
-    value_and_grad = objective.__dict__.get("_value_and_grad")
-    if value_and_grad is None:  # compiled once per objective, so later fits are warm
-        value_and_grad = objective._value_and_grad = jax.jit(jax.value_and_grad(objective.value))
+    value_and_grad = objective.value_and_grad  # compiled once per objective, so later fits are warm
 
     last = {}
 

@@ -1,60 +1,83 @@
-"""Levenberg-Marquardt with exact Jacobians on a :class:`~refine.model.Compiled` model."""
+"""Levenberg-Marquardt (and Gauss-Newton, the same loop undamped) with exact Jacobians: the one
+loop behind :func:`levenberg_marquardt` (a :class:`~refine.model.Compiled` model at a point mask)
+and :func:`~refine.optimize.least_squares` (an :class:`~refine.model.Objective`)."""
 
 from __future__ import annotations
 
 import time
+from typing import Callable
 
 import numpy as np
+from jaxtyping import Float
 
+from refine.measures import Residuals
 from refine.model.parametrize import infeasibility
 from refine.optimize.result import RefineResult
+
+Vector = Float[np.ndarray, "k"]
 
 
 def levenberg_marquardt(compiled: Compiled, points, sigma: float, z0=None, max_steps: int = 30,
                         rtol: float = 1e-6, chi2_tol: float = 0.05) -> RefineResult:
     """Levenberg-Marquardt with exact Jacobians on ``compiled`` (see :class:`Compiled`), matching
-    the ``points`` mask. The same algorithm as :func:`least_squares` with the compiled pieces
-    reused across calls. Every evaluation (a step tried) is a forward solve with its Jacobian
-    (:meth:`Compiled.evaluate`), so a rejected step costs one evaluation and an accepted one needs
-    no other; a step the parametrisation calls infeasible (:func:`refine.model.parametrize.infeasibility`:
-    a squashed cell, a hole over a tracked point) is rejected without a solve.
-
-    It stops when a step lowers chi^2 (the sum of squared noise-weighted residuals) by less than
-    ``rtol`` of it or by less than ``chi2_tol``. A change of 0.05 in chi^2 is far below what a
-    model comparison sees (margins of 10) and about what moving a parameter by a fifth of its
-    standard error costs (0.2^2); a wrong hypothesis with a large misfit otherwise crept on for
-    all ``max_steps`` at ~0.1 per step."""
-    obs = compiled.model.obs
-    meas = obs.displacements[:, points]
-    valid = np.isfinite(meas).all(-1)
-    meas = np.nan_to_num(meas)
+    the ``points`` mask with noise ``sigma``. The compiled pieces are reused across calls. Every
+    evaluation (a step tried) is a forward solve with its Jacobian (:meth:`Compiled.evaluate`), so
+    a rejected step costs one evaluation and an accepted one needs no other; a step the
+    parametrisation calls infeasible (:func:`refine.model.parametrize.infeasibility`: a squashed
+    cell, a hole over a tracked point) is rejected without a solve. Stops as :func:`minimise`
+    says (``chi2_tol`` 0.05: far below the margins a model comparison sees, about a fifth of a
+    standard error; a wrong hypothesis otherwise creeps on for all ``max_steps``)."""
+    at = Residuals.at(compiled.model.obs.displacements, points, sigma)
     z = np.asarray(compiled.param.z0 if z0 is None else z0, float)
+    return minimise(lambda zz: at(compiled.predict(zz)), lambda zz: at.jacobian(compiled.jacobian(zz)),
+                    compiled.param, z, max_steps=max_steps, rtol=rtol, chi2_tol=chi2_tol)
 
-    def resid(pred):
-        return ((pred[:, points] - meas) / sigma)[valid].reshape(-1)
 
+def minimise(residuals: Callable[[Vector], Float[np.ndarray, "n"]],
+             jacobian: Callable[[Vector], Float[np.ndarray, "n k"]], param, z: Vector, *, max_steps: int = 30,
+             rtol: float = 1e-6, chi2_tol: float = 0.05, xtol: float = 1e-8, damped: bool = True,
+             on_evaluation: Callable[[Vector, float], None] | None = None,
+             method: str = "levenberg-marquardt") -> RefineResult:
+    """The least-squares loop: minimise chi^2 = |r(z)|^2 from ``z``.
+
+    Levenberg-Marquardt (``damped``): steps solve ``(H + lambda diag(H)) dz = -g`` with
+    ``H = J^T J``, ``g = J^T r``; a step that does not lower chi^2 is retried with ten times the
+    damping, an accepted one divides it by ten. Gauss-Newton (not ``damped``): ``lambda = 0``, and
+    a step that does not lower chi^2 ends the fit. ``jacobian(z)`` is only asked for at accepted
+    points (a caller whose evaluations bring the Jacobian along caches it). Steps that ``param``
+    calls infeasible are rejected without an evaluation.
+
+    Stops when a step lowers chi^2 by less than ``rtol`` of it or by less than ``chi2_tol``,
+    moves no unknown by more than ``xtol``, or no step lowers it. ``on_evaluation(z, chi2)`` is
+    told of every evaluation. ``error`` is chi^2 / 2; ``history`` has one row per step.
+    """
     t0 = time.perf_counter()
-    pred = compiled.predict(z)
-    r = resid(pred)
+
+    def evaluate(zz):
+        rr = residuals(zz)
+        cc = float(rr @ rr) if np.all(np.isfinite(rr)) else np.inf
+        if on_evaluation is not None:
+            on_evaluation(zz, cc)
+        return rr, cc
+
+    r, cost = evaluate(z)
     cost = float(r @ r)
     if not np.isfinite(cost):  # the start does not solve: no step can be judged against it
-        return RefineResult(values={"z": z, **compiled.param.values(z)}, error=np.inf, n_forward=1, n_gradient=1,
-                            seconds=time.perf_counter() - t0, history=[], method="levenberg-marquardt",
+        return RefineResult(values={"z": z, **param.values(z)}, error=np.inf, n_forward=1, n_gradient=1,
+                            seconds=time.perf_counter() - t0, history=[], method=method,
                             converged=False, message="the model does not solve at the start")
-    lam, history, n_fwd, n_infeasible, ok = 1e-3, [], 1, 0, False
+    lam, history, n_fwd, n_infeasible, ok = (1e-3 if damped else 0.0), [], 1, 0, False
     for step in range(max_steps):
-        J = compiled.jacobian(z)[:, points][valid].reshape(len(r), -1) / sigma  # came with the solve at z
+        J = jacobian(z)
         g, H = J.T @ r, J.T @ J
         while True:
             dz = -np.linalg.solve(H + lam * np.diag(np.diag(H) + 1e-12), g)
-            if infeasibility(compiled.param, z + dz):
+            if infeasibility(param, z + dz):
                 new, n_infeasible = np.inf, n_infeasible + 1
             else:
-                pred_new = compiled.predict(z + dz)
+                r_new, new = evaluate(z + dz)
                 n_fwd += 1
-                r_new = resid(pred_new)
-                new = float(r_new @ r_new) if np.all(np.isfinite(r_new)) else np.inf
-            if new < cost:
+            if new < cost or not damped:
                 break
             lam *= 10.0
             if lam > 1e8:
@@ -65,11 +88,11 @@ def levenberg_marquardt(compiled: Compiled, points, sigma: float, z0=None, max_s
             ok = True  # no descent possible: at a minimum up to round-off
             break
         gain = cost - new
-        z, r, cost, lam = z + dz, r_new, new, max(lam / 10.0, 1e-9)
-        if gain < max(rtol * (cost + gain), chi2_tol) or np.max(np.abs(dz)) < 1e-8:
+        z, r, cost, lam = z + dz, r_new, new, (max(lam / 10.0, 1e-9) if damped else 0.0)
+        if gain < max(rtol * (cost + gain), chi2_tol) or np.max(np.abs(dz)) < xtol:
             ok = True
             break
-    return RefineResult(values={"z": z, **compiled.param.values(z)}, error=0.5 * cost,
+    return RefineResult(values={"z": z, **param.values(z)}, error=0.5 * cost,
                         n_forward=n_fwd, n_gradient=n_fwd, seconds=time.perf_counter() - t0,
-                        history=history, method="levenberg-marquardt", converged=ok,
+                        history=history, method=method, converged=ok,
                         message="converged" if ok else f"stopped after {max_steps} steps")

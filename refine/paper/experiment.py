@@ -30,7 +30,7 @@ import numpy as np
 import jaxfem as jf
 
 from refine import optimize
-from refine.model.objective import Compiled, Objective
+from refine.model.objective import Objective
 from refine.bundle.io import Bundle
 from refine.model.measured import MeasuredModel, domain_mesh
 from refine.model.parametrize import RegionModuli

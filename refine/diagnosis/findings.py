@@ -1,0 +1,91 @@
+"""What a diagnosis says about one cause (:class:`Finding`): report.json's ``findings`` entries,
+as typed values."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class FoundRegion:
+    """Where a finding lies, as report.json gives it (rounded to 1e-4).
+
+    Attributes:
+        centroid: ``(x, y)``; area: its area (length unit squared); polygon: its outline
+        ``[[x, y], ...]``; shape: ``"ellipse"`` or ``"rectangle"`` (a hole is an ellipse);
+        axes: semi-axes or half sides; angle: radians.
+    """
+
+    centroid: tuple[float, float]
+    area: float
+    polygon: list
+    shape: str
+    axes: tuple[float, float]
+    angle: float
+
+    def to_json(self) -> dict:
+        return {"centroid": list(self.centroid), "area": self.area, "polygon": self.polygon, "shape": self.shape,
+                "axes": list(self.axes), "angle": self.angle}
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One cause the diagnosis names, with the numbers report.json gives for it.
+
+    Attributes:
+        cause: ``"stiffer-region"``, ``"softer-region"``, ``"hole"`` or ``"material-law"``.
+        region: where (None for a material law).
+        relative_elasticity: E x thickness over the background's (0 for a hole; None for a law).
+        modulus: the absolute modulus where measured forces fixed it, else None.
+        relative_elasticity_std: its standard error, where known.
+        law: the material law found (a material-law finding only).
+        evidence: a sentence: the null test and what the hypothesis gains.
+
+    ``finding["key"]`` reads the report.json entry (:meth:`to_json`).
+    """
+
+    cause: str
+    evidence: str
+    region: FoundRegion | None = None
+    relative_elasticity: float | None = None
+    modulus: float | None = None
+    relative_elasticity_std: float | None = None
+    law: str | None = None
+
+    def to_json(self) -> dict:
+        """The report.json entry (keys in the order of the bundle spec's example)."""
+        if self.cause == "material-law":
+            return {"cause": self.cause, "region": None, "relative_elasticity": None, "modulus": None,
+                    "law": self.law, "evidence": self.evidence}
+        std = {} if self.relative_elasticity_std is None else {"relative_elasticity_std": self.relative_elasticity_std}
+        return {"cause": self.cause, "region": self.region.to_json(), "relative_elasticity": self.relative_elasticity,
+                "modulus": self.modulus, **std, "evidence": self.evidence}
+
+    def __getitem__(self, key: str):
+        return self.to_json()[key]
+
+    def get(self, key: str, default=None):
+        return self.to_json().get(key, default)
+
+
+def findings(chosen, evidence: str, background_modulus: float | None) -> list[Finding]:
+    """The findings of the ``chosen`` fitted hypothesis (none for the initial model); moduli
+    absolute where ``background_modulus`` is known."""
+    if chosen.cause == "none":
+        return []
+    if chosen.cause == "material-law":
+        return [Finding("material-law", evidence, law=chosen.law)]
+    out = []
+    for i, shape in enumerate(chosen.shapes):
+        # z holds the log ratios first, then the geometry unknowns: ratio i's standard error is std[i]
+        std = None
+        if chosen.z_std is not None and shape.kind != "hole":
+            std = round(float(shape.ratio * chosen.z_std[i]), 4)
+        area, polygon = shape.outline()
+        region = FoundRegion((round(float(shape.centre[0]), 4), round(float(shape.centre[1]), 4)), round(area, 4),
+                             polygon, "rectangle" if shape.kind == "rectangle" else "ellipse",
+                             (round(float(shape.axes[0]), 4), round(float(shape.axes[1]), 4)),
+                             round(float(shape.angle), 4))
+        modulus = None if background_modulus is None else round(float(shape.ratio) * background_modulus, 4)
+        out.append(Finding(shape.cause, evidence, region, round(float(shape.ratio), 4), modulus, std))
+    return out
