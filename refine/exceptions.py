@@ -54,3 +54,8 @@ class FitError(RefineError, ValueError):
 class ParametrizationError(RefineError, ValueError):
     """A parametrisation was set up wrongly: an unknown regulariser or shape kind, kinds that do
     not match the shapes."""
+
+
+class BatchError(RefineError, ValueError):
+    """A batch cannot be set up as asked: no bundles, dask.distributed missing, a scheduler that
+    cannot be reached, an output directory that is not a directory."""

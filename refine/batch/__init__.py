@@ -11,7 +11,7 @@ line: ``nonrigid batch diagnose BUNDLES... --out DIR [--scheduler ADDRESS]``.
 """
 
 from refine.batch.cluster import visible_gpus, worker_env, worker_plan
-from refine.batch.errors import BatchError
+from refine.exceptions import BatchError
 from refine.batch.runner import bundle_paths, diagnose_many, diagnose_one
 from refine.batch.table import RESULTS, Table, row_from_report
 

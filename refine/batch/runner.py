@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from refine.batch import cluster
-from refine.batch.errors import BatchError
+from refine.exceptions import BatchError
 from refine.batch.table import RESULTS, Table, append_row, read_rows, row_from_report
 
 _GLOB = set("*?[")
