@@ -39,3 +39,11 @@ def test_a_hole_in_the_pattern_is_cut_from_the_domain(holed_images, tmp_path):
     kept = track(paths, tmp_path / "c", scale=SCALE, quiet=True, cut_holes=False)
     assert kept.experiment.domain.holes == ()
     assert kept.observations.n_points == bundle.observations.n_points
+
+
+def test_the_reference_frame_can_be_any_image_and_folders_expand_in_natural_order(holed_images, tmp_path):
+    paths, _ = holed_images
+    first = track([paths[0].parent], tmp_path / "a", scale=SCALE, quiet=True)       # a folder
+    second = track(paths[::-1], tmp_path / "b", scale=SCALE, quiet=True, reference=1)
+    np.testing.assert_allclose(second.observations.reference, first.observations.reference)
+    np.testing.assert_allclose(second.observations.displacements, first.observations.displacements)

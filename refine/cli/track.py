@@ -39,7 +39,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     """Add the ``track`` sub-command to ``subparsers`` (from ``ArgumentParser.add_subparsers``)."""
     p = subparsers.add_parser("track", help="track a grid or speckle pattern through images into a bundle",
                               description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("images", nargs="+", help="image files; the first is the reference (frame 0)")
+    p.add_argument("images", nargs="+", help="image files, folders or glob patterns (natural order); the first "
+                   "image is the reference (frame 0) unless --reference says otherwise")
     p.add_argument("--out", required=True, metavar="BUNDLE", help="bundle directory to write")
     p.add_argument("--pattern", choices=sorted(tracking.TRACKERS), default="grid", help="painted grid or speckle")
     scale = p.add_mutually_exclusive_group()
@@ -54,6 +55,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the choice of validation points")
     add_model_arguments(p)
     p.add_argument("--overlays", metavar="DIR", help="directory of the overlay images (default: BUNDLE/overlays)")
+    p.add_argument("--reference", type=int, default=0, metavar="K",
+                   help="which image is the reference (frame 0), counted from 0 (default: the first)")
     p.add_argument("--keep-holes", action="store_true",
                    help="do not cut holes found in the pattern from the model's domain (let diagnose find them)")
     t = p.add_argument_group("tracker options (see tracking.GridTracker / tracking.SpeckleTracker)")
@@ -97,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
         track(args.images, args.out, pattern=args.pattern, scale=args.scale, grid_pitch=args.grid_pitch,
               roi=args.roi, origin=args.origin, name=args.name, model=model,
               validate_fraction=args.validate_fraction, seed=args.seed, overlays=args.overlays,
-              tracker_options=_tracker_options(args), cut_holes=not args.keep_holes)
+              tracker_options=_tracker_options(args), cut_holes=not args.keep_holes, reference=args.reference)
     except (tracking.TrackingError, RefineError, OSError) as e:
         print(f"nonrigid track: error: {e}", file=sys.stderr)
         return 2
@@ -108,14 +111,14 @@ def track(images: Sequence[str | Path], out: str | Path, *, pattern: str = "grid
           grid_pitch: float | None = None, roi=None, origin=(0.0, 0.0), name: str | None = None,
           model: ModelSkeleton = ModelSkeleton(), validate_fraction: float = 0.2, seed: int = 0,
           overlays: str | Path | None = None, tracker_options: dict | None = None, cut_holes: bool = True,
-          quiet: bool = False) -> Bundle:
+          reference: int = 0, quiet: bool = False) -> Bundle:
     """Track a painted grid or a speckle pattern through image files and write a measurement bundle.
 
     What ``nonrigid track`` does. ``images[0]`` is the reference (frame 0); bundle coordinates are
     its axes in mm: x = (column - origin_x) * scale, y = (row - origin_y) * scale.
 
     Args:
-        images: two or more image files, in frame order.
+        images: two or more image files (or folders / glob patterns of them), in frame order.
         out: the bundle directory to write (experiment.toml, points.csv, displacements.csv).
         pattern: a tracker of :data:`tracking.TRACKERS` (``"grid"`` or ``"speckle"``).
         scale: mm per pixel; or ``grid_pitch``, the grid's pitch in mm, to derive it (grid only).
@@ -129,6 +132,8 @@ def track(images: Sequence[str | Path], out: str | Path, *, pattern: str = "grid
         overlays: directory of the overlay PNGs ``frame_000.png``, ...; None: ``out/overlays``.
         tracker_options: further fields of the tracker (``tracking.GridTracker`` /
             ``tracking.SpeckleTracker``), e.g. ``{"spacing": 12.0, "subset": 21}``.
+        reference: which of ``images`` (after expanding folders and globs, natural order) is the
+            reference, frame 0; the others follow in their order (default: the first).
         cut_holes: holes the tracker found in the pattern (``meta["outline"]["holes"]``) are cut
             from the bundle's domain (``model.domain.holes``), so the model follows the material;
             False leaves the domain whole (to let ``nonrigid diagnose`` find a hole).
@@ -146,6 +151,7 @@ def track(images: Sequence[str | Path], out: str | Path, *, pattern: str = "grid
         raise TrackCommandError("give the image scale: --scale MM_PER_PX, or --grid-pitch MM for a grid of known pitch")
     if grid_pitch is not None and pattern != "grid":
         raise TrackCommandError("--grid-pitch needs --pattern grid; give --scale MM_PER_PX for speckle images")
+    images = tracking.image_paths(images)  # folders and globs expanded, in natural order
     if len(images) < 2:
         raise TrackCommandError("give at least two images: the reference and one deformed frame")
     if scale is not None and not scale > 0:
@@ -155,6 +161,9 @@ def track(images: Sequence[str | Path], out: str | Path, *, pattern: str = "grid
     # the model is checked now rather than after the (slow) tracking
     Experiment(name="check", kind=model.kind, domain=RectangleDomain(0.0, 0.0, 1.0, 1.0), law=model.law,
                E=model.E, nu=model.nu, thickness=model.thickness)
+    if not -len(images) <= reference < len(images):
+        raise TrackCommandError(f"--reference {reference} is not one of the {len(images)} images (0 to {len(images) - 1})")
+    images = [images[reference]] + [p for k, p in enumerate(images) if k != reference % len(images)]
     stack = tracking.load_images(images)
     tracks = tracking.track_images(stack, pattern, roi=roi, **(tracker_options or {}))
     scale = scale if grid_pitch is None else tracking.scale_from_grid(tracks, grid_pitch)
