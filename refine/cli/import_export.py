@@ -52,9 +52,6 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--scale", type=float, default=None,
                    help="mm per unit of the export (required for dice, whose unit is the pixel; default 1 for csv)")
     p.add_argument("--origin", default="0,0", metavar="X,Y", help="export coordinates that become (0, 0) mm")
-    p.add_argument("--name", help="experiment name (default: the bundle directory's name)")
-    p.add_argument("--validate-fraction", type=float, default=0.2, help="share of interior points held out")
-    p.add_argument("--seed", type=int, default=0, help="seed of the choice of validation points")
     add_model_arguments(p)
     p.set_defaults(run=run)
     return p

@@ -50,9 +50,6 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--roi", metavar="X0,Y0,X1,Y1",
                    help="tracked region in pixels of the first image (default: all of it)")
     p.add_argument("--origin", default="0,0", metavar="X,Y", help="pixel of the first image that becomes (0, 0) mm")
-    p.add_argument("--name", help="experiment name (default: the bundle directory's name)")
-    p.add_argument("--validate-fraction", type=float, default=0.2, help="share of interior points held out")
-    p.add_argument("--seed", type=int, default=0, help="seed of the choice of validation points")
     add_model_arguments(p)
     p.add_argument("--overlays", metavar="DIR", help="directory of the overlay images (default: BUNDLE/overlays)")
     p.add_argument("--reference", type=int, default=0, metavar="K",
@@ -75,7 +72,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def add_model_arguments(p: argparse.ArgumentParser) -> None:
-    """The flags of the initial model a command writes to experiment.toml (track, import)."""
+    """The flags of the bundle a command writes (track, import): experiment name, validation
+    share and seed, and the initial model in experiment.toml."""
+    p.add_argument("--name", help="experiment name (default: the bundle directory's name)")
+    p.add_argument("--validate-fraction", type=float, default=0.2, help="share of interior points held out")
+    p.add_argument("--seed", type=int, default=0, help="seed of the choice of validation points")
     p.add_argument("--noise-std", default="auto", metavar="auto|MM",
                    help="displacement noise in mm, or 'auto' (estimated by diagnose)")
     p.add_argument("--kind", choices=("plane-stress", "plane-strain"), default="plane-stress")

@@ -14,19 +14,18 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 import numpy as np
-from scipy.spatial import cKDTree
 
 import jaxfem as jf
 
 from refine.exceptions import ObservationError
 from refine.bundle.experiment import Experiment, MeshDomain, RectangleDomain
+from refine.bundle.roles import point_spacing
 from refine.bundle.observations import Observations
 
 
 def grid_spacing(points: np.ndarray) -> float:
     """Median nearest-neighbour distance of the tracked points (length unit)."""
-    d, _ = cKDTree(points).query(points, k=2)
-    return float(np.median(d[:, 1]))
+    return point_spacing(points)
 
 
 def domain_mesh(experiment: Experiment, h: float, element: str = "tri3", inclusions=(), holes=(),
