@@ -14,6 +14,7 @@ from refine.batch.cluster import visible_gpus, worker_env, worker_plan
 from refine.exceptions import BatchError
 from refine.batch.runner import bundle_paths, diagnose_many, diagnose_one
 from refine.batch.table import RESULTS, Table, row_from_report
+from refine.batch.tasks import run_tasks
 
 __all__ = ["BatchError", "RESULTS", "Table", "bundle_paths", "diagnose_many", "diagnose_one", "row_from_report",
-           "visible_gpus", "worker_env", "worker_plan"]
+           "run_tasks", "visible_gpus", "worker_env", "worker_plan"]
