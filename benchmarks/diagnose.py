@@ -210,7 +210,7 @@ def summarise(rows) -> dict:
 
 def write_results(rows, machine: dict, settings: dict, out: Path = OUT / "diagnose.json") -> dict:
     """Summarise ``rows`` per cell and overall; write ``out`` (JSON) and the plot beside it."""
-    oracle = {case_key(o): o for o in _read_rows([ORACLE_ROWS])}
+    oracle = {case_key(o): o for o in _read_rows([ORACLE_ROWS]) if "oracle_error" not in o}
     rows = [{**r, **oracle.get(case_key(r), {})} for r in rows]
     cells = {}
     for r in rows:

@@ -6,6 +6,9 @@ to a JSONL table; resumable, a failed bundle recorded and the batch going on.
     table = diagnose_many(["runs/*/bundle"], "reports")        # a local cluster, one worker per core
     print(table.summary())
 
+Under it, :func:`run_tasks` runs any function returning a row over many tasks the same way (the
+diagnosis benchmark's cases run on it).
+
 Needs the optional extra ``pip install nonrigid[batch]`` (Dask distributed). From the command
 line: ``nonrigid batch diagnose BUNDLES... --out DIR [--scheduler ADDRESS]``.
 """

@@ -10,6 +10,7 @@ Which tasks to run (resuming a table) is the caller's choice: it knows what iden
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -66,6 +67,7 @@ def run_tasks(fn: Callable[..., dict], tasks: Sequence[tuple], table: str | Path
                 text = line(row) if line is not None else None
                 if text:
                     bar.write(text)
+                    sys.stdout.flush()  # tqdm does not: lines reach a log file as they come
                 future.release()
         finally:
             bar.close()
