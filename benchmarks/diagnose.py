@@ -319,14 +319,16 @@ def _run(fn, todo, path, args, failed, line):
     """``fn(case)`` for the cases ``todo`` on the batch runner's cluster (a local one of
     :func:`_workers` processes of ``args.threads`` cores, or ``args.scheduler``'s); each row
     appended to ``path`` (JSONL) as it finishes, and a ``line`` about it printed."""
-    import cloudpickle
-
     from refine.batch import run_tasks
 
     where = args.scheduler or f"{_workers(args)} local workers of {args.threads} thread(s)"
     print(f"{len(todo)} cases to run on {where}; rows to {path}", flush=True)
-    # the workers need refine only: this script's helpers travel with its functions
-    cloudpickle.register_pickle_by_value(sys.modules[_case_bundle.__module__])
+    try:  # the workers need refine only: this script's helpers travel with its functions
+        import cloudpickle  # Dask's; without Dask, run_tasks says how to install it
+
+        cloudpickle.register_pickle_by_value(sys.modules[_case_bundle.__module__])
+    except ImportError:
+        pass
     run_tasks(fn, [(c,) for c in todo], path, lambda task, e: failed(task[0], e), scheduler=args.scheduler,
               workers=_workers(args), threads=args.threads, gpus=(), progress=not args.no_progress, desc="cases",
               line=lambda row: f"{row['spacing']:g} mm noise {row['noise']:g} {row['cause']:15s} {line(row)}")
