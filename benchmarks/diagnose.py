@@ -236,7 +236,8 @@ def main():
                     help="cases per cell (cause, spacing and noise level): k = 0 .. N-1")
     ap.add_argument("--spacings", type=float, nargs="+", default=[10.0, 5.0])
     ap.add_argument("--noises", type=float, nargs="+", default=[0.02, 0.05])
-    ap.add_argument("--causes", nargs="+", default=list(CAUSES), choices=CAUSES)
+    ap.add_argument("--causes", nargs="+", default=list(CAUSES), choices=CAUSES, metavar="CAUSE",
+                    help=f"of {', '.join(CAUSES)}")
     ap.add_argument("--only", nargs="+", metavar="SPACING/NOISE/CAUSE/K",
                     help="run only these cases of the others, e.g. 10/0.02/hole/2 (to rerun a few cases)")
     ap.add_argument("--frames", type=int, default=4)
@@ -263,6 +264,11 @@ def main():
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     ap.add_argument("--note", default="", help="what the reader must know about this run (stored in the JSON)")
     args = ap.parse_args()
+    every = {case_key(c) for c in all_cases(argparse.Namespace(**{**vars(args), "only": None}))}
+    unknown = sorted(set(args.only or []) - every)
+    if unknown:
+        ap.error(f"--only: no such case among --cases/--spacings/--noises/--causes: {', '.join(unknown)} "
+                 "(keys are SPACING/NOISE/CAUSE/K as in 10/0.02/hole/2)")
     if args.oracle:
         done = {case_key(r) for r in _read_rows([ORACLE_ROWS]) if "oracle_error" not in r}
         todo = [{k: r[k] for k in ("spacing", "noise", "cause", "k", "seed", "frames")}
