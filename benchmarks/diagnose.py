@@ -230,8 +230,8 @@ def write_results(rows, machine: dict, settings: dict, out: Path = OUT / "diagno
     return results
 
 
-def main():
-    ap = argparse.ArgumentParser()
+def _parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(description="The diagnosis benchmark (see the module docstring).")
     ap.add_argument("--cases", "--cases-per-cell", type=int, default=20,
                     help="cases per cell (cause, spacing and noise level): k = 0 .. N-1")
     ap.add_argument("--spacings", type=float, nargs="+", default=[10.0, 5.0])
@@ -263,6 +263,11 @@ def main():
                          "benchmarks/results/diagnose.json re-summarises the committed run)")
     ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     ap.add_argument("--note", default="", help="what the reader must know about this run (stored in the JSON)")
+    return ap
+
+
+def main():
+    ap = _parser()
     args = ap.parse_args()
     every = {case_key(c) for c in all_cases(argparse.Namespace(**{**vars(args), "only": None}))}
     unknown = sorted(set(args.only or []) - every)
