@@ -14,12 +14,19 @@ def _med(v):
     return float(np.median(v)) if v else None
 
 
+def _case_truth(case: dict):
+    """The case's hidden effect, drawn under its seed."""
+    from refine.synthetic.sheet import random_truth
+
+    return random_truth(np.random.default_rng(case["seed"]), case["cause"])
+
+
 def _case_bundle(case: dict):
     """The case's hidden effect (drawn under its seed) and the bundle generated from it."""
-    from refine.synthetic.sheet import random_truth, synthetic_bundle
+    from refine.synthetic.sheet import synthetic_bundle
 
     fractions = tuple(np.linspace(0, 1, case["frames"] + 1)[1:])
-    truth = random_truth(np.random.default_rng(case["seed"]), case["cause"])
+    truth = _case_truth(case)
     return truth, synthetic_bundle(truth, seed=case["seed"], spacing=case["spacing"], noise=case["noise"],
                                    fractions=fractions)
 

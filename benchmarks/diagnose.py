@@ -1,19 +1,23 @@
 """Diagnosis benchmark: rates of right causes and false alarms, localisation and ratio errors,
 gain and seconds, over random hidden cases per cause, at two grid densities and two noise levels.
 
-    python benchmarks/diagnose.py                          # 20 cases per cause and setting (many hours)
-    python benchmarks/diagnose.py --cases 3 --workers 2    # a quick look
-    python benchmarks/diagnose.py --cases 20 --workers 16 --shard 0/2 --rows /tmp/rows0.jsonl
-    python benchmarks/diagnose.py --merge /tmp/rows*.jsonl # summary from rows written before
-    python benchmarks/diagnose.py --oracle --merge benchmarks/results/diagnose.json --workers 2
+    python benchmarks/diagnose.py                          # 20 cases per cell, one worker per core
+    python benchmarks/diagnose.py --cases 1 --workers 1 --threads 2   # a quick look
+    python benchmarks/diagnose.py --cases-per-cell 20 --workers 16    # the 480 cases on 16 cores
+    python benchmarks/diagnose.py --scheduler tcp://HOST:8786         # on a Dask cluster
+    python benchmarks/diagnose.py --summarise benchmarks/results/diagnose.json  # summary from stored rows
+    python benchmarks/diagnose.py --oracle --summarise benchmarks/results/diagnose.json
                                                            # what the data allow, per case
 
 Each case draws its hidden effect (location, size, ratio) under its own seed; data come from a
 finer quadratic mesh of a larger sheet, with noise; the inversion uses linear triangles on the
-tracked region (and quadratic ones for the chosen model's final refit). Cases run in ``--workers`` processes of ``--threads`` threads each; each finished case is
-appended to the rows file (JSONL) at once, so a run stopped early keeps what finished and a
-second run with the same rows file resumes (cases already there are skipped). Cases are ordered
-case index first, so a run stopped early has about as many cases in every cell.
+tracked region (and quadratic ones for the chosen model's final refit). Cases are tasks of the
+batch runner (:func:`refine.batch.run_tasks`, Dask): a local cluster of ``--workers`` spawned
+processes of ``--threads`` cores each, or the workers of a Dask scheduler (``--scheduler``). Each
+finished case is appended to the rows file (JSONL) at once, so a run stopped early keeps what
+finished and a second run with the same rows file resumes (cases already there are skipped); a case
+that fails is a row with its error. Cases are submitted case index first, so a run stopped early has
+about as many cases in every cell.
 
 Writes benchmarks/results/diagnose.json (and diagnose.png) from all rows: per cell (spacing,
 noise, cause) the counts and rates, with the machine the rows were measured on. ``seconds`` are
@@ -33,21 +37,19 @@ import argparse
 import json
 import os
 import platform
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from _diagnose_oracle import (AREA_TOL, CENTROID_TOL, GAIN_MIN, RATIO_TOL, _case_bundle, _med, against_oracle,
-                              oracle_case)
+from _diagnose_oracle import (AREA_TOL, CENTROID_TOL, GAIN_MIN, RATIO_TOL, _case_bundle, _case_truth, _med,
+                              against_oracle, oracle_case)
 
 DIAGONAL = float(np.hypot(100.0, 60.0))
 OUT = Path(__file__).parent / "results"
 ORACLE_ROWS = OUT / "diagnose_oracle.jsonl"  # oracle_case's rows, joined with the cases' rows by case
 CAUSES = ("none", "stiffer-region", "softer-region", "hole", "two-regions", "rectangle")
-SINGLE_THREAD = {"XLA_FLAGS": "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1",
-                 "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
-                 "JAX_PLATFORMS": "cpu"}
 
 
 def case_key(c: dict) -> str:
@@ -55,7 +57,8 @@ def case_key(c: dict) -> str:
 
 
 def all_cases(args) -> list[dict]:
-    """Every case, case index outermost (a run stopped early is balanced over the cells)."""
+    """Every case (those of ``args.only`` where given), case index outermost (a run stopped early is
+    balanced over the cells)."""
     out = []
     for k in range(args.cases):
         for spacing in args.spacings:
@@ -64,7 +67,8 @@ def all_cases(args) -> list[dict]:
                     seed = 1000 * int(spacing) + 100 * CAUSES.index(cause) + k
                     out.append({"spacing": spacing, "noise": noise, "cause": cause, "k": k, "seed": seed,
                                 "frames": args.frames})
-    return out
+    only = set(args.only or [])
+    return [c for c in out if case_key(c) in only] if only else out
 
 
 def score(truth, d) -> dict:
@@ -108,7 +112,7 @@ def score(truth, d) -> dict:
 
 
 def run_case(case: dict) -> dict:
-    """Generate one bundle and diagnose it (in a worker process)."""
+    """Generate one bundle and diagnose it (a task on a worker)."""
     from refine.diagnosis import DiagnoseConfig, diagnose
 
     t0 = time.perf_counter()
@@ -116,11 +120,7 @@ def run_case(case: dict) -> dict:
     try:
         d = diagnose(bundle, config=DiagnoseConfig(workers=case.get("threads", 1)), log=lambda m: None)
     except Exception as e:  # noqa: BLE001 - a failed diagnosis is a failed case, recorded as such
-        return {**case, "error": f"{type(e).__name__}: {e}", "passed": False, "right_cause": False,
-                "false_alarm": False, "missed": True, "found": [], "truth": sorted(truth.causes), "gain": None,
-                "seconds": time.perf_counter() - t0, "centroid_error": [], "ratio_error": [],
-                "signed_ratio_error": [], "area_error": [], "signed_area_error": [], "truth_ratio": [],
-                "truth_size": [], "load_average": [round(x, 2) for x in os.getloadavg()], "chosen": ""}
+        return error_row(case, e, time.perf_counter() - t0, truth)
     row = {**case, **score(truth, d)}
     row["points"] = int(bundle.observations.n_points)
     row["data_seconds"] = time.perf_counter() - t0 - d.seconds
@@ -129,6 +129,17 @@ def run_case(case: dict) -> dict:
     row["hypotheses"] = [{"hypothesis": f.describe(), "k": f.k, "bic": round(f.bic, 2), "chi2_fit": round(f.chi2_fit, 2),
                           "chi2_holdout": round(f.chi2_holdout, 2)} for f in d.tried]
     return row
+
+
+def error_row(case: dict, e: BaseException, seconds: float | None = None, truth=None) -> dict:
+    """The row of a case that failed (its diagnosis raised, or its task did not return: then
+    ``seconds`` is None): a missed case, with the error."""
+    truth = _case_truth(case) if truth is None else truth
+    return {**case, "error": f"{type(e).__name__}: {e}", "passed": False, "right_cause": False,
+            "false_alarm": False, "missed": True, "found": [], "truth": sorted(truth.causes), "gain": None,
+            "seconds": seconds, "centroid_error": [], "ratio_error": [], "signed_ratio_error": [], "area_error": [],
+            "signed_area_error": [], "truth_ratio": [], "truth_size": [],
+            "load_average": [round(x, 2) for x in os.getloadavg()], "chosen": ""}
 
 
 def _code_version() -> str:
@@ -147,6 +158,8 @@ def _code_version() -> str:
 
 
 def _read_rows(paths) -> list[dict]:
+    """The rows of results JSONs and rows JSONLs ``paths``, one per case: a later row of a case
+    replaces an earlier one; a line cut short (a run killed while writing) is skipped."""
     rows = {}
     for p in paths:
         p = Path(p)
@@ -155,9 +168,11 @@ def _read_rows(paths) -> list[dict]:
                 rows.update((case_key(r), r) for r in g["rows"])
         elif p.exists():
             for line in p.read_text().splitlines():
-                if line.strip():
+                try:
                     r = json.loads(line)
-                    rows[case_key(r)] = r
+                except json.JSONDecodeError:
+                    continue
+                rows[case_key(r)] = r
     return list(rows.values())
 
 
@@ -172,6 +187,7 @@ def summarise(rows) -> dict:
     """Counts, rates and medians of one cell's rows."""
     flat = lambda key: [x for r in rows for x in r[key]]  # noqa: E731
     gains = [r["gain"] for r in rows if r["gain"] and r["truth"]]  # homogeneous cases have nothing to gain
+    seconds = [r["seconds"] for r in rows if r["seconds"] is not None]  # None: a task that did not return
     return {"cases": len(rows), "errors": sum("error" in r for r in rows), "pass_rate": float(np.mean([r["passed"] for r in rows])),
             "right_cause_rate": float(np.mean([r["right_cause"] for r in rows])),
             "false_alarm_rate": float(np.mean([r["false_alarm"] for r in rows])),
@@ -188,13 +204,13 @@ def summarise(rows) -> dict:
             "median_signed_area_error": _med(flat("signed_area_error")),
             "median_gain": _med(gains), "gain_2x_rate": float(np.mean([g >= GAIN_MIN for g in gains])) if gains else None,
             **against_oracle(rows),
-            "median_seconds": _med([r["seconds"] for r in rows]),
-            "max_seconds": float(max(r["seconds"] for r in rows))}
+            "median_seconds": _med(seconds),
+            "max_seconds": float(max(seconds)) if seconds else None}
 
 
 def write_results(rows, machine: dict, settings: dict, out: Path = OUT / "diagnose.json") -> dict:
     """Summarise ``rows`` per cell and overall; write ``out`` (JSON) and the plot beside it."""
-    oracle = {case_key(o): o for o in _read_rows([ORACLE_ROWS])}
+    oracle = {case_key(o): o for o in _read_rows([ORACLE_ROWS]) if "oracle_error" not in o}
     rows = [{**r, **oracle.get(case_key(r), {})} for r in rows]
     cells = {}
     for r in rows:
@@ -214,74 +230,119 @@ def write_results(rows, machine: dict, settings: dict, out: Path = OUT / "diagno
     return results
 
 
-def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--cases", type=int, default=20, help="cases per cause, spacing and noise level")
+def _parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(description="The diagnosis benchmark (see the module docstring).")
+    ap.add_argument("--cases", "--cases-per-cell", type=int, default=20,
+                    help="cases per cell (cause, spacing and noise level): k = 0 .. N-1")
     ap.add_argument("--spacings", type=float, nargs="+", default=[10.0, 5.0])
     ap.add_argument("--noises", type=float, nargs="+", default=[0.02, 0.05])
-    ap.add_argument("--causes", nargs="+", default=list(CAUSES))
+    ap.add_argument("--causes", nargs="+", default=list(CAUSES), choices=CAUSES, metavar="CAUSE",
+                    help=f"of {', '.join(CAUSES)}")
+    ap.add_argument("--only", nargs="+", metavar="SPACING/NOISE/CAUSE/K",
+                    help="run only these cases of the others, e.g. 10/0.02/hole/2 (to rerun a few cases)")
     ap.add_argument("--frames", type=int, default=4)
-    ap.add_argument("--workers", type=int, default=1, help="worker processes")
+    ap.add_argument("--workers", type=int, default=None,
+                    help="worker processes of the local cluster (default: one per --threads cores)")
     ap.add_argument("--threads", type=int, default=1,
-                    help="threads of each worker: 1 pins XLA and BLAS to one thread and fits one hypothesis at a "
-                         "time; N > 1 leaves XLA its threads and fits N hypotheses side by side (one diagnosis "
-                         "on N cores, as the issue's time target counts it: --workers 1 --threads 2)")
-    ap.add_argument("--shard", default="0/1", help="i/n: run every n-th case starting at the i-th")
+                    help="cores of each worker: 1 pins XLA and BLAS to one thread and fits one hypothesis at a "
+                         "time; N > 1 gives XLA and BLAS N threads and fits N hypotheses side by side (one "
+                         "diagnosis on N cores, as the issue's time target counts it: --workers 1 --threads 2)")
+    ap.add_argument("--scheduler", default=None,
+                    help="address of a Dask scheduler (tcp://HOST:8786) whose workers run the cases, instead of a "
+                         "local cluster (start them with one thread each: see refine.batch.cluster)")
     ap.add_argument("--rows", default=str(OUT / "diagnose_rows.jsonl"), help="JSONL of finished cases (resumed)")
-    ap.add_argument("--merge", nargs="*", default=None, help="only summarise these rows files")
+    ap.add_argument("--summarise", nargs="+", default=None, metavar="ROWS",
+                    help="run nothing: summarise the rows of these files (a results JSON or rows JSONL; a later "
+                         "file's row of a case replaces an earlier one, e.g. a few cases rerun with --only)")
     ap.add_argument("--out", default=str(OUT / "diagnose.json"),
                     help="results JSON (the plot goes beside it); give another path for a partial or experimental "
                          "run, so the full benchmark's results stay as they are")
     ap.add_argument("--oracle", action="store_true",
-                    help=f"compute what the data allow (oracle_case) for the cases of --merge (or --rows) not yet in "
-                         f"{ORACLE_ROWS.name}, then summarise them with it (e.g. --oracle --merge "
+                    help=f"compute what the data allow (oracle_case) for the cases of --summarise (or --rows) not "
+                         f"yet in {ORACLE_ROWS.name}, then summarise them with it (e.g. --oracle --summarise "
                          "benchmarks/results/diagnose.json re-summarises the committed run)")
+    ap.add_argument("--no-progress", action="store_true", help="no progress bar")
     ap.add_argument("--note", default="", help="what the reader must know about this run (stored in the JSON)")
+    return ap
+
+
+def main():
+    ap = _parser()
     args = ap.parse_args()
-    machine = {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
-               "cpu_count": os.cpu_count(), "workers": args.workers, "threads_per_worker": args.threads}
-    i, n = map(int, args.shard.split("/"))
+    every = {case_key(c) for c in all_cases(argparse.Namespace(**{**vars(args), "only": None}))}
+    unknown = sorted(set(args.only or []) - every)
+    if unknown:
+        ap.error(f"--only: no such case among --cases/--spacings/--noises/--causes: {', '.join(unknown)} "
+                 "(keys are SPACING/NOISE/CAUSE/K as in 10/0.02/hole/2)")
     if args.oracle:
-        done = {case_key(r) for r in _read_rows([ORACLE_ROWS])}
+        done = {case_key(r) for r in _read_rows([ORACLE_ROWS]) if "oracle_error" not in r}
         todo = [{k: r[k] for k in ("spacing", "noise", "cause", "k", "seed", "frames")}
-                for r in _read_rows(args.merge or [args.rows])]  # the cases summarised
-        todo = [c for c in todo[i::n] if case_key(c) not in done]
-        print(f"{len(todo)} oracle cases to run on {args.workers} workers", flush=True)
-        _run_rows(oracle_case, todo, ORACLE_ROWS, args, lambda row: (
-            f"k {row['k']}: oracle gain {row['oracle_gain'] or 0:.2f} ratio std {row['oracle_ratio_std']}"))
-    if args.merge is not None or args.oracle:
-        rows = _read_rows(args.merge or [args.rows])
-        settings = vars(args)
-        earlier = [p for p in args.merge or [] if p.endswith(".json")]
+                for r in _read_rows(args.summarise or [args.rows])]  # the cases summarised
+        _run(oracle_case, [c for c in todo if case_key(c) not in done], ORACLE_ROWS, args, _oracle_failed,
+             lambda row: f"k {row['k']}: oracle gain {row.get('oracle_gain') or 0:.2f} "
+                         f"ratio std {row.get('oracle_ratio_std')}")
+    if args.summarise is not None or args.oracle:
+        rows = _read_rows(args.summarise or [args.rows])
+        settings, machine = vars(args), None
+        earlier = [p for p in args.summarise or [] if p.endswith(".json")]
         if earlier:  # re-summarised: the rows' own run settings stay, with this run's note beside them
             old = json.loads(Path(earlier[0]).read_text())
             settings, machine = {**old["settings"], "resummarised": vars(args)}, old["machine"]
-        write_results(rows, machine, settings, args.out)
+        write_results(rows, machine or _machine(args), settings, args.out)
         print(f"{len(rows)} rows summarised")
         return
-    done = {case_key(r) for r in _read_rows([args.rows])}
-    todo = [c for c in all_cases(args)[i::n] if case_key(c) not in done]
-    print(f"{len(todo)} cases to run ({len(done)} already in {args.rows}) on {args.workers} workers", flush=True)
-    code = _code_version()
-    todo = [{**c, "threads": args.threads, "code": code} for c in todo]
-    _run_rows(run_case, todo, args.rows, args, lambda row: (
+    _run(run_case, cases_to_run(args), args.rows, args, error_row, lambda row: (
         f"seed {row['seed']}: found {row['found']} gain {row['gain'] or 0:.2f} {'PASS' if row['passed'] else 'fail'} "
-        f"{row['seconds']:.0f} s load {row['load_average'][0]}"))
-    write_results(_read_rows([args.rows]), machine, vars(args), args.out)
+        f"{row['seconds'] or 0:.0f} s load {row['load_average'][0]}" + (f" {row['error']}" if "error" in row else "")))
+    write_results(_read_rows([args.rows]), _machine(args), vars(args), args.out)
 
 
-def _run_rows(fn, todo, path, args, line):
-    """``fn`` over the cases ``todo`` in ``args.workers`` processes; each row appended to ``path``
-    (JSONL) as it finishes, and a ``line`` about it printed."""
-    import multiprocessing as mp
+def cases_to_run(args) -> list[dict]:
+    """The cases of ``args`` (:func:`all_cases`) not yet in its rows file ``args.rows`` (a second
+    run resumes the first), each with the run's ``threads`` and library ``code`` version."""
+    done = {case_key(r) for r in _read_rows([args.rows])}
+    code = _code_version()
+    return [{**c, "threads": args.threads, "code": code} for c in all_cases(args) if case_key(c) not in done]
 
-    # inherited by the workers, read when they import jax
-    os.environ.update(SINGLE_THREAD if args.threads == 1 else {"JAX_PLATFORMS": "cpu"})
-    with open(path, "a") as out, mp.get_context("spawn").Pool(args.workers) as pool:
-        for row in pool.imap_unordered(fn, todo):
-            out.write(json.dumps(row) + "\n")
-            out.flush()
-            print(f"{row['spacing']:g} mm noise {row['noise']:g} {row['cause']:15s} {line(row)}", flush=True)
+
+def _workers(args) -> int | None:
+    """Worker processes of the local cluster (None with a scheduler: its workers)."""
+    if args.scheduler:
+        return None
+    from refine.batch.cluster import cores
+
+    return args.workers or max(1, cores() // args.threads)
+
+
+def _machine(args) -> dict:
+    out = {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
+           "cpu_count": os.cpu_count(), "workers": _workers(args), "threads_per_worker": args.threads}
+    return {**out, "scheduler": args.scheduler} if args.scheduler else out
+
+
+def _oracle_failed(case: dict, e: BaseException) -> dict:
+    """The oracle row of a case whose ``oracle_case`` did not return (run again by the next --oracle)."""
+    row = {k: case[k] for k in ("spacing", "noise", "cause", "k", "seed")}
+    return {**row, "oracle_error": f"{type(e).__name__}: {e}"}
+
+
+def _run(fn, todo, path, args, failed, line):
+    """``fn(case)`` for the cases ``todo`` on the batch runner's cluster (a local one of
+    :func:`_workers` processes of ``args.threads`` cores, or ``args.scheduler``'s); each row
+    appended to ``path`` (JSONL) as it finishes, and a ``line`` about it printed."""
+    from refine.batch import run_tasks
+
+    where = args.scheduler or f"{_workers(args)} local workers of {args.threads} thread(s)"
+    print(f"{len(todo)} cases to run on {where}; rows to {path}", flush=True)
+    try:  # the workers need refine only: this script's helpers travel with its functions
+        import cloudpickle  # Dask's; without Dask, run_tasks says how to install it
+
+        cloudpickle.register_pickle_by_value(sys.modules[_case_bundle.__module__])
+    except ImportError:
+        pass
+    run_tasks(fn, [(c,) for c in todo], path, lambda task, e: failed(task[0], e), scheduler=args.scheduler,
+              workers=_workers(args), threads=args.threads, gpus=(), progress=not args.no_progress, desc="cases",
+              line=lambda row: f"{row['spacing']:g} mm noise {row['noise']:g} {row['cause']:15s} {line(row)}")
 
 
 def _plot(results, path: Path):

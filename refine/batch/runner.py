@@ -9,14 +9,11 @@ import socket
 import time
 import traceback
 from collections.abc import Iterable
-from dataclasses import is_dataclass, asdict
 from pathlib import Path
 
-import numpy as np
-
-from refine.batch import cluster
 from refine.exceptions import BatchError
-from refine.batch.table import RESULTS, Table, append_row, read_rows, row_from_report
+from refine.batch.table import RESULTS, Table, read_rows, row_from_report
+from refine.batch.tasks import run_tasks
 
 _GLOB = set("*?[")
 
@@ -75,7 +72,7 @@ def diagnose_one(bundle: str, out_dir: str, config=None, figures: bool = True) -
         out.mkdir(parents=True, exist_ok=True)
         (out / "error.txt").unlink(missing_ok=True)
         d = diagnose(read_bundle(bundle), config, log=log.append)
-        path = report.write(d, out) if figures else _write_report_only(d, out)
+        path = report.write(d, out, with_figures=figures)
         row.update(row_from_report(json.loads(Path(path).read_text())))
     except Exception as e:  # noqa: BLE001 - a failed bundle is a row of the table; the batch goes on
         row["error"] = {"type": type(e).__name__, "message": str(e)}
@@ -88,27 +85,6 @@ def diagnose_one(bundle: str, out_dir: str, config=None, figures: bool = True) -
         (out / "log.txt").write_text("\n".join(log) + "\n")
     row["seconds"] = round(time.perf_counter() - t0, 2)
     return row
-
-
-def _write_report_only(d, out: Path) -> Path:
-    """report.json and summary.txt as ``report.write`` writes them, without the figures (which can
-    take longer than a small bundle's diagnosis)."""
-    from refine.diagnosis import report
-
-    path = out / "report.json"
-    path.write_text(json.dumps(d.report(), indent=2, default=_plain))
-    (out / "summary.txt").write_text(report.summary(d) + "\n")
-    return path
-
-
-def _plain(x):
-    if isinstance(x, (np.floating, np.integer, np.bool_)):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if is_dataclass(x) and not isinstance(x, type):
-        return asdict(x)
-    raise TypeError(f"cannot write {type(x).__name__} to report.json")
 
 
 def _where() -> dict:
@@ -172,36 +148,22 @@ def diagnose_many(bundles: Iterable[str | Path], out: str | Path, config=None, s
 
         config = DiagnoseConfig(workers=threads_per_worker or 1)
     if todo:
-        _run(todo, names, out, table_path, config, figures, progress, len(paths),
-             dict(scheduler=scheduler, workers=workers, threads=threads_per_worker, gpus=gpus))
+        run_tasks(diagnose_one, [(str(p), str(out / names[p]), config, figures) for p in todo], table_path,
+                  _failed_row, scheduler=scheduler, workers=workers, threads=threads_per_worker, gpus=gpus,
+                  progress=progress, total=len(paths), desc="diagnose", line=_error_line)
     table = Table.read(out, paths)
     (out / "summary.txt").write_text(table.summary() + "\n")
     table.plot(out / "batch.png")
     return table
 
 
-def _run(todo, names, out, table_path, config, figures, progress, total, where) -> None:
-    """Submit ``todo`` to the cluster and append each row as its bundle finishes."""
-    from tqdm.auto import tqdm
+def _failed_row(task: tuple, e: BaseException) -> dict:
+    """The row of a bundle whose task did not return (its worker lost, say): ``task`` is
+    :func:`diagnose_one`'s arguments."""
+    return {"bundle": task[0], "name": Path(task[1]).name, "worker": None, "host": None,
+            "error": {"type": type(e).__name__, "message": str(e)}, "seconds": None}
 
-    with cluster.connect(**where) as client:
-        from distributed import as_completed
 
-        futures = {client.submit(diagnose_one, str(p), str(out / names[p]), config, figures, pure=False): p
-                   for p in todo}
-        bar = tqdm(total=total, initial=total - len(todo), unit="bundle", desc="diagnose", disable=not progress)
-        try:
-            for future in as_completed(futures, loop=client.loop):
-                p = futures[future]
-                try:
-                    row = future.result()
-                except Exception as e:  # noqa: BLE001 - a lost worker or task fails that bundle only
-                    row = {"bundle": str(p), "name": names[p], "worker": None, "host": None,
-                           "error": {"type": type(e).__name__, "message": str(e)}, "seconds": None}
-                append_row(table_path, row)
-                bar.update(1)
-                if row.get("error"):
-                    bar.write(f"{row['name']}: {row['error']['type']}: {row['error']['message']}")
-                future.release()
-        finally:
-            bar.close()
+def _error_line(row: dict) -> str | None:
+    """What to print under the progress bar about a row: its error, if any."""
+    return f"{row['name']}: {row['error']['type']}: {row['error']['message']}" if row.get("error") else None

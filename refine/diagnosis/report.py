@@ -42,13 +42,15 @@ def summary(d) -> str:
     return "\n".join(lines)
 
 
-def write(d, out) -> Path:
-    """Write DIR/report.json and the figures; return the report's path."""
+def write(d, out, with_figures: bool = True) -> Path:
+    """Write DIR/report.json, summary.txt and the figures (not with ``with_figures=False``, e.g. in a
+    batch: they can take longer than a small bundle's diagnosis); return the report's path."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "report.json"
     path.write_text(json.dumps(d.report(), indent=2, default=_plain))
-    figures(d, out)
+    if with_figures:
+        figures(d, out)
     (out / "summary.txt").write_text(summary(d) + "\n")
     return path
 
