@@ -18,7 +18,7 @@ import importlib
 import sys
 from importlib.metadata import PackageNotFoundError, version
 
-COMMANDS = ("simulate", "diagnose", "track", "import_export", "batch", "demo")  # modules of refine.cli, in the order of --help
+COMMANDS = ("simulate", "diagnose", "track", "import_export", "batch", "demo", "follow")  # modules of refine.cli, in the order of --help
 
 
 def build_parser() -> argparse.ArgumentParser:
