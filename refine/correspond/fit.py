@@ -169,23 +169,26 @@ class Fitter:
         """Node positions ``(n_frames, n_nodes, 2)`` for grips ``Q`` and parameters ``zp``."""
         return jnp.asarray(self.model.mesh.nodes)[None] + self.model._solve_frames(self.theta(zp), Q, start)
 
-    def value(self, Q, zp, arrays, start, spacing):
-        """Misfit of the frames in ``arrays`` (:meth:`FrameData.arrays`) plus the regulariser."""
+    def value(self, Q, zp, arrays, start, spacing, reg_weight=1.0):
+        """Misfit of the frames in ``arrays`` (:meth:`FrameData.arrays`) plus ``reg_weight`` times
+        the parametrisation's regulariser (an argument: a new weight compiles nothing)."""
         m, cfg = self.model, self.config
         x = self.positions(Q, zp, start)
         segs, bn = jnp.asarray(m.segments), jnp.asarray(m.boundary_nodes)
         per = jax.vmap(lambda xf, of, wof, sf, wsf: frame_misfit(xf, segs, bn, of, wof, sf, wsf, cfg, spacing))(
             x, *arrays)
-        return jnp.sum(per) + (0.0 if self.param is None else self.param.regularization(zp))
+        return jnp.sum(per) + (0.0 if self.param is None else reg_weight * self.param.regularization(zp))
 
-    def fit(self, data: FrameData, Q0, zp=None, start=None, joint: bool = False, maxiter: int = 100):
+    def fit(self, data: FrameData, Q0, zp=None, start=None, joint: bool = False, maxiter: int = 100,
+            reg_weight: float = 1.0):
         """Minimise the misfit of ``data``'s frames over their grips (and, with ``joint``, over the
         parameters too) by L-BFGS-B with adjoint gradients (:func:`refine.optimize.lbfgsb`).
 
         Args:
             data: the frames to fit; Q0 ``(n_frames, n_grips, 3)`` their initial grips; zp the
                 parameters (default: the parametrisation's start); start the equilibrium
-                ``(u, q)`` before the first frame (default: the reference).
+                ``(u, q)`` before the first frame (default: the reference); reg_weight multiplies
+                the regulariser.
         Returns ``(Q, zp, RefineResult)``.
         """
         from refine.optimize.lbfgsb import lbfgsb
@@ -195,7 +198,7 @@ class Fitter:
             raise CorrespondenceError(f"Q0 must have shape ({len(data.outline)}, {self.model.n_grips}, {GRIP_DOF}), "
                                       f"got {Q0.shape}")
         zp = self.zp0 if zp is None else np.asarray(zp, float)
-        objective = _Objective(self, data, Q0, zp, self.model.start(start), joint)
+        objective = _Objective(self, data, Q0, zp, self.model.start(start), joint, reg_weight)
         res = lbfgsb(objective, maxiter=maxiter)
         Q, zp_new = objective.param.split(res.values["z"])
         return np.asarray(Q), np.asarray(zp_new), res
@@ -226,8 +229,9 @@ class _Objective:
     """What :func:`refine.optimize.lbfgsb` minimises: a :class:`Fitter`'s misfit on given frames as a
     function of one vector z (the grips, and in a joint fit the parameters)."""
 
-    def __init__(self, fitter: Fitter, data: FrameData, Q0, zp, start, joint: bool):
+    def __init__(self, fitter: Fitter, data: FrameData, Q0, zp, start, joint: bool, reg_weight: float):
         self.fitter, self.arrays, self.start, self.spacing = fitter, data.arrays(), start, data.spacing
+        self.reg_weight = reg_weight
         self.param = _Joint(Q0, zp, joint, fitter.param)
         self.n_forward = self.n_gradient = 0
 
@@ -235,7 +239,7 @@ class _Objective:
         p, f = self.param, self.fitter
         Q = jnp.reshape(z[: p.n_q], p.Q0.shape)
         if not p.joint:
-            v, gQ = f._grips_grad(Q, jnp.asarray(p.zp), self.arrays, self.start, self.spacing)
+            v, gQ = f._grips_grad(Q, jnp.asarray(p.zp), self.arrays, self.start, self.spacing, self.reg_weight)
             return v, jnp.ravel(gQ)
-        v, (gQ, gp) = f._joint_grad(Q, z[p.n_q:], self.arrays, self.start, self.spacing)
+        v, (gQ, gp) = f._joint_grad(Q, z[p.n_q:], self.arrays, self.start, self.spacing, self.reg_weight)
         return v, jnp.concatenate([jnp.ravel(gQ), gp])

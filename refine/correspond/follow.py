@@ -119,9 +119,9 @@ def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), mod
     noise_level = float(held_error(model, model.mesh.nodes[None], held.frames([0]), cap)[0])
     level = config.null_factor * max(noise_level, cfg.noise)
     n_res = float(train.w_outline[1:].sum(axis=1).mean())
-    param = ModulusField(model.mesh, experiment.E, weight=config.field_weight * n_res / model.mesh.n_cells,
-                         kind="tv", eps=0.05)
-    fitter = Fitter(model, cfg, param)
+    weight = config.field_weight * n_res / model.mesh.n_cells
+    fitter = field_fitter(model, cfg)
+    param = fitter.param
     n = len(clouds) - 1
     Q = np.zeros((n + 1, model.n_grips, GRIP_DOF))  # Q[k]: frame k's grips (frame 0: none)
     zp = np.zeros(param.size)
@@ -131,7 +131,8 @@ def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), mod
     for k in range(1, n + 1):
         t1 = time.perf_counter()
         guess = Q[k - 1] + (Q[k - 1] - Q[k - 2] if k >= 2 else 0.0)
-        Qk, _, _ = fitter.fit(train.frames([k]), guess[None], zp, states[k - 1], maxiter=config.track_iterations)
+        Qk, _, _ = fitter.fit(train.frames([k]), guess[None], zp, states[k - 1], maxiter=config.track_iterations,
+                              reg_weight=weight)
         x = np.asarray(fitter._positions(Qk, zp, model.start(states[k - 1])))
         before = float(held_error(model, x, held.frames([k]), cap)[0])
         after, change = before, None
@@ -140,7 +141,7 @@ def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), mod
             frames = list(range(first, k + 1))
             Q0 = np.concatenate([Q[first:k], Qk])
             Qw, zp_new, res = fitter.fit(train.frames(frames), Q0, zp, states[first - 1], joint=True,
-                                         maxiter=config.refine_iterations)
+                                         maxiter=config.refine_iterations, reg_weight=weight)
             xw = np.asarray(fitter._positions(Qw, zp_new, model.start(states[first - 1])))
             after = float(held_error(model, xw[-1:], held.frames([k]), cap)[0])
             change = _change(model, zp, zp_new, res, frames)
@@ -154,6 +155,16 @@ def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), mod
             progress(records[-1])
     return FollowResult(records, level, noise_level, model.mesh.nodes.copy(), np.stack(positions), Q[1:], zp,
                         _findings(model, zp), time.perf_counter() - t0)
+
+
+def field_fitter(model: CloudModel, config: FitConfig) -> Fitter:
+    """The :class:`Fitter` of a total-variation modulus field on ``model`` (kept on the model, so a
+    second sequence on the same model compiles nothing)."""
+    cache = model.__dict__.setdefault("_field_fitters", {})
+    if config not in cache:
+        cache[config] = Fitter(model, config, ModulusField(model.mesh, model.experiment.E, weight=1.0, kind="tv",
+                                                           eps=0.05))
+    return cache[config]
 
 
 def _change(model, zp_old, zp_new, res, frames) -> dict:
