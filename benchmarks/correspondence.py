@@ -44,15 +44,19 @@ def correspondence_error(positions, truth_positions) -> dict:
 
 
 def cpd(clouds, nodes) -> tuple[np.ndarray, float]:
-    """pycpd's deformable CPD from frame 0's cloud to each frame's; the nodes carried along."""
+    """pycpd's deformable CPD from frame 0's cloud to each frame's; the nodes carried along by CPD's
+    motion field v(y) = sum_j exp(-|y - Y_j|^2 / (2 beta^2)) W_j (pycpd 2.0 moves only its own
+    source points)."""
     from pycpd import DeformableRegistration
 
     t0 = time.perf_counter()
     out = [nodes.copy()]
     for cloud in clouds[1:]:
-        reg = DeformableRegistration(X=cloud, Y=clouds[0], alpha=2.0, beta=20.0, w=0.05, max_iterations=150)
+        beta = 20.0
+        reg = DeformableRegistration(X=cloud, Y=clouds[0], alpha=2.0, beta=beta, w=0.05, max_iterations=150)
         reg.register()
-        out.append(reg.transform_point_cloud(Y=nodes))
+        G = np.exp(-((nodes[:, None] - clouds[0][None]) ** 2).sum(-1) / (2 * beta ** 2))
+        out.append(nodes + G @ reg.W)
     return np.stack(out), time.perf_counter() - t0
 
 
