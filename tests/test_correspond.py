@@ -97,3 +97,25 @@ def test_bad_clouds_give_clear_errors(model):
         split_frames([ref, rng.uniform(0, 50, (30, 2))], FitConfig(noise=0.01))
     with pytest.raises(CorrespondenceError, match="rectangle"):
         CloudModel(_experiment(PolygonDomain(((0.0, 0.0), (10.0, 0.0), (0.0, 10.0)))), Grips())
+
+
+def test_misfit_gradient_passes_a_taylor_test(model, sequence):
+    """The adjoint gradient of the clouds' misfit in the grips and a modulus field (one implicit
+    solve) against the misfit itself: the Taylor remainder falls as the step squared."""
+    import jax
+
+    import jaxfem as jf
+    from refine.model.parametrize import ModulusField
+
+    bundle, _, truth = sequence
+    cfg = FitConfig(noise=0.03)
+    train, _ = split_frames(bundle.clouds.points, cfg)
+    fitter = Fitter(model, cfg, ModulusField(model.mesh, model.experiment.E, weight=1.0, kind="tv", eps=0.05))
+    data, start = train.frames([1]).arrays(), model.start()
+    f = jax.jit(lambda p: fitter.value(p["Q"], p["z"], data, start, train.spacing, 0.1))
+    rng = np.random.default_rng(5)
+    g = truth.grip
+    point = {"Q": np.array([[[0.9 * g.tx, 0.9 * g.ty, 20.0 * g.angle]]]), "z": rng.normal(0, 0.2, model.mesh.n_cells)}
+    direction = {"Q": rng.normal(0, 1.0, (1, 1, 3)), "z": rng.normal(0, 1.0, model.mesh.n_cells)}
+    result = jf.taylor_test(f, point, direction, h0=1e-3, steps=4)
+    assert np.all(result.rates1 > 1.8), result
