@@ -18,7 +18,7 @@ import jaxfem as jf
 from refine.bundle.experiment import Experiment, RectangleDomain
 from refine.exceptions import CorrespondenceError
 from refine.model.measured import domain_mesh
-from refine.correspond.geometry import boundary_segments
+from refine.correspond.geometry import boundary_segments, segment_distances, split_outline
 
 #: unknowns of one grip's rigid motion in 2D: translation x, y (length) and rotation as the
 #: displacement of the grip's end (length: the angle times the grip's half-length)
@@ -132,8 +132,6 @@ class CloudModel:
         """How far the reference cloud (frame 0) lies from the model's outline: the 95th percentile
         of the outline points' distances (length). Raises :class:`CorrespondenceError` above ``tol``:
         the cloud is not of this object, or not in its coordinates."""
-        from refine.correspond.geometry import segment_distances, split_outline
-
         on = split_outline(cloud, 4 * noise)
         X = self.mesh.nodes
         d = np.asarray(segment_distances(jnp.asarray(cloud[on]), X[self.segments[:, 0]], X[self.segments[:, 1]]))
