@@ -75,7 +75,9 @@ class FollowResult:
         positions: ``(n_frames + 1, n_nodes, 2)`` every node in every frame (dense correspondences).
         grips: ``(n_frames, n_grips, 3)`` the fitted grip motions.
         log_modulus: ``(n_cells,)`` the final field, log(E / E initial) per cell.
-        findings: the abnormal regions of the final field (cause, centroid, peak ratio, area).
+        findings: the abnormal regions of the final field (cause, centroid, area, and as
+            ``relative_elasticity`` the field's peak ratio: smeared by the total variation, well
+            below a region's true ratio; no parametric refit of the region follows yet).
     """
 
     records: list
