@@ -73,3 +73,14 @@ def test_follow_needs_clouds(tmp_path, capsys):
     write_bundle(tmp_path / "b", Bundle(ex, obs))
     assert main(["follow", str(tmp_path / "b"), "--out", str(tmp_path / "o")]) == 2
     assert "no clouds.csv" in capsys.readouterr().err
+
+
+def test_diagnose_says_a_clouds_only_bundle_is_followed(tmp_path, capsys):
+    from refine.bundle import Clouds
+    from refine.bundle.experiment import Experiment, RectangleDomain
+
+    ex = Experiment(name="c", kind="plane-stress", domain=RectangleDomain(0.0, 0.0, 10.0, 5.0), law="neo-hookean",
+                    E=1.0, nu=0.3, thickness=1.0)
+    write_bundle(tmp_path / "b", Bundle(ex, None, clouds=Clouds((np.ones((3, 2)), np.ones((4, 2))))))
+    assert main(["diagnose", str(tmp_path / "b"), "--out", str(tmp_path / "o")]) == 2
+    assert "nonrigid follow" in capsys.readouterr().err
