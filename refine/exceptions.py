@@ -59,3 +59,8 @@ class ParametrizationError(RefineError, ValueError):
 class BatchError(RefineError, ValueError):
     """A batch cannot be set up as asked: no bundles, dask.distributed missing, a scheduler that
     cannot be reached, an output directory that is not a directory."""
+
+
+class CorrespondenceError(RefineError, ValueError):
+    """Unlabelled data cannot be matched to the model as given: an empty frame, a cloud far from the
+    model's reference shape, a domain or grip the correspondence-free fit does not handle."""

@@ -19,6 +19,7 @@ import tomli_w
 
 from refine.exceptions import BundleError, ExperimentError, ObservationError
 from refine.bundle.experiment import RECTANGLE_EDGES, Experiment, MeshDomain, RectangleDomain
+from refine.bundle.clouds import Clouds, read_clouds, write_clouds
 from refine.bundle.observations import Forces, Observations
 from refine.bundle.roles import ROLES
 
@@ -35,11 +36,14 @@ class Bundle:
         experiment: the content of experiment.toml.
         observations: points, roles, displacements (and forces) of all frames.
         root: the directory it was read from (used to find and copy a mesh file), or None.
+        clouds: optional unlabelled point clouds (clouds.csv); a bundle of clouds only has
+            ``observations`` None.
     """
 
     experiment: Experiment
-    observations: Observations
+    observations: Observations | None
     root: Path | None = None
+    clouds: Clouds | None = None
 
 
 def read_bundle(path: str | Path) -> Bundle:
@@ -52,13 +56,16 @@ def read_bundle(path: str | Path) -> Bundle:
     if isinstance(experiment.domain, MeshDomain) and not (root / experiment.domain.path).is_file():
         raise BundleError(root / "experiment.toml", f"model.domain names mesh file {experiment.domain.path!r}, "
                                                     f"which is not in {root}")
+    clouds = read_clouds(root, experiment.dim)
+    if clouds is not None and not (root / "points.csv").exists():
+        return Bundle(experiment, None, root=root, clouds=clouds)
     ids, reference, roles = _read_points(root / "points.csv", experiment.dim)
     displacements = _read_displacements(root / "displacements.csv", ids, experiment.dim)
     forces = None
     if (root / "forces.csv").exists():
         edges = RECTANGLE_EDGES if isinstance(experiment.domain, RectangleDomain) else None
         forces = _read_forces(root / "forces.csv", len(displacements), experiment.dim, edges)
-    return Bundle(experiment, Observations(ids, reference, roles, displacements, forces), root=root)
+    return Bundle(experiment, Observations(ids, reference, roles, displacements, forces), root=root, clouds=clouds)
 
 
 def write_bundle(path: str | Path, bundle: Bundle) -> Path:
@@ -70,13 +77,19 @@ def write_bundle(path: str | Path, bundle: Bundle) -> Path:
     root = Path(path)
     root.mkdir(parents=True, exist_ok=True)
     exp, obs = bundle.experiment, bundle.observations
-    if obs.dim != exp.dim:
+    if obs is None and bundle.clouds is None:
+        raise ObservationError("a bundle needs tracked points (observations) or clouds, or both")
+    if obs is not None and obs.dim != exp.dim:
         raise ObservationError(f"observations are {obs.dim}D but model.kind {exp.kind!r} is {exp.dim}D")
-    if isinstance(exp.domain, RectangleDomain) and obs.forces is not None:
+    if obs is not None and isinstance(exp.domain, RectangleDomain) and obs.forces is not None:
         unknown = sorted(set(obs.forces.edges) - set(RECTANGLE_EDGES))
         if unknown:
             raise ObservationError(f"force edges {unknown} are not sides of a rectangle {list(RECTANGLE_EDGES)}")
     (root / "experiment.toml").write_text(tomli_w.dumps(exp.to_toml()), encoding="utf-8")
+    if bundle.clouds is not None:
+        write_clouds(root / "clouds.csv", bundle.clouds)
+    if obs is None:
+        return root
     axes = _AXES[: obs.dim]
     with open(root / "points.csv", "w", newline="", encoding="utf-8") as f:
         out = csv.writer(f, lineterminator="\n")

@@ -42,6 +42,11 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
 
     if isinstance(bundle, (str, Path)):
         bundle = read_bundle(bundle)
+    if bundle.observations is None:
+        from refine.exceptions import ObservationError
+
+        raise ObservationError("the bundle holds unlabelled clouds only (clouds.csv, no points.csv); diagnose needs "
+                               "tracked points: follow the clouds with `nonrigid follow BUNDLE --out DIR`")
     d = diagnosis_of(bundle, config, log=(lambda m: None) if quiet else print)
     path = report.write(d, out)
     if not quiet:

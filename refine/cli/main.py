@@ -6,6 +6,7 @@
     nonrigid import --format dice|csv --scale MM_PER_UNIT EXPORT... --out BUNDLE
     nonrigid batch diagnose BUNDLES... --out DIR   many bundles on a Dask cluster (extra: nonrigid[batch])
     nonrigid demo [--out DIR]             a synthetic sheet with a hidden inclusion, end to end
+    nonrigid follow BUNDLE --out DIR      follow unlabelled clouds (clouds.csv), refining where prediction fails
 
 Each command is a module of :mod:`refine.cli` with ``add_parser(subparsers)``, ``run(args)`` and a
 public function that does the work; a new command is a new module named in :data:`COMMANDS`.
@@ -18,7 +19,7 @@ import importlib
 import sys
 from importlib.metadata import PackageNotFoundError, version
 
-COMMANDS = ("simulate", "diagnose", "track", "import_export", "batch", "demo")  # modules of refine.cli, in the order of --help
+COMMANDS = ("simulate", "diagnose", "track", "import_export", "batch", "demo", "follow")  # modules of refine.cli, in the order of --help
 
 
 def build_parser() -> argparse.ArgumentParser:

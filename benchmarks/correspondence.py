@@ -1,0 +1,196 @@
+"""Tracking without correspondences: how well the dense motion is recovered from unlabelled clouds.
+
+Generated sequences (refine.synthetic.clouds: a 100 x 50 mm sheet clamped left, moved by a random
+rigid grip motion right, solved on a finer quadratic mesh that follows a hidden inclusion, seen in
+every frame as fresh unlabelled samples of its outline and surface with Gaussian noise) are
+followed by
+- the differentiable outline fit with dynamic refinement (refine.correspond.follow_clouds);
+- the same without refinement (the initial model: the gain of refining);
+- the paper's Hausdorff force method (refine.correspond.hausdorff_track);
+- coherent point drift (pycpd's DeformableRegistration, frame 0's cloud onto frame k's, the
+  model's nodes carried by the fitted motion field), an outside reference.
+Per case and method: the correspondence error of every model node in every frame against the
+hidden truth (RMS and max, mm and % of the sheet's length), seconds; for the refined fit the
+refinements, the region found (cause, centroid error) and the prediction errors.
+
+    python benchmarks/correspondence.py               # 3 seeds x (none, stiffer-region)
+    python benchmarks/correspondence.py --seeds 1     # a look
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from pathlib import Path
+
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # pycpd's dense algebra: one thread
+    os.environ.setdefault(_v, "1")                                       # each is faster than many fighting
+
+import numpy as np  # noqa: E402
+
+from refine.correspond import (CloudModel, FitConfig, FollowConfig, Grips, HausdorffConfig,  # noqa: E402
+                               follow_clouds, hausdorff_track)
+from refine.synthetic.clouds import cloud_sequence, random_cloud_truth  # noqa: E402
+
+RESULTS = Path(__file__).resolve().parent / "results"
+DOMAIN = (0.0, 0.0, 100.0, 50.0)
+SIZE = 100.0
+
+
+def correspondence_error(positions, truth_positions) -> dict:
+    """RMS and max node error over the deformed frames (mm), and the RMS per frame."""
+    e = np.linalg.norm(np.asarray(positions)[1:] - truth_positions[1:], axis=-1)
+    return {"rms": float(np.sqrt((e ** 2).mean())), "max": float(e.max()),
+            "rms_per_frame": np.sqrt((e ** 2).mean(axis=1)).round(5).tolist(), "percent_of_size":
+            float(100 * np.sqrt((e ** 2).mean()) / SIZE)}
+
+
+def cpd(clouds, nodes) -> tuple[np.ndarray, float]:
+    """pycpd's deformable CPD from frame 0's cloud to each frame's, in coordinates normalised by
+    frame 0's centre and spread (CPD's own practice; beta 1 and alpha 1 there, i.e. a motion field
+    smooth over ~30 mm); the nodes carried along by CPD's motion field
+    v(y) = sum_j exp(-|y - Y_j|^2 / (2 beta^2)) W_j (pycpd 2.0 moves only its own source points)."""
+    from pycpd import DeformableRegistration
+
+    t0 = time.perf_counter()
+    c, s = clouds[0].mean(axis=0), clouds[0].std()
+    Y = (clouds[0] - c) / s
+    G = np.exp(-((((nodes - c) / s)[:, None] - Y[None]) ** 2).sum(-1) / 2.0)
+    out = [nodes.copy()]
+    for cloud in clouds[1:]:
+        reg = DeformableRegistration(X=(cloud - c) / s, Y=Y, alpha=1.0, beta=1.0, w=0.05, max_iterations=150,
+                                     tolerance=1e-6)
+        reg.register()
+        out.append(nodes + s * (G @ reg.W))
+    return np.stack(out), time.perf_counter() - t0
+
+
+def run_case(model, cause: str, seed: int, noise: float) -> dict:
+    rng = np.random.default_rng(seed)
+    truth = random_cloud_truth(rng, cause, DOMAIN)
+    t0 = time.perf_counter()
+    bundle, hidden = cloud_sequence(truth, seed=seed, domain=DOMAIN, noise=noise)
+    clouds = bundle.clouds.points
+    gen_s = time.perf_counter() - t0
+    nodes = model.mesh.nodes
+    true_pos = hidden.positions(nodes)
+    row = {"cause": cause, "seed": seed, "noise": noise, "generate_seconds": gen_s,
+           "grip": vars(truth.grip), "load": os.getloadavg()[0]}
+    if truth.inclusion is not None:
+        s = truth.inclusion.shape
+        row["inclusion"] = {"centroid": [s.cx, s.cy], "radius": s.rx, "ratio": truth.inclusion.ratio}
+    cfg = FollowConfig(fit=FitConfig(noise=noise, seed=seed))
+    for name, refine in (("fit", True), ("fit_no_refine", False)):
+        r = follow_clouds(bundle.experiment, clouds, FollowConfig(fit=cfg.fit, refine=refine), model=model)
+        row[name] = {"seconds": r.seconds, "error": correspondence_error(r.positions, true_pos),
+                     "prediction_before": [x.error_before for x in r.records],
+                     "prediction_after": [x.error_after for x in r.records],
+                     "refinements": [x.frame for x in r.records if x.refined], "findings": r.findings,
+                     "null_level": r.null_level}
+        print(f"  {name}: {row[name]['error']['rms']:.4f} mm rms, {r.seconds:.0f} s, refined at "
+              f"{row[name]['refinements']}, findings {r.findings}", flush=True)
+    found = row["fit"]["findings"]
+    if truth.inclusion is not None and found:
+        row["fit"]["centroid_error"] = float(np.hypot(found[0]["centroid"][0] - truth.inclusion.shape.cx,
+                                                      found[0]["centroid"][1] - truth.inclusion.shape.cy))
+    h = hausdorff_track(model, clouds, HausdorffConfig(tol=3 * noise, noise=noise, max_iterations=250))
+    row["hausdorff"] = {"seconds": h.seconds, "error": correspondence_error(h.positions, true_pos),
+                        "iterations": len(h.log), "accepted": int(sum(x["accepted"] for x in h.log)),
+                        "largest_distance": h.largest.tolist()}
+    print(f"  hausdorff: {row['hausdorff']['error']['rms']:.4f} mm rms, {h.seconds:.0f} s", flush=True)
+    try:
+        pos, sec = cpd(clouds, nodes)
+        row["cpd"] = {"seconds": sec, "error": correspondence_error(pos, true_pos)}
+        print(f"  cpd: {row['cpd']['error']['rms']:.4f} mm rms, {sec:.0f} s", flush=True)
+    except ImportError:
+        row["cpd"] = None
+    return row
+
+
+def targets(rows) -> dict:
+    inc = [r for r in rows if r["cause"] != "none"]
+    none = [r for r in rows if r["cause"] == "none"]
+
+    def last(r, key):
+        return float(np.mean(r[key]["prediction_before"][-2:]))
+
+    gains = [last(r, "fit_no_refine") / last(r, "fit") for r in inc]
+    worst = max(r["fit"]["error"]["percent_of_size"] for r in rows)
+    found = [bool(r["fit"]["findings"]) and r["fit"]["findings"][0]["cause"] == r["cause"]
+             and r["fit"].get("centroid_error", np.inf) <= 0.1 * SIZE for r in inc]
+    return {
+        "fit_correspondence_within_1_percent": {"worst_percent": worst, "pass": worst <= 1.0},
+        "inclusion_found_cause_and_centroid_within_10_percent": {
+            "found": found, "centroid_errors": [r["fit"].get("centroid_error") for r in inc], "pass": all(found)},
+        "refinement_gain_last_frames_at_least_2": {"gains": gains, "pass": bool(gains) and min(gains) >= 2.0},
+        "no_refinement_without_effect": {"refinements": [r["fit"]["refinements"] for r in none],
+                                         "pass": all(not r["fit"]["refinements"] for r in none)},
+        "fit_beats_hausdorff": {"pass": all(r["fit"]["error"]["rms"] < r["hausdorff"]["error"]["rms"] for r in rows)},
+    }
+
+
+def plot(rows, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.8))
+    methods = ["fit", "fit_no_refine", "hausdorff", "cpd"]
+    for j, m in enumerate(methods):
+        vals = [r[m]["error"]["rms"] for r in rows if r.get(m)]
+        a.scatter(np.full(len(vals), j) + np.linspace(-0.15, 0.15, len(vals)), vals, label=m)
+    a.axhline(0.01 * SIZE, color="k", lw=0.8, ls="--", label="1 % of size")
+    a.set_xticks(range(len(methods)), methods, fontsize=8)
+    a.set_yscale("log")
+    a.set_ylabel("correspondence error, RMS (mm)")
+    for r in rows:
+        style = "-" if r["cause"] != "none" else ":"
+        b.plot(range(1, len(r["fit"]["prediction_before"]) + 1), r["fit"]["prediction_before"], style, marker="o")
+        b.plot(range(1, len(r["fit"]["prediction_before"]) + 1), r["fit_no_refine"]["prediction_before"], style,
+               color="grey", alpha=0.5)
+    b.set_xlabel("frame")
+    b.set_ylabel("prediction error, held-out outline (mm)")
+    b.set_title("coloured: refined; grey: never refined; dotted: no effect", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--causes", default="none,stiffer-region")
+    ap.add_argument("--noise", type=float, default=0.02)
+    ap.add_argument("--out", default=str(RESULTS / "correspondence.json"))
+    args = ap.parse_args()
+    model = CloudModel(_experiment(), Grips(), h=5.0)
+    rows = []
+    t0 = time.perf_counter()
+    for seed in range(args.seeds):
+        for cause in args.causes.split(","):
+            print(f"{cause} seed {seed}", flush=True)
+            rows.append(run_case(model, cause, 100 + seed, args.noise))
+            _write(args.out, rows, t0)
+    print(json.dumps(targets(rows), indent=1))
+
+
+def _experiment():
+    from refine.bundle.experiment import Experiment, RectangleDomain
+
+    return Experiment(name="bench", kind="plane-stress", domain=RectangleDomain(*DOMAIN), law="neo-hookean",
+                      E=83.76, nu=0.3, thickness=1.0)
+
+
+def _write(out, rows, t0):
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps({"cases": rows, "targets": targets(rows), "seconds": time.perf_counter() - t0,
+                               "load_end": os.getloadavg()}, indent=1, default=float))
+    plot(rows, out.with_suffix(".png"))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,193 @@
+"""Dynamic refinement while tracking (the paper's title) on unlabelled clouds.
+
+Frame by frame: the model refined on frames <= k predicts frame k+1 (its grips fitted to the
+frame's training points, its parameters kept); the prediction error is the RMS distance of the
+frame's held-out outline points to the predicted outline. Where it exceeds its null level (the
+same error at frame 0, where the model is the reference shape and only noise and sampling remain,
+times ``null_factor``), the model is refined: a modulus field (total variation) is fitted jointly
+with the grips of the last ``window`` frames, and the error is measured again. Every node's
+position in every frame (the dense correspondences) comes from the fit of its frame.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from refine.correspond.fit import FitConfig, Fitter, held_error, split_frames
+from refine.correspond.model import GRIP_DOF, CloudModel, Grips
+from refine.exceptions import CorrespondenceError
+from refine.model.parametrize import ModulusField
+
+
+@dataclass(frozen=True)
+class FollowConfig:
+    """Settings of following a sequence (data).
+
+    Attributes:
+        fit: the fit's settings (noise, robust scale, hold-out share, seed).
+        grips: clamped and gripped sides.
+        h: element size of the model (length).
+        null_factor: refine when the prediction error exceeds this times the null level.
+        refine: False: predict and track only (the comparison without refinement).
+        window: frames in a refinement's joint fit (the last ones up to the current).
+        field_weight: total-variation weight of the modulus field, times residuals per cell.
+        track_iterations, refine_iterations: L-BFGS-B iterations of a frame's grips fit and of a
+            refinement.
+        reference_tol: how far (length) the reference cloud may lie from the model's outline.
+    """
+
+    fit: FitConfig = field(default_factory=FitConfig)
+    grips: Grips = field(default_factory=Grips)
+    h: float = 5.0
+    null_factor: float = 1.5
+    refine: bool = True
+    window: int = 3
+    field_weight: float = 0.5
+    track_iterations: int = 60
+    refine_iterations: int = 60
+    reference_tol: float | None = None
+
+
+@dataclass(frozen=True)
+class FrameRecord:
+    """One frame of a followed sequence: its prediction error before and after a refinement
+    (length; equal where none happened), whether one happened and what it changed."""
+
+    frame: int
+    error_before: float
+    error_after: float
+    refined: bool
+    change: dict | None
+    seconds: float
+
+
+@dataclass(frozen=True, eq=False)
+class FollowResult:
+    """The followed sequence.
+
+    Attributes:
+        records: one :class:`FrameRecord` per deformed frame.
+        null_level: the refinement threshold (length); noise_level the frame-0 error it came from.
+        nodes: ``(n_nodes, 2)`` the model's reference nodes.
+        positions: ``(n_frames + 1, n_nodes, 2)`` every node in every frame (dense correspondences).
+        grips: ``(n_frames, n_grips, 3)`` the fitted grip motions.
+        log_modulus: ``(n_cells,)`` the final field, log(E / E initial) per cell.
+        findings: the abnormal regions of the final field (cause, centroid, area, and as
+            ``relative_elasticity`` the field's peak ratio: smeared by the total variation, well
+            below a region's true ratio; no parametric refit of the region follows yet).
+    """
+
+    records: list
+    null_level: float
+    noise_level: float
+    nodes: np.ndarray
+    positions: np.ndarray
+    grips: np.ndarray
+    log_modulus: np.ndarray
+    findings: list
+    seconds: float
+
+    def summary(self) -> dict:
+        """A JSON-ready summary (no arrays but the findings')."""
+        return {"null_level": self.null_level, "noise_level": self.noise_level, "seconds": self.seconds,
+                "frames": [asdict(r) for r in self.records], "findings": self.findings,
+                "refinements": [r.frame for r in self.records if r.refined]}
+
+
+def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), model: CloudModel | None = None,
+                  progress=None) -> FollowResult:
+    """Follow a sequence of unlabelled clouds ``[frame 0, frame 1, ...]`` (``(n_k, 2)`` each).
+
+    Args:
+        experiment: the bundle's experiment (domain, law, E, nu; ``noise_std`` if ``config.fit``
+            leaves the noise at its default).
+        clouds: the clouds, frame 0 the reference shape.
+        config: :class:`FollowConfig`.
+        model: a :class:`CloudModel` to reuse (its compilation); default one from the config.
+        progress: optional callable ``(FrameRecord) -> None`` after every frame.
+    """
+    t0 = time.perf_counter()
+    clouds = [np.asarray(c, float) for c in clouds]
+    if len(clouds) < 2:
+        raise CorrespondenceError("a sequence needs frame 0 (the reference shape) and at least one more frame")
+    model = model or CloudModel(experiment, config.grips, config.h)
+    cfg = config.fit
+    train, held = split_frames(clouds, cfg)
+    model.check_reference(clouds[0], cfg.noise, config.reference_tol or max(10 * cfg.noise, 0.02 * model.size))
+    cap = 20.0 * cfg.noise
+    noise_level = float(held_error(model, model.mesh.nodes[None], held.frames([0]), cap)[0])
+    level = config.null_factor * max(noise_level, cfg.noise)
+    n_res = float(train.w_outline[1:].sum(axis=1).mean())
+    weight = config.field_weight * n_res / model.mesh.n_cells
+    fitter = field_fitter(model, cfg)
+    param = fitter.param
+    n = len(clouds) - 1
+    Q = np.zeros((n + 1, model.n_grips, GRIP_DOF))  # Q[k]: frame k's grips (frame 0: none)
+    zp = np.zeros(param.size)
+    positions = [model.mesh.nodes.copy()] + [None] * n
+    states = [None] + [None] * n  # (u, q) of each frame's equilibrium, where the next solve starts
+    records = []
+    for k in range(1, n + 1):
+        t1 = time.perf_counter()
+        guess = Q[k - 1] + (Q[k - 1] - Q[k - 2] if k >= 2 else 0.0)
+        Qk, _, _ = fitter.fit(train.frames([k]), guess[None], zp, states[k - 1], maxiter=config.track_iterations,
+                              reg_weight=weight)
+        x = np.asarray(fitter._positions(Qk, zp, model.start(states[k - 1])))
+        before = float(held_error(model, x, held.frames([k]), cap)[0])
+        after, change = before, None
+        if config.refine and before > level:
+            first = max(1, k - config.window + 1)
+            frames = list(range(first, k + 1))
+            Q0 = np.concatenate([Q[first:k], Qk])
+            Qw, zp_new, res = fitter.fit(train.frames(frames), Q0, zp, states[first - 1], joint=True,
+                                         maxiter=config.refine_iterations, reg_weight=weight)
+            xw = np.asarray(fitter._positions(Qw, zp_new, model.start(states[first - 1])))
+            after = float(held_error(model, xw[-1:], held.frames([k]), cap)[0])
+            change = _change(model, zp, zp_new, res, frames)
+            zp, Qk, x = zp_new, Qw[-1:], xw[-1:]
+            for j, f in enumerate(frames[:-1]):  # the window's earlier frames follow the refined model
+                Q[f], positions[f] = Qw[j], xw[j]
+        Q[k], positions[k] = Qk[0], x[0]
+        states[k] = (positions[k] - model.mesh.nodes, Q[k])
+        records.append(FrameRecord(k, before, after, change is not None, change, time.perf_counter() - t1))
+        if progress is not None:
+            progress(records[-1])
+    return FollowResult(records, level, noise_level, model.mesh.nodes.copy(), np.stack(positions), Q[1:], zp,
+                        _findings(model, zp), time.perf_counter() - t0)
+
+
+def field_fitter(model: CloudModel, config: FitConfig) -> Fitter:
+    """The :class:`Fitter` of a total-variation modulus field on ``model`` (kept on the model, so a
+    second sequence on the same model compiles nothing)."""
+    cache = model.__dict__.setdefault("_field_fitters", {})
+    if config not in cache:
+        cache[config] = Fitter(model, config, ModulusField(model.mesh, model.experiment.E, weight=1.0, kind="tv",
+                                                           eps=0.05))
+    return cache[config]
+
+
+def _change(model, zp_old, zp_new, res, frames) -> dict:
+    """What a refinement changed: the field's extremes, the strongest region, the fit's counts."""
+    found = _findings(model, zp_new)
+    return {"frames": frames, "max_relative_modulus": float(np.exp(zp_new.max())),
+            "min_relative_modulus": float(np.exp(zp_new.min())),
+            "largest_change": float(np.abs(zp_new - zp_old).max()), "regions": found,
+            "iterations": len(res.history), "misfit": res.error}
+
+
+def _findings(model, zp) -> list:
+    """Abnormal regions of a log-modulus field (:func:`refine.diagnosis.localize.segment`)."""
+    from refine.diagnosis.localize import segment
+
+    if np.abs(zp).max(initial=0.0) < 0.1:
+        return []
+    out = []
+    for c in segment(model.mesh, np.asarray(zp), max_regions=2):
+        out.append({"cause": "stiffer-region" if c.sign > 0 else "softer-region",
+                    "centroid": [float(v) for v in c.centroid],
+                    "relative_elasticity": float(np.exp(c.sign * c.peak)),
+                    "area": float(model.mesh.volumes()[c.cells].sum())})
+    return out
