@@ -59,3 +59,16 @@ class ParametrizationError(RefineError, ValueError):
 class BatchError(RefineError, ValueError):
     """A batch cannot be set up as asked: no bundles, dask.distributed missing, a scheduler that
     cannot be reached, an output directory that is not a directory."""
+
+
+class SettingsError(RefineError, ValueError):
+    """Settings of a command (a ``[diagnose]`` table of experiment.toml, command-line options) are
+    invalid: an unknown key (the message names the nearest known one), a wrong type or range."""
+
+
+def nearest_key(key: str, known) -> str:
+    """``" (did you mean 'x'?)"`` for the known key closest to ``key`` (difflib), or ``""``."""
+    import difflib
+
+    close = difflib.get_close_matches(key, list(known), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
