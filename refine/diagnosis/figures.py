@@ -14,6 +14,7 @@ from matplotlib.figure import Figure
 import jaxfem as jf
 
 from refine.diagnosis.measured_strain import equivalent, measured_strain
+from refine.model.paraview import model_fields
 
 
 def equilibria(d) -> dict[str, np.ndarray]:
@@ -34,9 +35,8 @@ def strain_maps(d, U: dict | None = None, frame: int | None = None) -> Figure:
     f = obs.n_frames - 1 if frame is None else frame
     tri, E = measured_strain(obs.reference, obs.displacements[f])
     eq_measured = equivalent(E)
-    model_eq = {}
-    for key, fitted in (("initial", d.baseline), ("refined", d.chosen)):
-        model_eq[key] = np.asarray(jf.equivalent_strain(fitted.model.solver, U[key][f], fitted.theta))
+    model_eq = {key: model_fields(fitted.model, fitted.theta, U[key][f:f + 1])[2]["equivalent_strain"][0]
+                for key, fitted in (("initial", d.baseline), ("refined", d.chosen))}
     finite = np.concatenate([eq_measured[np.isfinite(eq_measured)], *model_eq.values()])
     vmin, vmax = np.percentile(finite, [1, 99]) if finite.size else (None, None)
     fig = Figure(figsize=(18, 4.6), layout="constrained")
@@ -49,7 +49,7 @@ def strain_maps(d, U: dict | None = None, frame: int | None = None) -> Figure:
     for ax, key, fitted in ((axes[1], "initial", d.baseline), (axes[2], "refined", d.chosen)):
         mesh = fitted.model.mesh.with_nodes(np.asarray(fitted.theta["X"]))
         jf.plot.cell_map(mesh, model_eq[key], ax=ax, vmin=vmin, vmax=vmax, label="equivalent strain",
-                         title=f"{key} model ({fitted.cause}), frame {f + 1}")
+                         title=f"{key} model{'' if fitted.cause == 'none' else f' ({fitted.cause})'}, frame {f + 1}")
     return fig
 
 
@@ -66,16 +66,17 @@ def residual_maps(d, frame: int | None = None) -> Figure:
     top = max(float(np.nanmax(np.abs(r))) if np.isfinite(r).any() else 0.0 for r in R.values()) or 1e-12
     fig = Figure(figsize=(14, 4.6), layout="constrained")
     axes = fig.subplots(1, 2, sharex=True, sharey=True)
-    vmax = max(float(np.nanmax(np.linalg.norm(R["initial"], axis=1))) / sigma, 1.0) if np.isfinite(R["initial"]).any() else 1.0
+    lengths = np.linalg.norm(R["initial"], axis=1)
+    vmax = max(float(np.nanmax(lengths)) / sigma, 1.0) if np.isfinite(lengths).any() else 1.0
     for ax, key in zip(axes, ("initial", "refined")):
         r = R[key]
         size = np.linalg.norm(r, axis=1) / sigma
-        sc = ax.scatter(ref[:, 0], ref[:, 1], c=size, s=14, cmap="magma_r", vmin=0, vmax=vmax)
+        sc = ax.scatter(ref[:, 0], ref[:, 1], c=size, s=24, cmap="magma_r", vmin=0, vmax=vmax)
         ok = np.isfinite(r).all(axis=1)
         for role, colour in (("guide", "tab:blue"), ("validate", "tab:red")):
             k = ok & obs.mask(role)
             ax.quiver(ref[k, 0], ref[k, 1], r[k, 0], r[k, 1], color=colour, angles="xy", label=role,
-                      scale_units="xy", scale=top / (0.8 * d.model.spacing))
+                      scale_units="xy", scale=top / (0.8 * d.model.spacing), minlength=0)  # no dot for a tiny one
         ax.set_title(f"{key} model: measured - predicted, frame {f + 1} (arrows x {0.8 * d.model.spacing / top:.3g})")
         ax.set_aspect("equal")
         ax.legend(loc="upper right", fontsize=7)

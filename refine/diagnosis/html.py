@@ -99,16 +99,17 @@ def hypotheses_table(d) -> str:
             verdict = "chosen: lowest BIC + held-out misfit of those that pass"
         else:
             verdict = f"passes, but scores {_score(f) - _score(winner):.0f} worse than the chosen one"
-        rows.append([f"{f.cause} [{'; '.join(s.describe() for s in f.shapes) or f.law}]", f.k, f"{f.chi2_fit:.1f}", f"{f.chi2_holdout:.1f}", f"{f.bic:.1f}",
+        label = "initial model" if f is base else f.cause
+        rows.append([f"{label} [{'; '.join(s.describe() for s in f.shapes) or f.law}]", f.k, f"{f.chi2_fit:.1f}", f"{f.chi2_holdout:.1f}", f"{f.bic:.1f}",
                      f"{f.bic - base.bic:+.1f}", f"{_score(f):.1f}", verdict])
         classes.append("chosen" if (f is winner and winner is not base) else "")
     rule = (f"A hypothesis passes when its BIC is lower than the initial model's by at least {cfg.bic_margin:g} "
             "(it pays for its extra unknowns) and its misfit on the held-out guide points (which no fit saw) is "
             "lower too; of those, the lowest BIC + held-out misfit wins and is refitted on every guide point "
             "(remeshed at its fitted shapes). None passing: the initial model stands.")
-    note = ""
+    note = "" if winner is base else f"<p>Refitted on every guide point: {escape(d.chosen.describe())}.</p>"
     if winner is not base and d.chosen.cause != winner.cause:
-        note = (f"<p class='note'>Refitted on every guide point, the chosen {winner.cause} was compared once more "
+        note += (f"<p class='note'>Refitted on every guide point, the chosen {winner.cause} was compared once more "
                 f"with a hole at its outline; the report gives the {d.chosen.cause}.</p>")
     return (_table(["hypothesis", "unknowns", "chi\u00b2 fit", "chi\u00b2 held-out", "BIC", "\u0394BIC",
                     "BIC + held-out", "verdict"], rows, classes) + f"<p class='note'>{escape(rule)}</p>" + note)

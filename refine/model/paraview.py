@@ -14,6 +14,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 import jaxfem as jf
@@ -23,30 +25,38 @@ from refine.bundle.roles import ROLES
 from refine.model.measured import MeasuredModel
 
 
-def model_fields(model: MeasuredModel, theta: dict, u) -> tuple[jf.Mesh, dict, dict]:
-    """The mesh (at ``theta``'s node positions) and the point and cell data of one equilibrium.
+def model_fields(model: MeasuredModel, theta: dict, U) -> tuple[jf.Mesh, dict, dict]:
+    """The mesh (at ``theta``'s node positions) and the point and cell data of equilibria.
 
     Args:
         model: the model.
         theta: its parameters (per-cell ``E``, nodes ``X``, ...), as :meth:`MeasuredModel.params`.
-        u: displacements ``(n_nodes, dim)``, length unit.
+        U: displacements ``(n_frames, n_nodes, dim)``, length unit.
 
     Returns:
-        ``(mesh, point_data, cell_data)``: ``displacement (n_nodes, dim)``; per cell
-        ``green_lagrange_strain (n_cells, 3, 3)``, ``principal_strain_1``, ``principal_strain_2``
-        (descending, dimensionless), ``equivalent_strain``, ``modulus`` (stress unit) and
-        ``thickness`` (length unit, plane stress). Region tags go with the mesh.
+        ``(mesh, point_data, cell_data)``, each array with a leading frame axis:
+        ``displacement (n_frames, n_nodes, dim)``; per cell ``green_lagrange_strain
+        (n_frames, n_cells, 3, 3)``, ``principal_strain_1``, ``principal_strain_2`` (descending,
+        dimensionless), ``equivalent_strain``, ``modulus`` (stress unit) and ``thickness`` (length
+        unit, plane stress). Region tags go with the mesh. The strains are computed by one
+        compiled function over all frames (JAX op by op would take seconds per frame).
     """
     solver = model.solver
     mesh = model.mesh.with_nodes(np.asarray(theta["X"]))
-    E = np.asarray(jf.green_lagrange_strain(solver, u, theta))
-    principal = np.asarray(jf.principal_strains(solver, u, theta))
+
+    def strains(u, th):
+        return (jf.green_lagrange_strain(solver, u, th), jf.principal_strains(solver, u, th),
+                jf.equivalent_strain(solver, u, th))
+
+    U = jnp.asarray(U)
+    E, principal, eq = (np.asarray(a) for a in jax.jit(jax.vmap(strains, in_axes=(0, None)))(U, theta))
+    n = len(U)
     cells = {"green_lagrange_strain": E,
-             **{f"principal_strain_{k + 1}": principal[:, k] for k in range(principal.shape[1])},
-             "equivalent_strain": np.asarray(jf.equivalent_strain(solver, u, theta)),
-             "modulus": np.broadcast_to(np.asarray(theta["E"], float), (mesh.n_cells,)),
-             "thickness": np.broadcast_to(np.asarray(theta["thickness"], float), (mesh.n_cells,))}
-    return mesh, {"displacement": np.asarray(u)}, cells
+             **{f"principal_strain_{k + 1}": principal[..., k] for k in range(principal.shape[-1])},
+             "equivalent_strain": eq,
+             "modulus": np.broadcast_to(np.asarray(theta["E"], float), (n, mesh.n_cells)),
+             "thickness": np.broadcast_to(np.asarray(theta["thickness"], float), (n, mesh.n_cells))}
+    return mesh, {"displacement": np.asarray(U)}, cells
 
 
 def write_model_series(folder: str | Path, name: str, model: MeasuredModel, theta: dict, U) -> Path:
@@ -65,10 +75,10 @@ def write_model_series(folder: str | Path, name: str, model: MeasuredModel, thet
     folder = Path(folder)
     (folder / name).mkdir(parents=True, exist_ok=True)
     files = []
-    for f, u in enumerate(np.asarray(U)):
-        mesh, point_data, cell_data = model_fields(model, theta, u)
+    mesh, point_data, cell_data = model_fields(model, theta, U)
+    for f in range(len(point_data["displacement"])):
         files.append(folder / name / f"frame_{f + 1:03d}.vtu")
-        jf.write_vtu(files[-1], mesh, point_data, cell_data)
+        jf.write_vtu(files[-1], mesh, {k: v[f] for k, v in point_data.items()}, {k: v[f] for k, v in cell_data.items()})
     return jf.write_pvd(folder / f"{name}.pvd", files, times=range(1, len(files) + 1))
 
 
