@@ -35,8 +35,8 @@ def strain_maps(d, U: dict | None = None, frame: int | None = None) -> Figure:
     f = obs.n_frames - 1 if frame is None else frame
     tri, E = measured_strain(obs.reference, obs.displacements[f])
     eq_measured = equivalent(E)
-    model_eq = {key: model_fields(fitted.model, fitted.theta, U[key][f:f + 1])[2]["equivalent_strain"][0]
-                for key, fitted in (("initial", d.baseline), ("refined", d.chosen))}
+    model_eq = {key: model_fields(fitted.model, fitted.theta, U[key])[2]["equivalent_strain"][f]  # all frames:
+                for key, fitted in (("initial", d.baseline), ("refined", d.chosen))}          # the series' compile
     finite = np.concatenate([eq_measured[np.isfinite(eq_measured)], *model_eq.values()])
     vmin, vmax = np.percentile(finite, [1, 99]) if finite.size else (None, None)
     fig = Figure(figsize=(18, 4.6), layout="constrained")

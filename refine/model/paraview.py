@@ -12,6 +12,7 @@ ParaView and use "Warp By Vector" on ``displacement`` to see the deformed shape.
 
 from __future__ import annotations
 
+import weakref
 from pathlib import Path
 
 import jax
@@ -41,15 +42,9 @@ def model_fields(model: MeasuredModel, theta: dict, U) -> tuple[jf.Mesh, dict, d
         unit, plane stress). Region tags go with the mesh. The strains are computed by one
         compiled function over all frames (JAX op by op would take seconds per frame).
     """
-    solver = model.solver
     mesh = model.mesh.with_nodes(np.asarray(theta["X"]))
-
-    def strains(u, th):
-        return (jf.green_lagrange_strain(solver, u, th), jf.principal_strains(solver, u, th),
-                jf.equivalent_strain(solver, u, th))
-
     U = jnp.asarray(U)
-    E, principal, eq = (np.asarray(a) for a in jax.jit(jax.vmap(strains, in_axes=(0, None)))(U, theta))
+    E, principal, eq = (np.asarray(a) for a in _strains(model.solver)(U, theta))
     n = len(U)
     cells = {"green_lagrange_strain": E,
              **{f"principal_strain_{k + 1}": principal[..., k] for k in range(principal.shape[-1])},
@@ -57,6 +52,21 @@ def model_fields(model: MeasuredModel, theta: dict, U) -> tuple[jf.Mesh, dict, d
              "modulus": np.broadcast_to(np.asarray(theta["E"], float), (n, mesh.n_cells)),
              "thickness": np.broadcast_to(np.asarray(theta["thickness"], float), (n, mesh.n_cells))}
     return mesh, {"displacement": np.asarray(U)}, cells
+
+
+#: one compiled strain function per solver (a figure and a series of the same frames share it)
+_COMPILED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _strains(solver: jf.Solver):
+    """``(U (frames, n_nodes, dim), theta) -> (E, principal, equivalent)`` per frame and cell, compiled."""
+    if solver not in _COMPILED:
+        def strains(u, th):
+            return (jf.green_lagrange_strain(solver, u, th), jf.principal_strains(solver, u, th),
+                    jf.equivalent_strain(solver, u, th))
+
+        _COMPILED[solver] = jax.jit(jax.vmap(strains, in_axes=(0, None)))
+    return _COMPILED[solver]
 
 
 def write_model_series(folder: str | Path, name: str, model: MeasuredModel, theta: dict, U) -> Path:
