@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import jaxfem as jf
-from refine.bundle import read_bundle, write_bundle
+from refine.bundle import write_bundle
 from refine.cli import diagnose
 from refine.synthetic.sheet import Inclusion, Truth, synthetic_bundle
 
@@ -128,7 +128,7 @@ def test_model_series_on_quadratic_triangles(tmp_path):
     from refine.model.paraview import write_model_series, write_points_series
     from refine.synthetic.sheet import grid_points
 
-    from refine.bundle import Bundle, Experiment, Observations, RectangleDomain
+    from refine.bundle import Experiment, Observations, RectangleDomain
 
     pts = grid_points((0.0, 0.0, 20.0, 10.0), 5.0)
     edge = (pts[:, 0] % 20 == 0) | (pts[:, 1] % 10 == 0)

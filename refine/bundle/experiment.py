@@ -303,8 +303,8 @@ def _check_extra(extra: Any) -> None:
                 raise ExperimentError(f"[{table}] must be a table, got {value!r}")
             continue
         if table not in KNOWN_KEYS or not isinstance(value, dict):
-            raise ExperimentError(f"experiment.toml: unknown key {table!r}"
-                                  f"{nearest_key(table, [*KNOWN_KEYS, *FREE_TABLES]) or nearest_key(table, known)}{hint}")
+            near = nearest_key(table, [*KNOWN_KEYS, *FREE_TABLES]) or nearest_key(table, known)
+            raise ExperimentError(f"experiment.toml: unknown key {table!r}{near}{hint}")
         for key in value:
             if key in KNOWN_KEYS[table]:
                 raise ExperimentError(f"extra key {table}.{key} would overwrite a key the library writes itself")

@@ -32,7 +32,8 @@ OPTIONS = (
     (("--hole-below",), "hole_below", dict(type=float, help="a softer region below this ratio is also fitted as a "
                                                             "hole (default 0.3)")),
     (("--hole-refit-below",), "hole_refit_below", dict(type=float, help="a chosen softer region refitted below "
-                                                                        "this ratio is compared with a hole (default 0.05)")),
+                                                                        "this ratio is compared with a hole "
+                                                                        "(default 0.05)")),
     (("--rectangle-spacings",), "rectangle_spacings", dict(type=float, help="the gate of --try-rectangles auto, in "
                                                                             "grid spacings (default 1.5)")),
 )

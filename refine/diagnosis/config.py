@@ -139,5 +139,6 @@ def _check(name: str, value) -> None:
         from jaxfem.linsolve import available
 
         if value != "auto" and value not in available():
-            raise SettingsError(f"linear_solver {value!r} is not installed or unknown{nearest_key(value, available())}; "
+            raise SettingsError(f"linear_solver {value!r} is not installed or unknown"
+                                f"{nearest_key(value, available())}; "
                                 f"use 'auto' or one of {', '.join(available())}")

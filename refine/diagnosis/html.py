@@ -100,7 +100,8 @@ def hypotheses_table(d) -> str:
         else:
             verdict = f"passes, but scores {_score(f) - _score(winner):.0f} worse than the chosen one"
         label = "initial model" if f is base else f.cause
-        rows.append([f"{label} [{'; '.join(s.describe() for s in f.shapes) or f.law}]", f.k, f"{f.chi2_fit:.1f}", f"{f.chi2_holdout:.1f}", f"{f.bic:.1f}",
+        rows.append([f"{label} [{'; '.join(s.describe() for s in f.shapes) or f.law}]", f.k, f"{f.chi2_fit:.1f}",
+                     f"{f.chi2_holdout:.1f}", f"{f.bic:.1f}",
                      f"{f.bic - base.bic:+.1f}", f"{_score(f):.1f}", verdict])
         classes.append("chosen" if (f is winner and winner is not base) else "")
     rule = (f"A hypothesis passes when its BIC is lower than the initial model's by at least {cfg.bic_margin:g} "
@@ -129,7 +130,8 @@ def render(d, figures: dict[str, Figure], summary: str, files: list[str] = ()) -
     name = escape(str(r["bundle"]))
     parts = [f"<!doctype html><html lang='en'><head><meta charset='utf-8'><title>Diagnosis of {name}</title>"
              f"<style>{_STYLE}</style></head><body><h1>Diagnosis of {name}</h1>"]
-    parts.append("<div class='finding'>" + "".join(f"<p>{escape(line)}</p>" for line in summary.splitlines()) + "</div>")
+    parts.append("<div class='finding'>" + "".join(f"<p>{escape(line)}</p>" for line in summary.splitlines())
+                 + "</div>")
     parts.append(findings_table(r))
     null = r["decision"]
     parts.append("<h2>Is anything wrong beyond the noise?</h2>" + _table(
