@@ -21,7 +21,7 @@ from .derivatives import taylor_test
 from .elements import ELEMENTS, Element, get_element
 from .geometry import check_geometry, with_geometry
 from .exceptions import InvertedElementError, JaxfemError, MeshError, ProblemError, SolverError
-from .io import read_mesh, to_meshio, write_vtu
+from .io import read_mesh, read_pvd, to_meshio, write_points_vtu, write_pvd, write_vtu
 from .materials import LAWS, Material, get_material, lame
 from .mesh import Mesh, box, check_orientation, fix_orientation, rectangle, to_quadratic
 from .newton import NewtonOptions
@@ -38,7 +38,8 @@ from . import plot
 
 __all__ = [
     "ELEMENTS", "Element", "get_element", "InvertedElementError", "JaxfemError", "MeshError",
-    "ProblemError", "SolverError", "read_mesh", "to_meshio", "write_vtu", "LAWS", "Material",
+    "ProblemError", "SolverError", "read_mesh", "read_pvd", "to_meshio", "write_points_vtu", "write_pvd",
+    "write_vtu", "LAWS", "Material",
     "get_material", "lame", "Mesh", "box", "check_orientation", "fix_orientation", "rectangle",
     "to_quadratic", "NewtonOptions", "Probe", "boundary_interpolation", "boundary_loop", "locate",
     "Problem", "dofs", "cauchy_stress", "deformation_gradient", "equivalent_strain",

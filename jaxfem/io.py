@@ -3,13 +3,17 @@
 :func:`read_mesh` keeps the highest-dimensional cells of a file (a gmsh file also holds its boundary
 lines or faces), carries region tags such as ``gmsh:physical`` into ``Mesh.regions`` with their
 names, and drops nodes no cell uses (with a warning). :func:`write_vtu` writes a mesh with nodal and
-cell results, 2D vectors and tensors padded to 3D so that ParaView can warp and display them.
+cell results, 2D vectors and tensors padded to 3D so that ParaView can warp and display them;
+:func:`write_points_vtu` writes a point cloud (e.g. measured points) and :func:`write_pvd` a time
+series of VTU files that ParaView opens as one animated dataset.
 """
 
 from __future__ import annotations
 
 import warnings
 from os import PathLike
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
 
 import meshio
 import numpy as np
@@ -143,3 +147,58 @@ def _for_vtk(a, n, dim, what):
     elif a.shape[1:] == (dim, dim):
         a = np.pad(a, ((0, 0), (0, 3 - dim), (0, 3 - dim)))
     return np.ascontiguousarray(a.reshape(n, -1) if a.ndim > 2 else a)
+
+
+def write_points_vtu(path: str | PathLike, points, point_data: dict | None = None) -> None:
+    """Write a point cloud (one VTK vertex per point) with per-point data to a VTU file.
+
+    Args:
+        path: the file to write (``.vtu``).
+        points: ``(n, 2)`` or ``(n, 3)`` coordinates (length unit); 2D points get z = 0.
+        point_data: per-point arrays ``(n,)``, ``(n, k)`` or ``(n, dim, dim)``, padded as in
+            :func:`write_vtu` (NaN, e.g. a point lost in a frame, is written as NaN).
+    """
+    points = np.asarray(points, dtype=np.float64)
+    n, dim = points.shape
+    xyz = np.zeros((n, 3))
+    xyz[:, :dim] = points
+    pd = {k: _for_vtk(v, n, dim, f"point_data[{k!r}]") for k, v in (point_data or {}).items()}
+    meshio.Mesh(xyz, [("vertex", np.arange(n).reshape(-1, 1))], point_data=pd).write(path, file_format="vtu")
+
+
+def write_pvd(path: str | PathLike, files, times=None) -> Path:
+    """Write a ParaView collection (``.pvd``) that lists VTU files as the steps of a time series.
+
+    Args:
+        path: the ``.pvd`` file to write.
+        files: the VTU files, one per step, in order; written into the collection relative to the
+            ``.pvd`` file's folder (keep them together when moving the results).
+        times: the time value of each step (e.g. frame numbers); default ``0, 1, 2, ...``.
+
+    Returns:
+        The path written. Open it in ParaView (File > Open) to step through the files.
+    """
+    path = Path(path)
+    files = [Path(f) for f in files]
+    times = list(range(len(files))) if times is None else list(times)
+    if len(times) != len(files):
+        raise MeshError(f"write_pvd: {len(files)} files but {len(times)} times; give one time per file")
+    rows = []
+    for t, f in zip(times, files):
+        try:
+            name = f.resolve().relative_to(path.parent.resolve()).as_posix()
+        except ValueError:  # not under the collection's folder: keep the absolute path
+            name = f.resolve().as_posix()
+        rows.append(f'    <DataSet timestep="{float(t)!r}" group="" part="0" file={quoteattr(name)}/>')
+    path.write_text('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
+                    "  <Collection>\n" + "\n".join(rows) + "\n  </Collection>\n</VTKFile>\n")
+    return path
+
+
+def read_pvd(path: str | PathLike) -> list[tuple[float, Path]]:
+    """The steps of a ParaView collection written by :func:`write_pvd`: ``[(time, vtu path), ...]``."""
+    import xml.etree.ElementTree as ET
+
+    path = Path(path)
+    root = ET.parse(path).getroot()
+    return [(float(d.get("timestep", 0.0)), path.parent / d.get("file")) for d in root.iter("DataSet")]

@@ -22,11 +22,11 @@ Edit the cell below to hide something else: `cause` is one of `"none"`, `"stiffe
 come from a finer quadratic mesh of a larger sheet, with noise, so the inversion never sees its own
 discretisation. To diagnose your own measurements, read them with `refine.bundle.read_bundle`."""),
     ("code", """import numpy as np
-import matplotlib.pyplot as plt
+from IPython.display import Image, display
 import jaxfem as jf
 from refine.synthetic.sheet import Truth, Inclusion, random_truth, synthetic_bundle
 from refine.diagnosis import diagnose
-from refine.diagnosis import report
+from refine.diagnosis import figures, html, report
 
 cause, seed = "stiffer-region", 4
 truth = random_truth(np.random.default_rng(seed), cause)
@@ -39,17 +39,26 @@ print({r: int((obs.roles == r).sum()) for r in ("boundary", "guide", "validate")
     ("code", """d = diagnose(bundle)
 print()
 print(report.summary(d))"""),
-    ("md", """The strain map of the uniform model already hints at the cause (the paper reads abnormality
-from it: a stiffer inclusion is a pocket of low strain, a hole one of high strain); the residual
-arrows show where the uniform model misses the measured points; the localisation field (a modulus
-per cell fitted by adjoint gradients with total-variation smoothing) shows where, and its
-segmentation seeds the parametric fit of the region."""),
-    ("code", """out = report.write(d, "diagnose-out")
-fig, axes = plt.subplots(1, 2, figsize=(13, 4))
-for ax, name in zip(axes, ["strain_before_after.png", "regions.png"]):
-    ax.imshow(plt.imread(out.parent / name)); ax.axis("off")
-plt.show()
-plt.figure(figsize=(12, 4)); plt.imshow(plt.imread(out.parent / "residuals.png")); plt.axis("off"); plt.show()"""),
+    ("md", """The strain the tracked points themselves show (left: per triangle of their Delaunay
+triangulation, no model) beside the uniform model's and the refined model's: the uniform model
+already hints at the cause (the paper reads abnormality from it: a stiffer inclusion is a pocket
+of low strain, a hole one of high strain), and a model that explains the data draws the measured
+pattern. The residual arrows show where the uniform model misses the measured points; the
+localisation field (a modulus per cell fitted by adjoint gradients with total-variation
+smoothing) shows where, and its segmentation seeds the parametric fit of the region. The figures
+are matplotlib Figures (`figures.all_figures(d)`); here they are shown as PNG."""),
+    ("code", """U = figures.equilibria(d)  # the initial and refined models solved in every frame, once
+figs = figures.all_figures(d, U)
+for key in ("strain_before_after", "residuals", "regions"):
+    display(Image(html.figure_png(figs[key], dpi=80)))"""),
+    ("md", """`report.write` writes everything a person or ParaView reads: `report.html` (one page with
+the figures embedded), `report.json` (with the settings and provenance), the figures as PNG, and
+ParaView series (`paraview/*.pvd`: the initial and refined model frame by frame, the points with
+their residuals, the measured strain)."""),
+    ("code", """import json
+out = report.write(d, "diagnose-out")
+print(sorted(p.relative_to(out.parent).as_posix() for p in out.parent.rglob("*") if p.suffix != ".vtu"))
+print(json.loads(out.read_text())["provenance"]["settings"])"""),
     ("md", "## Compare with the truth"),
     ("code", """for f in d.findings:
     print(f["cause"], f["region"]["centroid"] if f["region"] else "", "relative elasticity", f["relative_elasticity"])

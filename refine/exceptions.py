@@ -64,3 +64,16 @@ class BatchError(RefineError, ValueError):
 class CorrespondenceError(RefineError, ValueError):
     """Unlabelled data cannot be matched to the model as given: an empty frame, a cloud far from the
     model's reference shape, a domain or grip the correspondence-free fit does not handle."""
+
+
+class SettingsError(RefineError, ValueError):
+    """Settings of a command (a ``[diagnose]`` table of experiment.toml, command-line options) are
+    invalid: an unknown key (the message names the nearest known one), a wrong type or range."""
+
+
+def nearest_key(key: str, known) -> str:
+    """``" (did you mean 'x'?)"`` for the known key closest to ``key`` (difflib), or ``""``."""
+    import difflib
+
+    close = difflib.get_close_matches(key, list(known), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""

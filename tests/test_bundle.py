@@ -35,8 +35,8 @@ def experiment_2d(**changes) -> Experiment:
     fields = dict(name="sheet-07", kind="plane-stress", domain=RectangleDomain(0.0, 0.0, 10.0, 10.0),
                   law="neo-hookean", E=83.76, nu=0.3, thickness=1.0,
                   units={"length": "mm", "stress": "kPa", "force": "mN"}, noise_std=0.02,
-                  extra={"experiment": {"operator": "lt"}, "material": {"C01": 1.5},
-                         "solver": {"steps": 10, "tolerances": {"newton": 1e-10}}, "note": "kept"})
+                  extra={"meta": {"operator": "lt", "C01": 1.5, "solver": {"steps": 10, "tolerances": {"newton": 1e-10}},
+                                  "note": "kept"}, "diagnose": {"seed": 3}})
     fields.update(changes)
     return Experiment(**fields)
 
@@ -58,7 +58,7 @@ def test_round_trip_2d_lost_points_forces_and_extra_keys(tmp_path):
     write_bundle(tmp_path / "b", bundle)
     back = read_bundle(tmp_path / "b")
     assert back.experiment == bundle.experiment
-    assert back.experiment.extra["solver"]["tolerances"]["newton"] == 1e-10
+    assert back.experiment.extra["meta"]["solver"]["tolerances"]["newton"] == 1e-10
     assert_same_observations(back.observations, bundle.observations)
     assert back.observations.valid.sum() == 18 - 2
     # A second write gives the same files byte for byte, and the TOML data is what we wrote.
@@ -87,7 +87,7 @@ def test_round_trip_3d_with_mesh_and_no_forces(tmp_path):
     u[0, 3] = np.nan
     obs = Observations([1, 2, 3, 4], rng.normal(size=(4, 3)), ["boundary", "guide", "guide", "validate"], u)
     exp = Experiment(name="cup", kind="solid", domain=MeshDomain("mesh.msh"), law="mooney-rivlin", E=10.0,
-                     nu=0.45, extra={"material": {"C01": 0.2}})
+                     nu=0.45, extra={"meta": {"C01": 0.2}})
     write_bundle(src, Bundle(exp, obs))
     first = read_bundle(src)
     assert (src / "points.csv").read_text().startswith("id,x,y,z,role\n")

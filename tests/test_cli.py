@@ -51,8 +51,22 @@ def test_simulate_from_python(small_bundle, tmp_path, capsys):
                          f"  tracking error: {summary['tracking_error']:.4g}"]
     assert text[4] == f"  wrote {tmp_path / 'sim' / 'displacements.csv'} and 2 strain maps"
     assert sorted(p.name for p in (tmp_path / "sim").iterdir()) == [
-        "displacements.csv", "strain_frame01.png", "strain_frame02.png"]
+        "displacements.csv", "paraview", "strain_frame01.png", "strain_frame02.png"]
     predicted = read_bundle(small_bundle).observations.displacements  # the same format, so read it as data
+    # ParaView: the model and the points, one VTU per frame, read back with meshio
+    import meshio
+
+    from jaxfem import read_pvd
+
+    for name, fields in (("model", {"displacement", "green_lagrange_strain", "principal_strain_1", "principal_strain_2",
+                                    "equivalent_strain", "modulus", "region"}),
+                         ("points", {"measured_displacement", "predicted_model", "residual_model", "role", "id"})):
+        steps = read_pvd(tmp_path / "sim" / "paraview" / f"{name}.pvd")
+        assert [t for t, _ in steps] == [1.0, 2.0]
+        last = meshio.read(steps[-1][1])
+        assert fields <= set(last.point_data) | set(last.cell_data)
+    assert np.abs(last.point_data["residual_model"]).max() < 1e-6
+    np.testing.assert_allclose(last.point_data["measured_displacement"][:, :2], predicted[1], atol=1e-12)
     written = np.loadtxt(tmp_path / "sim" / "displacements.csv", delimiter=",", skiprows=1)
     np.testing.assert_allclose(written[:, 2:].reshape(2, 20, 2), predicted, atol=1e-6)
 

@@ -116,14 +116,12 @@ class Table:
     def plot(self, path: str | Path) -> Path:
         """Draw the counts per cause (failures as ``error``) and the seconds per bundle by cause
         into the image ``path``; return it."""
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from matplotlib.figure import Figure
 
         causes = [("error" if r.get("error") else r["cause"]) for r in self.rows]
         kinds = sorted(set(causes))
-        fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
+        fig = Figure(figsize=(11, 4))
+        a, b = fig.subplots(1, 2)
         a.bar(kinds, [causes.count(k) for k in kinds], color="tab:blue")
         a.set_ylabel("bundles")
         a.set_title("causes found")
@@ -138,5 +136,4 @@ class Table:
         b.set_title("time")
         fig.tight_layout()
         fig.savefig(path, dpi=110)
-        plt.close(fig)
         return Path(path)

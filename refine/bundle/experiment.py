@@ -1,7 +1,12 @@
 """What was measured and the initial model: the content of a bundle's experiment.toml.
 
-Keys the library does not know are kept in :attr:`Experiment.extra` (nested like the TOML file)
-and written back, so reading and writing a bundle never loses anything a user wrote.
+A key the library does not know is an error that names the nearest known key (a misspelt
+``thicknes`` or ``noise_sd`` would otherwise leave the thickness or the noise unset without a
+word). User-defined metadata goes in a ``[meta]`` table, free-form; the ``[diagnose]`` table holds
+settings of the diagnosis (checked by :meth:`refine.diagnosis.DiagnoseConfig.from_table`). Both
+are kept in :attr:`Experiment.extra` and written back, so reading and writing a bundle never
+loses anything a user wrote. A new key of the format is popped in :meth:`Experiment.from_toml`
+and listed in :data:`KNOWN_KEYS`.
 """
 
 from __future__ import annotations
@@ -11,7 +16,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Union
 
-from refine.exceptions import ExperimentError
+from refine.exceptions import ExperimentError, nearest_key
 
 RECTANGLE_EDGES = ("left", "right", "bottom", "top")
 
@@ -127,7 +132,8 @@ class Experiment:
         units: e.g. ``{"length": "mm", "stress": "kPa", "force": "mN"}`` (free text, a consistent set).
         noise_std: standard deviation of each measured displacement component, length unit; None
             if unknown.
-        extra: every key of experiment.toml not listed above, nested as in the file.
+        extra: the free tables of experiment.toml (:data:`FREE_TABLES`: ``meta``, user-defined
+            metadata; ``diagnose``, settings of the diagnosis), nested as in the file.
     """
 
     name: str
@@ -164,6 +170,7 @@ class Experiment:
             object.__setattr__(self, "noise_std", _number(self.noise_std, "measurement.noise_std", positive=True))
         if not isinstance(self.units, dict) or not all(isinstance(v, str) for v in self.units.values()):
             raise ExperimentError('experiment.units must be a table of strings, e.g. { length = "mm" }')
+        _check_extra(self.extra)
 
     @property
     def dim(self) -> int:
@@ -172,7 +179,8 @@ class Experiment:
 
     @classmethod
     def from_toml(cls, data: dict[str, Any]) -> Experiment:
-        """Build from the dict tomllib returns for experiment.toml (unknown keys go to ``extra``)."""
+        """Build from the dict tomllib returns for experiment.toml (the free tables go to
+        ``extra``; an unknown key is an :class:`ExperimentError` naming the nearest known one)."""
         rest = copy.deepcopy(data)
         sections = {}
         for section in ("experiment", "model", "material", "measurement"):
@@ -272,3 +280,33 @@ def _registries() -> tuple[tuple[str, ...], tuple[str, ...]]:
     from jaxfem.materials import LAWS
 
     return KINDS, tuple(LAWS)
+
+
+#: the keys of experiment.toml's tables that are fields of :class:`Experiment`
+KNOWN_KEYS = {"experiment": ("name", "units"), "model": ("kind", "thickness", "domain"),
+              "material": ("law", "E", "nu"), "measurement": ("noise_std",)}
+#: tables kept as they are in :attr:`Experiment.extra`: ``meta`` (user-defined metadata, any
+#: keys) and ``diagnose`` (settings of the diagnosis, checked by refine.diagnosis)
+FREE_TABLES = ("meta", "diagnose")
+
+
+def _check_extra(extra: Any) -> None:
+    """Raise :class:`ExperimentError` for anything in ``extra`` but the free tables, naming the
+    nearest known key (``model.thicknes`` -> ``model.thickness``)."""
+    if not isinstance(extra, dict):
+        raise ExperimentError(f"extra must be a dict of TOML tables, got {extra!r}")
+    known = [f"{t}.{k}" for t, keys in KNOWN_KEYS.items() for k in keys] + [f"[{t}]" for t in FREE_TABLES]
+    hint = "; user-defined metadata goes in a [meta] table"
+    for table, value in extra.items():
+        if table in FREE_TABLES:
+            if not isinstance(value, dict):
+                raise ExperimentError(f"[{table}] must be a table, got {value!r}")
+            continue
+        if table not in KNOWN_KEYS or not isinstance(value, dict):
+            near = nearest_key(table, [*KNOWN_KEYS, *FREE_TABLES]) or nearest_key(table, known)
+            raise ExperimentError(f"experiment.toml: unknown key {table!r}{near}{hint}")
+        for key in value:
+            if key in KNOWN_KEYS[table]:
+                raise ExperimentError(f"extra key {table}.{key} would overwrite a key the library writes itself")
+            raise ExperimentError(f"experiment.toml: unknown key {table}.{key}{nearest_key(f'{table}.{key}', known)}"
+                                  f"{hint}")

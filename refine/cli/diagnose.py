@@ -5,19 +5,66 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+#: the options that set a :class:`refine.diagnosis.DiagnoseConfig` setting: (flags, setting,
+#: argparse keywords). Only options given override the bundle's ``[diagnose]`` table (whose
+#: settings override the defaults); the values are checked by ``DiagnoseConfig.from_table``.
+OPTIONS = (
+    (("--seed",), "seed", dict(type=int, help="seed of the held-out split and of the noise draws (default 0)")),
+    (("--alpha", "--significance"), "alpha", dict(type=float, help="significance of the null test (default 1e-3)")),
+    (("--max-regions",), "max_regions", dict(type=int, help="most regions tried (default 2)")),
+    (("--laws",), "try_laws", dict(action=argparse.BooleanOptionalAction,
+                                   help="also try other material laws (default: --laws)")),
+    (("--workers",), "workers", dict(type=int, help="hypotheses fitted side by side in this many threads (default 2)")),
+    (("--h", "--element-size"), "h", dict(type=float, help="element size of the initial model's mesh, length unit "
+                                                          "(default: half the point spacing)")),
+    (("--linear-solver",), "linear_solver", dict(help="auto (default) or a solver of jaxfem.linsolve: pardiso, "
+                                                      "klu, superlu, cholmod, cg, dense")),
+    (("--holdout-fraction",), "holdout_fraction", dict(type=float, help="share of guide points held out to choose "
+                                                                        "between hypotheses (default 0.25)")),
+    (("--bic-margin",), "bic_margin", dict(type=float, help="how much lower than the initial model's BIC a "
+                                                            "hypothesis must score (default 10)")),
+    (("--field-weight",), "field_weight", dict(type=float, help="smoothing weight of the localisation field "
+                                                                "(default 2)")),
+    (("--refit-element",), "refit_element", dict(choices=("tri3", "tri6"), help="element of the chosen model's "
+                                                                                 "final meshes (default tri6)")),
+    (("--try-rectangles",), "try_rectangles", dict(choices=("yes", "no", "auto"), help="also fit a found region as "
+                                                   "a rectangle; auto: where the points resolve corners (default no)")),
+    (("--hole-below",), "hole_below", dict(type=float, help="a softer region below this ratio is also fitted as a "
+                                                            "hole (default 0.3)")),
+    (("--hole-refit-below",), "hole_refit_below", dict(type=float, help="a chosen softer region refitted below "
+                                                                        "this ratio is compared with a hole "
+                                                                        "(default 0.05)")),
+    (("--rectangle-spacings",), "rectangle_spacings", dict(type=float, help="the gate of --try-rectangles auto, in "
+                                                                            "grid spacings (default 1.5)")),
+)
+
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Add the ``diagnose`` sub-command to ``subparsers`` (from ``ArgumentParser.add_subparsers``)."""
-    p = subparsers.add_parser("diagnose", help="find what the initial model gets wrong and measure the gain")
+    p = subparsers.add_parser("diagnose", help="find what the initial model gets wrong and measure the gain",
+                              description="Settings come from the defaults, then the bundle's [diagnose] table "
+                              "in experiment.toml, then these options.")
     p.add_argument("bundle")
-    p.add_argument("--out", required=True, help="output directory (report.json and figures)")
+    p.add_argument("--out", required=True, help="output directory (report.json, report.html, figures, paraview/)")
+    settings = p.add_argument_group("settings of the diagnosis (override the bundle's [diagnose] table)")
+    for flags, name, kw in OPTIONS:
+        settings.add_argument(*flags, dest=name, default=argparse.SUPPRESS, **kw)
     p.set_defaults(run=run)
     return p
 
 
+def settings_given(args: argparse.Namespace) -> dict:
+    """The settings given as options (``{setting: value}``; ``--try-rectangles yes|no|auto`` as
+    true, false or ``"auto"``)."""
+    given = {name: getattr(args, name) for _, name, _ in OPTIONS if hasattr(args, name)}
+    if "try_rectangles" in given:
+        given["try_rectangles"] = {"yes": True, "no": False}.get(given["try_rectangles"], "auto")
+    return given
+
+
 def run(args: argparse.Namespace) -> int:
     """Carry out ``nonrigid diagnose`` (``args`` from the parser of :func:`add_parser`); 0 on success."""
-    diagnose(args.bundle, args.out)
+    diagnose(args.bundle, args.out, config=settings_given(args))
     return 0
 
 
@@ -26,9 +73,12 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
 
     Args:
         bundle: a bundle directory (str or Path) or a :class:`refine.bundle.Bundle`.
-        out: output directory (created if missing): ``report.json``, ``summary.txt`` and the
-            figures of :func:`refine.diagnosis.report.write`.
-        config: a :class:`refine.diagnosis.DiagnoseConfig`; None: the defaults.
+        out: output directory (created if missing): ``report.json`` (with the settings and
+            provenance), ``summary.txt``, ``report.html``, the figures and ``paraview/`` of
+            :func:`refine.diagnosis.report.write`.
+        config: the settings: None, the bundle's ``[diagnose]`` table over the defaults; a dict
+            of settings, applied over that table; a :class:`refine.diagnosis.DiagnoseConfig`,
+            used as it is (the table is not read).
         quiet: print neither the progress log nor the summary.
 
     Returns:
@@ -36,9 +86,10 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
 
     Raises:
         refine.exceptions.BundleError: the bundle directory is malformed.
+        refine.exceptions.SettingsError: a setting is unknown (the nearest is named) or invalid.
     """
     from refine.bundle.io import read_bundle
-    from refine.diagnosis import diagnose as diagnosis_of, report
+    from refine.diagnosis import DiagnoseConfig, diagnose as diagnosis_of, report
 
     if isinstance(bundle, (str, Path)):
         bundle = read_bundle(bundle)
@@ -47,9 +98,22 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
 
         raise ObservationError("the bundle holds unlabelled clouds only (clouds.csv, no points.csv); diagnose needs "
                                "tracked points: follow the clouds with `nonrigid follow BUNDLE --out DIR`")
+    if not isinstance(config, DiagnoseConfig):
+        config = settings_of(bundle, config)
     d = diagnosis_of(bundle, config, log=(lambda m: None) if quiet else print)
     path = report.write(d, out)
     if not quiet:
         print(report.summary(d))
-        print(f"wrote {path} and figures in {Path(out)}")
+        print(f"wrote {path}, {Path(out) / 'report.html'} and figures in {Path(out)}; "
+              f"ParaView: open {Path(out) / 'paraview'}/*.pvd")
     return d
+
+
+def settings_of(bundle, given: dict | None = None):
+    """The :class:`refine.diagnosis.DiagnoseConfig` of a bundle: the defaults, then its
+    experiment.toml's ``[diagnose]`` table, then ``given`` (e.g. command-line options)."""
+    from refine.diagnosis import DiagnoseConfig
+
+    where = f"{bundle.root / 'experiment.toml' if bundle.root else 'experiment.toml'} [diagnose]"
+    cfg = DiagnoseConfig.from_table(bundle.experiment.extra.get("diagnose", {}), where)
+    return DiagnoseConfig.from_table(given or {}, "options", base=cfg)

@@ -34,7 +34,10 @@ def simulate(bundle, out: str | Path, h: float | None = None, quiet: bool = Fals
         bundle: a bundle directory (str or Path) or a :class:`refine.bundle.Bundle`.
         out: output directory (created if missing). Written there: ``displacements.csv`` (the
             model's displacement of every point in every frame, the bundle's format and length
-            unit) and ``strain_frameNN.png`` (the model's strain map per frame).
+            unit), ``strain_frameNN.png`` (the model's strain map per frame) and, for ParaView,
+            ``paraview/model.pvd`` (the model per frame: displacement, strains, modulus, regions;
+            :func:`refine.model.paraview.write_model_series`) and ``paraview/points.pvd`` (the
+            tracked points with their measured and predicted displacements and residuals).
         h: element size in the bundle's length unit; None: half the point spacing.
         quiet: do not print the summary.
 
@@ -48,16 +51,14 @@ def simulate(bundle, out: str | Path, h: float | None = None, quiet: bool = Fals
         refine.exceptions.BundleError: the bundle directory is malformed.
         jaxfem.exceptions.SolverError: a load step does not converge (the message names it).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     import jaxfem as jf
 
     from refine.bundle.io import read_bundle, write_displacements_csv
     from refine.measures import mean_position_error, tracking_error
     from refine.model.measured import MeasuredModel
+    from refine.model.paraview import write_model_series, write_points_series
 
     t0 = time.perf_counter()
     if isinstance(bundle, (str, Path)):
@@ -74,12 +75,14 @@ def simulate(bundle, out: str | Path, h: float | None = None, quiet: bool = Fals
         start = (sol.u.reshape(-1), {"u_D": th["u_D"], "f": th["f"], "traction": th["traction"]})
         U.append(sol)
         preds.append(np.asarray(model.probe(sol.u)))
-        ax = jf.plot.strain_map(model.solver, sol.u, th, points=obs.reference + np.nan_to_num(obs.displacements[f]),
-                                title=f"{bundle.experiment.name}: frame {f + 1}, initial model")
+        ax = Figure(figsize=(7, 4.5)).subplots()
+        jf.plot.strain_map(model.solver, sol.u, th, ax=ax, points=obs.reference + np.nan_to_num(obs.displacements[f]),
+                           title=f"{bundle.experiment.name}: frame {f + 1}, initial model")
         ax.figure.savefig(out_dir / f"strain_frame{f + 1:02d}.png", dpi=120, bbox_inches="tight")
-        plt.close(ax.figure)
     pred = np.stack(preds)
     write_displacements_csv(out_dir / "displacements.csv", obs.ids, pred)
+    write_model_series(out_dir / "paraview", "model", model, theta, [s.u for s in U])
+    write_points_series(out_dir / "paraview", "points", obs, {"model": pred})
     summary = {"frames": obs.n_frames, "points": obs.n_points, "cells": model.mesh.n_cells,
                "newton_iterations": int(sum(int(s.info["iterations"]) for s in U)),
                "seconds": time.perf_counter() - t0}
@@ -97,4 +100,5 @@ def simulate(bundle, out: str | Path, h: float | None = None, quiet: bool = Fals
             if k in summary:
                 print(f"  {k.replace('_', ' ')}: {summary[k]:.4g}")
         print(f"  wrote {out_dir / 'displacements.csv'} and {obs.n_frames} strain maps")
+        print(f"  ParaView: open {out_dir / 'paraview' / 'model.pvd'} and {out_dir / 'paraview' / 'points.pvd'}")
     return summary

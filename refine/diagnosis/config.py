@@ -1,8 +1,12 @@
-"""Settings of a diagnosis."""
+"""Settings of a diagnosis, from Python, from the ``[diagnose]`` table of experiment.toml or
+from ``nonrigid diagnose``'s options (:meth:`DiagnoseConfig.from_table`, checked either way)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from typing import Any
+
+from refine.exceptions import SettingsError, nearest_key
 
 
 @dataclass(frozen=True)
@@ -40,6 +44,9 @@ class DiagnoseConfig:
         workers: hypotheses (and the set-up's independent models) fitted side by side in this
             many threads; XLA compiles and solves outside Python's lock, and compilation is most
             of a diagnosis.
+        h: element size of the initial model's mesh, length unit; None: half the point spacing.
+        linear_solver: ``"auto"`` or a solver of :data:`jaxfem.linsolve.SOLVERS` that is
+            installed, for every model of the diagnosis.
     """
 
     alpha: float = 1e-3
@@ -55,3 +62,83 @@ class DiagnoseConfig:
     workers: int = 2
     try_rectangles: bool | None = False
     rectangle_spacings: float = 1.5
+    h: float | None = None
+    linear_solver: str = "auto"
+
+    def __post_init__(self):
+        for f in fields(self):
+            value = getattr(self, f.name)
+            _check(f.name, value)
+            if isinstance(value, int) and not isinstance(value, bool) and float in _types(f.name):
+                object.__setattr__(self, f.name, float(value))
+
+    @classmethod
+    def from_table(cls, table: dict[str, Any], where: str = "[diagnose]", base: DiagnoseConfig | None = None
+                   ) -> DiagnoseConfig:
+        """Settings from a table (e.g. experiment.toml's ``[diagnose]``, or options given on the
+        command line) over ``base`` (default: the defaults). ``try_rectangles = "auto"`` stands
+        for None (TOML has no null).
+
+        Raises:
+            SettingsError: an unknown key (naming the nearest known one), a wrong type or range;
+                the message starts with ``where``.
+        """
+        if not isinstance(table, dict):
+            raise SettingsError(f"{where} must be a table of settings, got {table!r}")
+        names = [f.name for f in fields(cls)]
+        values = {f.name: getattr(base or cls(), f.name) for f in fields(cls)}
+        for key, value in table.items():
+            if key not in names:
+                raise SettingsError(f"{where}: unknown setting {key!r}{nearest_key(key, names)}; "
+                                    f"the settings are {', '.join(names)}")
+            values[key] = None if (key == "try_rectangles" and value == "auto") else value
+        try:
+            return cls(**values)
+        except SettingsError as e:
+            raise SettingsError(f"{where}: {e}") from None
+
+    def settings(self) -> dict[str, Any]:
+        """Every setting by name, as report.json records them."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+#: (types, check, what it must be) per setting; int is accepted where a float is asked
+_RULES = {
+    "alpha": (float, lambda v: 0 < v < 1, "a number in (0, 1)"),
+    "holdout_fraction": (float, lambda v: 0 < v < 1, "a number in (0, 1)"),
+    "bic_margin": (float, lambda v: v >= 0, "a number >= 0"),
+    "field_weight": (float, lambda v: v > 0, "a number > 0"),
+    "max_regions": (int, lambda v: v >= 1, "an integer >= 1"),
+    "try_laws": (bool, None, "true or false"),
+    "refit_element": (str, lambda v: v in ("tri3", "tri6"), '"tri3" or "tri6"'),
+    "hole_below": (float, lambda v: 0 <= v <= 1, "a number in [0, 1]"),
+    "hole_refit_below": (float, lambda v: 0 <= v <= 1, "a number in [0, 1]"),
+    "seed": (int, lambda v: v >= 0, "an integer >= 0"),
+    "workers": (int, lambda v: v >= 1, "an integer >= 1"),
+    "try_rectangles": ((bool, type(None)), None, 'true, false or "auto"'),
+    "rectangle_spacings": (float, lambda v: v > 0, "a number > 0"),
+    "h": ((float, type(None)), lambda v: v is None or v > 0, "an element size > 0 (length unit)"),
+    "linear_solver": (str, None, '"auto" or an installed solver of jaxfem.linsolve'),
+}
+
+
+def _types(name: str) -> tuple:
+    types = _RULES[name][0]
+    return types if isinstance(types, tuple) else (types,)
+
+
+def _check(name: str, value) -> None:
+    _, ok, what = _RULES[name]
+    types = _types(name)
+    numeric = float in types and isinstance(value, int) and not isinstance(value, bool)
+    if not (numeric or (isinstance(value, types) and not (isinstance(value, bool) and bool not in types))):
+        raise SettingsError(f"{name} must be {what}, got {value!r}")
+    if ok is not None and not ok(value):
+        raise SettingsError(f"{name} must be {what}, got {value!r}")
+    if name == "linear_solver":
+        from jaxfem.linsolve import available
+
+        if value != "auto" and value not in available():
+            raise SettingsError(f"linear_solver {value!r} is not installed or unknown"
+                                f"{nearest_key(value, available())}; "
+                                f"use 'auto' or one of {', '.join(available())}")

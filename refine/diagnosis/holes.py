@@ -43,7 +43,7 @@ class HoleHypothesis:
         ex, hole = base.experiment, self.hole
         size = self.h or _mesh_size(base, [hole])
         mesh = domain_mesh(ex, size, self.element, holes=[hole])
-        model = MeasuredModel(ex, base.obs, mesh=mesh, h=size)
+        model = MeasuredModel(ex, base.obs, mesh=mesh, h=size, linear_solver=base.linear_solver)
         param = ShapeGeometry(jf.morph(mesh, [hole]), hole.params[None], scale=0.5 * base.spacing, rotate=True,
                               mesh=mesh, outside=base.obs.reference, min_axis=0.1 * base.spacing)
         return Compiled(model, param), None

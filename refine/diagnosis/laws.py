@@ -20,7 +20,7 @@ def fit_law(base: MeasuredModel, law: str, fit_mask, hold_mask, sigma) -> Fitted
     from dataclasses import replace
 
     ex = replace(base.experiment, law=law)
-    model = MeasuredModel(ex, base.obs, mesh=base.mesh, h=base.h)
+    model = MeasuredModel(ex, base.obs, mesh=base.mesh, h=base.h, linear_solver=base.linear_solver)
     parts = [UniformParameter("nu", float(ex.nu), 0.0, 0.499)]
     parts += [UniformParameter(q.name, q.default, q.lower, q.upper) for q in get_material(law).extra]
     param = Combined(tuple(parts))

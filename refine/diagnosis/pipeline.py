@@ -36,6 +36,7 @@ from refine.diagnosis.shapes import RegionShape, report_row
 from refine.diagnosis.localize import Candidate, fit_field, segment
 from refine.model.measured import MeasuredModel
 from refine.diagnosis.noise import NullTest, estimate_noise, null_test, propagated_noise
+from refine.diagnosis.provenance import provenance
 
 
 @dataclass
@@ -53,6 +54,7 @@ class Diagnosis:
     errors: dict = field(default_factory=dict)
     seconds: float = 0.0
     force: ForceScale | None = None
+    config: DiagnoseConfig = field(default_factory=DiagnoseConfig)
 
     @property
     def absolute(self) -> bool:
@@ -101,7 +103,8 @@ class Diagnosis:
                                              "kinds": [s.kind for s in f.shapes]}
                                             for f in self.tried]},
                 "note": self._modulus_note(),
-                "seconds": round(self.seconds, 2)}
+                "seconds": round(self.seconds, 2),
+                "provenance": provenance(self)}
 
 
 def _errors(obs, pred) -> dict:
@@ -117,7 +120,7 @@ def _errors(obs, pred) -> dict:
 def _discretisation_floor(model: MeasuredModel, guide) -> float:
     """Std of the initial model's discretisation error at guide points: the change of its
     predictions when the mesh is halved, scaled by 4/3 (second-order Richardson)."""
-    fine = MeasuredModel(model.experiment, model.obs, h=0.5 * model.h)
+    fine = MeasuredModel(model.experiment, model.obs, h=0.5 * model.h, linear_solver=model.linear_solver)
     d = np.asarray(fine.predict(fine.params())) - np.asarray(model.predict(model.params()))
     d = d[:, guide]
     return float(4.0 / 3.0 * np.sqrt(np.nanmean(d**2)))
@@ -130,7 +133,7 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
     say = log
     log = lambda msg: say(f"[{time.perf_counter() - t0:6.1f} s] {msg}")  # noqa: E731
     ex, obs = bundle.experiment, bundle.observations
-    model = MeasuredModel(ex, obs, root=bundle.root)
+    model = MeasuredModel(ex, obs, root=bundle.root, h=cfg.h, linear_solver=cfg.linear_solver)
     guide = obs.mask("guide")
     rng = np.random.default_rng(cfg.seed)
     gidx = np.flatnonzero(guide)
@@ -172,7 +175,7 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
                 chosen = _hole_if_as_likely(trials, chosen, guide)
     pool.shutdown()
     log(f"chosen: {chosen.describe()}")
-    d = Diagnosis(bundle, null, base, chosen, tried, candidates, z, model, seconds=0.0)
+    d = Diagnosis(bundle, null, base, chosen, tried, candidates, z, model, seconds=0.0, config=cfg)
     eb, er = _errors(obs, base.predicted), _errors(obs, chosen.predicted)
     gain = (eb["validation_error"] / er["validation_error"]) if er.get("validation_error") else None
     d.errors = {"baseline": eb, "refined": er, "gain": gain}

@@ -69,7 +69,7 @@ def region_model(base: MeasuredModel, regions, h: float, element: str = "tri3", 
     regions, then (with ``geometry``) the changes of their shapes (zero: the shapes given)."""
     ex = base.experiment
     mesh = domain_mesh(ex, h, element, inclusions=regions)
-    model = MeasuredModel(ex, base.obs, mesh=mesh, h=h)
+    model = MeasuredModel(ex, base.obs, mesh=mesh, h=h, linear_solver=base.linear_solver)
     masks = np.stack([(mesh.regions == k + 1).astype(float) for k in range(len(regions))])
     parts = [RegionModuli(masks, ex.E, names=tuple(f"region{k + 1}" for k in range(len(regions))))]
     if geometry:

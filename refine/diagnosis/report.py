@@ -1,5 +1,6 @@
 """Writing a diagnosis: report.json exactly as the bundle spec says, the figures a person looks
-at, and a short summary for the terminal."""
+at (:mod:`refine.diagnosis.figures`), report.html (:mod:`refine.diagnosis.html`), the ParaView
+series (:mod:`refine.diagnosis.paraview`), and a short summary for the terminal."""
 
 from __future__ import annotations
 
@@ -43,15 +44,28 @@ def summary(d) -> str:
 
 
 def write(d, out, with_figures: bool = True) -> Path:
-    """Write DIR/report.json, summary.txt and the figures (not with ``with_figures=False``, e.g. in a
-    batch: they can take longer than a small bundle's diagnosis); return the report's path."""
+    """Write DIR/report.json, summary.txt, the figures (PNG), report.html (the page a person
+    reads, figures embedded) and the ParaView series in DIR/paraview/; return report.json's path.
+    ``with_figures=False`` (e.g. in a batch, where they can take longer than a small bundle's
+    diagnosis) writes report.json and summary.txt alone."""
+    from refine.diagnosis import html
+    from refine.diagnosis.figures import equilibria
+    from refine.diagnosis.paraview import write_series
+
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "report.json"
     path.write_text(json.dumps(d.report(), indent=2, default=_plain))
-    if with_figures:
-        figures(d, out)
-    (out / "summary.txt").write_text(summary(d) + "\n")
+    text = summary(d)
+    (out / "summary.txt").write_text(text + "\n")
+    if not with_figures:
+        return path
+    U = equilibria(d)
+    figs = figures(d, out, U)
+    series = write_series(d, out / "paraview", U)
+    files = ["report.json", "summary.txt", *(f"{k}.png" for k in figs),
+             *(p.relative_to(out).as_posix() for p in series.values())]
+    html.write(d, out / "report.html", figs, text, files)
     return path
 
 
@@ -63,60 +77,13 @@ def _plain(x):
     raise TypeError(type(x))
 
 
-def figures(d, out: Path) -> None:
-    """Strain maps before and after, residual arrows, the found region, the error table."""
-    import matplotlib
+def figures(d, out: Path, U: dict | None = None) -> dict:
+    """Save the figures of :func:`refine.diagnosis.figures.all_figures` as DIR/<key>.png (strain
+    maps measured / initial / refined, residuals, the found regions, the error table) and return
+    them by key (matplotlib Figures). ``U``: the models' equilibria, if already solved."""
+    from refine.diagnosis.figures import all_figures
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    import jaxfem as jf
-
-    obs = d.bundle.observations
-    last = obs.n_frames - 1
-    fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
-    for ax, fitted, title in ((axes[0], d.baseline, "initial model"), (axes[1], d.chosen, "refined model")):
-        m, th = fitted.model, fitted.theta
-        u = m.solve_frames(th, frames=[last])[0]
-        eq = np.asarray(jf.equivalent_strain(m.solver, u, th))
-        jf.plot.cell_map(m.mesh if "X" not in th else m.mesh.with_nodes(np.asarray(th["X"])), eq, ax=ax,
-                         label="equivalent strain", title=f"{title}: strain, frame {last + 1}")
-    fig.savefig(out / "strain_before_after.png", dpi=110, bbox_inches="tight")
-    plt.close(fig)
-
-    fig, axes = plt.subplots(1, 2, figsize=(13, 4.5), sharey=True)
-    ref = obs.reference
-    for ax, fitted, title in ((axes[0], d.baseline, "initial"), (axes[1], d.chosen, "refined")):
-        r = np.nan_to_num(obs.displacements[last] - fitted.predicted[last])
-        for role, c in (("guide", "tab:blue"), ("validate", "tab:red")):
-            k = obs.mask(role)
-            ax.quiver(ref[k, 0], ref[k, 1], r[k, 0], r[k, 1], color=c, angles="xy", label=role,
-                      scale_units="xy", scale=max(np.abs(r).max(), 1e-12) / (0.8 * d.model.spacing))
-        ax.set_title(f"{title} model: measured - predicted, frame {last + 1} (arrows x scale)")
-        ax.set_aspect("equal")
-        ax.legend(loc="upper right", fontsize=7)
-    fig.savefig(out / "residuals.png", dpi=110, bbox_inches="tight")
-    plt.close(fig)
-
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    if d.field is not None:
-        jf.plot.cell_map(d.model.mesh, np.exp(d.field), ax=ax, cmap="coolwarm", label="relative modulus (field)")
-    ax.plot(ref[:, 0], ref[:, 1], "k.", ms=2)
-    for f in d.findings:
-        if f.region:
-            p = np.array(f.region.polygon + f.region.polygon[:1])
-            ax.plot(p[:, 0], p[:, 1], "k-", lw=2)
-            ax.annotate(f.cause, f.region.centroid, ha="center")
-    ax.set_title("found regions over the localisation field")
-    ax.set_aspect("equal")
-    fig.savefig(out / "regions.png", dpi=110, bbox_inches="tight")
-    plt.close(fig)
-
-    rep = d.report()
-    rows = [[k.replace("_", " "), f"{rep['baseline'][k]:.4g}", f"{rep['refined'][k]:.4g}"]
-            for k in ("guide_error", "validation_error", "tracking_error") if rep["baseline"][k] is not None]
-    fig, ax = plt.subplots(figsize=(5, 1.2 + 0.3 * len(rows)))
-    ax.axis("off")
-    ax.table(cellText=rows, colLabels=["error", "initial", "refined"], loc="center")
-    fig.savefig(out / "errors.png", dpi=110, bbox_inches="tight")
-    plt.close(fig)
+    figs = all_figures(d, U)
+    for key, fig in figs.items():
+        fig.savefig(Path(out) / f"{key}.png", dpi=110, bbox_inches="tight")
+    return figs

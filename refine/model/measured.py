@@ -91,6 +91,7 @@ class MeasuredModel:
         dim = self.mesh.dim
         self.problem = jf.Problem(self.mesh, experiment.law, experiment.kind,
                                   fixed=jf.dofs(self.mesh, loop))
+        self.linear_solver = linear_solver  # as asked ("auto" included): models derived from this one ask the same
         self.solver = jf.Solver(self.problem, linear_solver)
         self.probe = jf.locate(self.mesh, observations.reference, names=observations.ids)
         self.drives = [self._drive(f) for f in range(observations.n_frames)]
