@@ -303,7 +303,9 @@ def _large_only(args, shared):
     report["large_motion"]["seconds"] = time.perf_counter() - t_start
     report["large_motion"]["load_average_1_5_15min"] = os.getloadavg()
     report["large_motion"]["quick"] = args.quick
-    report.setdefault("targets", {}).update(large.targets(report["large_motion"]))
+    report["large_motion"]["note"] = "--only large: the rows outside large_motion are the earlier run's, judged again"
+    old_rows = targets(report) if "noise_vs" in report else {}   # the kept rows judged again
+    report["targets"] = {**report.get("targets", {}), **old_rows, **large.targets(report["large_motion"])}
     args.out.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(report, indent=1))
     large.plot(report["large_motion"], args.out / "tracking_large_motion.png")

@@ -6,16 +6,20 @@ scale, so the mask is where that texture's local amplitude reaches half its typi
 material (for a step in amplitude smoothed by a symmetric window, half level is where the step
 is, so the mask's edge sits on the material's edge). The texture is the image less its local
 median (over 5 px for a speckle, a pitch for a grid): a median keeps an edge's step where it is,
-where a blur would leave a band of false texture on both sides of it (the mask then reached 4-5
-px past a speckled specimen's edge into the background or a hole; now within about 1 px):
+where a blur would leave a band of false texture on both sides of it (the mask then reached 4.7-5.3
+px past a speckled specimen's edge into the background or a hole; now 1.6-3.2 px, see
+benchmarks/README.md):
 
 - grid: the amplitude of that texture demodulated at each line family's wave vector, smoothed
   over half a pitch (the minimum over the two families; a wider window pulls a hole's outline
   into the hole by its curvature, sigma^2 / 2r). A dark disc or background has none. The plain
   sheet between the last line and the specimen's edge has no texture either, so a grid's mask
   ends within half a pitch of the edge.
-- speckle: the local RMS of the texture, smoothed over 3 px (or half a subset if smaller), at
-  half its typical variance; the mask's cleaning closes the gaps between speckles.
+- speckle: the local RMS of the texture, smoothed over 3 px (or half a subset if smaller); the
+  mask's cleaning closes the gaps between speckles. Half the RMS is a quarter of the smoothed
+  variance, reached about 2 px past a step: what is left of the offset. Thresholds at half the
+  variance, or the mask eroded by 2 px, put synthetic edges within 1 px but opened false holes
+  where the real speckle of DIC Challenge Samples 3 and 12 is weaker (measured), so neither is used.
 
 Saturated patches (glare) are left out: pixels at the image's top grey level forming patches
 wider than a few pixels (isolated clipped speckles are not a patch).
@@ -100,9 +104,7 @@ def pattern_mask(image: np.ndarray, scale: float, roi: np.ndarray | None = None,
         raise TrackingError("no pattern texture in the region of interest; check the ROI and the images")
     provisional = usable & (amplitude > 0.25 * np.percentile(amplitude[usable], 90))
     typical = np.median(amplitude[provisional])
-    # half level of what was smoothed: the amplitude itself for a grid, its square (the local
-    # variance) for a speckle
-    mask = usable & (amplitude > (0.5 if waves is not None else np.sqrt(0.5)) * typical)
+    mask = usable & (amplitude > 0.5 * typical)
     # specks of texture in the background and pinholes in the material are not features
     size = max(3, int(round(0.5 * scale)) | 1)
     mask = ndimage.binary_opening(mask, np.ones((size, size), bool))
