@@ -265,7 +265,7 @@ def main(argv=None):
         return _large_only(args, shared)
     noises = [0.0, 2.0, 8.0] if args.quick else [0.0, 1.0, 2.0, 4.0, 8.0]
     strains = [0.0, 0.2] if args.quick else [0.0, 0.05, 0.1, 0.15, 0.2]
-    report = {"shape": SHAPE, "pitch_px": PITCH, "frames_per_sequence": FRAMES,
+    report = {"shape": SHAPE, "pitch_px": PITCH, "frames_per_sequence": FRAMES, "quick": args.quick,
               "noise_vs": {}, "strain_vs": {}}
     t_start = time.perf_counter()
     for pattern, case in (("grid", _grid_case), ("speckle", _speckle_case)):
