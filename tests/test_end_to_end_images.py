@@ -8,7 +8,10 @@ domain, so that ``diagnose`` must find it. The displacement comes from a fine qu
 of a larger sheet (refine.synthetic.render.sheet_displacements); the grid is 3 mm (12 px at
 0.25 mm/px) on the 100 x 60 mm region, as in tests/test_end_to_end.py.
 
-Slow (a few minutes each on 2 cores): deselected by default; run with ``-m slow``.
+Slow: deselected by default; run with ``-m slow``. Measured on 2 shared cores at load 21-35
+(each case 34 min, 26 of them in diagnose): hole (seed 1) found, centroid off by 0.007 % of the
+diagonal, gain 25.4; stiff disc (seed 2, ratio 6.40) found as 5.93, centroid off by 0.029 %, gain
+11.9; 0.90-0.91 pitch per frame.
 """
 
 from __future__ import annotations
