@@ -58,6 +58,17 @@ class CoarseMotion:
         """Constant-velocity guess of the next frame's map from this one and the one ``before``."""
         return CoarseMotion(2 * self.linear - before.linear, 2 * self.offset - before.offset)
 
+    def then(self, after: "CoarseMotion") -> "CoarseMotion":
+        """This map followed by ``after`` (x -> after(self(x))); supported if ``after`` is."""
+        return CoarseMotion(after.linear @ self.linear, after.linear @ self.offset + after.offset,
+                            after.supported, after.score)
+
+    def since(self, before: "CoarseMotion") -> "CoarseMotion":
+        """The map from ``before``'s frame to this one's (self after the inverse of ``before``)."""
+        inverse = np.linalg.inv(before.linear)
+        return CoarseMotion(self.linear @ inverse, self.offset - self.linear @ inverse @ before.offset,
+                            self.supported, self.score)
+
 
 def silhouette(image: np.ndarray, scale: float, ignore: np.ndarray | None = None) -> np.ndarray:
     """The image without its pattern: the gradient magnitude of its blur at ``scale`` (float32).

@@ -5,12 +5,16 @@ holes, background beyond the edges and glare are left out, and a subset must lie
 pattern). Each frame's global affine motion is estimated first (``_coarse``: correlation of the
 whole images over a tenth of their size, then ECC), so a frame may jump by far more than a
 subset; each point starts IC-GN (see ``_dic``) from that map plus its own residual from the
-previous frames extrapolated at constant velocity; points without a usable start (the first
-deformed frame, or after a failure) get an integer guess by normalised cross-correlation within
-``search`` px of it first. A point is lost in a frame, with its reason in
-``meta["lost_reasons"]`` (see ``_lost``), when IC-GN does not converge, the subset leaves the
-image or meets saturated pixels, or the ZNCC falls under ``min_zncc``; it is tried again (from
-its neighbours' motion) in the next frame.
+previous frames extrapolated at constant velocity (with ``reference="previous"`` the map from
+the previous frame, estimated between the two, moves each subset from where it was last seen);
+points without a usable start (the first deformed frame, or after a failure) get an integer
+guess by normalised cross-correlation within ``search`` px of it first. A point is lost in a
+frame, with its reason in ``meta["lost_reasons"]`` (see ``_lost``), when IC-GN does not converge,
+the subset leaves the image or meets saturated pixels, the ZNCC falls under ``min_zncc``, the
+match lies farther from its prediction than the search reaches (a slip), or its motion is not
+supported by its neighbours' (``_support``: more than ``max_disagreement`` px, or six robust
+standard deviations, from what they predict); with ``reference="first"`` it is tried again
+(from its neighbours' motion) in the next frame.
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from ._grid_topology import fill_field
 from ._images import as_stack, roi_mask
 from ._interp import spline_image
 from ._pattern_mask import material_outline, pattern_mask, saturated
+from ._support import unsupported
 from ._tracks import Tracks
 
 
@@ -47,6 +52,8 @@ class SpeckleTracker:
             against frame k-1; follows larger deformations, drift accumulates, a lost point
             stays lost).
         min_zncc: correlation under which a point is lost.
+        max_disagreement: a match farther than this (px) from the motion its lattice neighbours
+            predict (and than six robust standard deviations of those distances) is lost.
         max_iterations, tolerance: IC-GN stopping rule (tolerance in px at the subset edge).
         subset_in_roi: keep only points whose whole subset lies in the ROI (else the centre).
         find_pattern: track only where the speckle is (holes, background, glare left out).
@@ -60,6 +67,7 @@ class SpeckleTracker:
     smoothing: float = 0.8
     reference: str = "first"
     min_zncc: float = 0.8
+    max_disagreement: float = 0.1
     max_iterations: int = 40
     tolerance: float = 1e-3
     subset_in_roi: bool = True
@@ -126,14 +134,13 @@ class SpeckleTracker:
         first_subsets = reference_subsets(reference, reference.lattice_gradient(), xy, radius)
         motions = [CoarseMotion.identity()]
         history = [np.zeros((n, 6))]          # p of every frame against frame 0 ("first"), less its map's
-        increment = np.zeros((n, 6))          # last frame-to-frame p ("previous")
+        residual = np.zeros((n, 6))           # last frame-to-frame p less its map's ("previous")
         alive = np.ones(n, bool)
         before = reference
         rows, cols = np.nonzero(mask)
         search = 0.1 * max(np.ptp(rows) + 1, np.ptp(cols) + 1)
         for k in range(1, len(stack)):
-            prior = motions[-1].extrapolated(motions[-2]) if len(motions) >= 2 else motions[-1]
-            motion = speckle_motion(stack[0], stack[k], prior, search) if self.coarse else prior
+            motion = self._motion(stack, k, motions, search)
             target = spline_image(stack[k], self.order)
             if self.reference == "previous" and k > 1:
                 alive &= ~np.isnan(positions[k - 1]).any(axis=1)
@@ -141,21 +148,21 @@ class SpeckleTracker:
                 centres = np.rint(last)
                 offset = last - centres
                 subsets = reference_subsets(before, before.lattice_gradient(), centres, radius)
-                base, start = stack[k - 1], np.nan_to_num(increment)
+                step = motion.since(motions[-1])
+                base = stack[k - 1]
             else:
-                centres, offset, subsets = xy, np.zeros((n, 2)), first_subsets
-                base, start = stack[0], _map_parameters(motion, xy) + self._start(history, index, lattice)
+                centres, offset, subsets, step, base = xy, np.zeros((n, 2)), first_subsets, motion, stack[0]
+                residual = self._start(history, index, lattice)
+            start = _map_parameters(step, centres) + np.nan_to_num(residual)
             p, zncc, ok = self._match(base, stack[k], target, subsets, centres, start, k == 1)
             ok &= alive
-            # the tracked point sits at ``offset`` from the subset centre: move it with the warp
-            gradient = p[:, [1, 2, 4, 5]].reshape(n, 2, 2)
-            moved = centres + offset + p[:, [0, 3]] + np.einsum("nij,nj->ni", gradient, offset)
-            codes[k] = self._reasons(raw[k], moved, ok, zncc, alive)
+            origin = centres + offset
+            codes[k] = self._reasons(raw[k], origin, p, start, ok, zncc, alive, index)
             ok &= codes[k] == lost_codes.MEASURED
-            positions[k] = np.where(ok[:, None], moved, np.nan)
+            positions[k] = np.where(ok[:, None], _moved(origin, centres, p), np.nan)
             quality[k] = zncc
             history.append(np.where(ok[:, None], p - _map_parameters(motion, xy), np.nan))
-            increment = np.where(ok[:, None], p, np.nan)
+            residual = np.where(ok[:, None], p - _map_parameters(step, centres), np.nan)
             motions.append(motion)
             before = target
         lost = ~np.isfinite(positions).all(axis=-1)
@@ -169,9 +176,25 @@ class SpeckleTracker:
         return Tracks(ids=index[:, 0] * lattice[1] + index[:, 1] + 1, reference=xy, positions=positions,
                       lost=lost, quality=quality, grid_index=index, quality_kind="zncc", meta=meta)
 
-    def _reasons(self, image, moved, ok, zncc, alive) -> np.ndarray:
-        """Lost-reason codes (n,) int8 of one frame's matches."""
+    def _motion(self, stack, k, motions, search) -> CoarseMotion:
+        """Frame k's global map from frame 0 (against frame k - 1 with ``reference="previous"``)."""
+        prior = motions[-1].extrapolated(motions[-2]) if len(motions) >= 2 else motions[-1]
+        if not self.coarse:
+            return prior
+        # the search covers both a constant velocity and a stop (a jump may change direction)
+        centre = 0.5 * np.array(stack.shape[:0:-1], dtype=np.float64)
+        search = search + float(np.linalg.norm(prior.apply(centre) - motions[-1].apply(centre)))
+        if self.reference == "previous" and k > 1:
+            step = speckle_motion(stack[k - 1], stack[k], prior.since(motions[-1]), search)
+            return motions[-1].then(step)
+        return speckle_motion(stack[0], stack[k], prior, search)
+
+    def _reasons(self, image, origin, p, start, ok, zncc, alive, index) -> np.ndarray:
+        """Lost-reason codes (n,) int8 of one frame's matches ``p`` (n, 6) of the points at
+        ``origin`` (n, 2) px in the frame matched from, IC-GN started from ``start`` (n, 6)."""
         radius = self.subset // 2
+        centres = np.rint(origin)
+        moved = _moved(origin, centres, p)
         rows, cols = image.shape
         x, y = np.nan_to_num(moved, nan=-1e9).T
         outside = (x < radius) | (y < radius) | (x > cols - 1 - radius) | (y > rows - 1 - radius)
@@ -185,7 +208,16 @@ class SpeckleTracker:
             hit = np.zeros(len(moved), bool)
             hit[inside] = grown[np.rint(y[inside]).astype(int), np.rint(x[inside]).astype(int)]
             codes = lost_codes.first_reason(codes, hit, lost_codes.SATURATED)
-        return lost_codes.first_reason(codes, ~ok | (zncc < self.min_zncc), lost_codes.REJECTED)
+        codes = lost_codes.first_reason(codes, ~ok | (zncc < self.min_zncc), lost_codes.REJECTED)
+        # a match farther from its start than the search reaches (or half a subset) did not come
+        # from the search: IC-GN wandered off
+        reach = max(radius, self.search) + 1.0
+        slipped = np.abs(moved - _moved(origin, centres, start)).max(axis=1) > reach
+        codes = lost_codes.first_reason(codes, slipped, lost_codes.SLIP)
+        measured = codes == lost_codes.MEASURED
+        gradient = p[:, [1, 2, 4, 5]].reshape(-1, 2, 2)
+        alone = unsupported(index, origin, moved - origin, gradient, measured, self.max_disagreement)
+        return lost_codes.first_reason(codes, alone, lost_codes.JUMP)
 
     def _start(self, history, index, lattice):
         """Constant-velocity prediction of p per point; lost points take their neighbours'."""
@@ -229,6 +261,14 @@ class SpeckleTracker:
             match.zncc[again[better]] = second.zncc[better]
             ok[again[better]] = True
         return match.p, match.zncc, ok
+
+
+def _moved(origin: np.ndarray, centres: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Where the warp ``p`` (n, 6) of subsets centred at ``centres`` (n, 2) takes the points
+    ``origin`` (n, 2) (a tracked point may sit off its subset's integer centre), (n, 2) px."""
+    offset = origin - centres
+    gradient = p[:, [1, 2, 4, 5]].reshape(-1, 2, 2)
+    return centres + offset + p[:, [0, 3]] + np.einsum("nij,nj->ni", gradient, offset)
 
 
 def _map_parameters(motion: CoarseMotion, xy: np.ndarray) -> np.ndarray:

@@ -20,7 +20,8 @@ from __future__ import annotations
 from typing import Callable, Sequence
 
 import numpy as np
-from scipy.interpolate import RegularGridInterpolator
+from scipy.interpolate import RegularGridInterpolator, griddata
+from scipy.spatial import cKDTree
 
 import jaxfem as jf
 import tracking
@@ -65,7 +66,16 @@ def sheet_displacements(truth: Truth, fractions: Sequence[float], scale_mm_per_p
     xs = np.linspace(x0, x1, int(np.ceil((x1 - x0) / step)) + 1)
     ys = np.linspace(y0, y1, int(np.ceil((y1 - y0) / step)) + 1)
     X, Y = np.meshgrid(xs, ys, indexing="ij")
-    probe = jf.locate(mesh, np.stack([X.ravel(), Y.ravel()], 1))
+    points = np.stack([X.ravel(), Y.ravel()], 1)
+    # lattice points in a hole (or a step from it: the mesh's hole is a polygon) are not on the
+    # mesh; they get values interpolated linearly from around the hole (the renderer shows no
+    # material there but evaluates the field while inverting the map)
+    on_mesh = np.ones(len(points), bool)
+    for hole in truth.holes:
+        inside = points[np.asarray(hole.contains(points), bool)]
+        if len(inside):
+            on_mesh &= ~np.isfinite(cKDTree(inside).query(points, distance_upper_bound=1.5 * step)[0])
+    probe = jf.locate(mesh, points[on_mesh])
     shift = np.zeros((len(U), 2))
     if follow is not None:
         at = jf.locate(mesh, np.asarray(follow, float).reshape(1, 2))
@@ -73,9 +83,20 @@ def sheet_displacements(truth: Truth, fractions: Sequence[float], scale_mm_per_p
     scale = float(scale_mm_per_px)
     fields = []
     for u, t in zip(U, shift):
-        values = (np.asarray(probe(u)) - t).reshape(len(xs), len(ys), 2) / scale
+        values = np.asarray(probe(u)) - t
+        if not on_mesh.all():
+            values = _filled(points, on_mesh, values)
+        values = values.reshape(len(xs), len(ys), 2) / scale
         fields.append(_lattice_field(xs / scale, ys / scale, values))
     return fields
+
+
+def _filled(points: np.ndarray, known: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Values (n, 2) at all ``points`` (n, 2): ``values`` where ``known``, linear in between."""
+    out = np.empty((len(points), values.shape[1]))
+    out[known] = values
+    out[~known] = griddata(points[known], values, points[~known], method="linear")
+    return out
 
 
 def _lattice_field(xs: np.ndarray, ys: np.ndarray, values: np.ndarray) -> Displacement:
