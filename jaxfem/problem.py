@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -43,6 +44,28 @@ def _rigid_modes(X: np.ndarray) -> np.ndarray:
             m[:, a], m[:, b] = -c[:, b], c[:, a]
             modes.append(m.ravel())
     return np.stack(modes, 1)
+
+
+#: 3D elements that lock when nearly incompressible, and the Poisson's ratio from which they are refused
+LOCKING_3D, LOCKING_NU = ("tet4", "hex8"), 0.45
+
+
+def _check_nu(nu, problem) -> None:
+    """Refuse a Poisson's ratio outside (-1, 0.5), and nu >= 0.45 with linear 3D elements (they lock:
+    tests/test_verify_locking3d.py). Values under a JAX trace are not checked (nothing concrete)."""
+    try:
+        v = np.asarray(nu, np.float64)
+    except (jax.errors.TracerArrayConversionError, jax.errors.ConcretizationTypeError):
+        return
+    if not np.all((v > -1.0) & (v < 0.5)):
+        raise ProblemError(f"Poisson's ratio must lie in (-1, 0.5), got {v.min() if v.ndim else v:g}..{v.max():g}; "
+                           "nu = 0.5 is incompressible, which a displacement formulation cannot represent: "
+                           "use nu <= 0.499 (with tet10 or tri6 elements)")
+    if problem.kinematics == "solid" and problem.mesh.element in LOCKING_3D and np.any(v >= LOCKING_NU):
+        raise ProblemError(f"nu = {v.max():g} with {problem.mesh.element} elements: linear 3D elements lock when "
+                           f"nearly incompressible (nu >= {LOCKING_NU}; on a 3D Cook's membrane hex8 is 16-62 % "
+                           "too stiff at nu = 0.45-0.499, tet4 39-67 %); use quadratic tetrahedra: "
+                           "jaxfem.to_quadratic(mesh) of a tet4 mesh, or box(..., element='tet10')")
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,6 +142,7 @@ class Problem:
         point forces; ``traction`` ``(n_traction_facets, dim)``.
         """
         nc, dim = self.mesh.n_cells, self.mesh.dim
+        _check_nu(nu, self)
         cellwise = {"E": E, "nu": nu, "thickness": thickness if dim == 2 else 1.0}
         for q in self.material.extra:
             cellwise[q.name] = extra.pop(q.name, q.default)

@@ -56,3 +56,34 @@ def test_points_3d_combines_tracking_and_range_losses():
     np.testing.assert_allclose(xyz[1, 2], [61.0, 40.5, 31.5])
     with pytest.raises(TrackingError):
         points_3d(tracks, ranges[:1])
+
+
+def test_lost_points_carry_their_reason():
+    from tracking import _lost as codes
+
+    z_image = render_range(lambda x, y: 7.0 + 0.01 * x + 0 * y, SHAPE, holes=[(40.0, 30.0, 4.0)])
+    z_image[5, 5] = -1.0  # the scanner's no-data code
+    xy = np.array([[40.0, 30.0], [5.4, 5.6], [0.3, 20.0], [np.nan, 4.0], [20.25, 10.75]])
+    for order, off_edge in ((1, False), (3, True)):  # bicubic needs a pixel left of column 0
+        z, lost, why = range_lookup(z_image, xy, order=order, invalid_value=-1.0, explain=True)
+        expect = [codes.NO_RANGE, codes.NO_RANGE, codes.OFF_RANGE if off_edge else codes.MEASURED,
+                  codes.NOT_SEEN, codes.MEASURED]
+        assert why.tolist() == expect and lost.tolist() == [e != codes.MEASURED for e in expect]
+        assert z[4] == pytest.approx(7.0 + 0.01 * 20.25, abs=1e-12)  # sub-pixel, exact on a plane
+        assert codes.LOST_REASONS[codes.NO_RANGE].startswith("no range data")
+
+
+def test_points_3d_explains_tracking_and_range_losses():
+    from tracking import _lost as codes
+
+    reference = np.array([[20.0, 20.0], [50.0, 30.0], [60.0, 40.0]])
+    positions = np.stack([reference, reference + [1.0, 0.5]])
+    lost = np.array([[False, False, False], [False, True, False]])
+    positions[lost] = np.nan
+    reasons = np.where(lost, codes.JUMP, 0).astype(np.int8)
+    tracks = Tracks(ids=[1, 2, 3], reference=reference, positions=positions, lost=lost, quality=np.ones((2, 3)),
+                    grid_index=-np.ones((3, 2)), meta={"lost_reasons": reasons})
+    ranges = [render_range(lambda x, y: 0.5 * x + 0 * y, SHAPE),
+              render_range(lambda x, y: 0.5 * x + 0 * y, SHAPE, holes=[(21.0, 20.5, 2.0)])]
+    _, gone, why = points_3d(tracks, ranges, explain=True)
+    assert why.tolist() == [[0, 0, 0], [codes.NO_RANGE, codes.JUMP, 0]] and gone.tolist() == [[0, 0, 0], [1, 1, 0]]

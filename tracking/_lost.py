@@ -18,6 +18,8 @@ JUMP = 4            # its motion disagrees with its neighbours' (an identity swa
 SLIP = 5            # more than half a pitch (or a subset) from the frame's global motion
 LEFT_IMAGE = 6      # its pattern left the image
 NOT_SEEN = 7        # its neighbourhood gave nothing to measure (no detection, no start)
+NO_RANGE = 8        # no depth: the range image has a hole (NaN, inf, the scanner's no-data code) there
+OFF_RANGE = 9       # its depth interpolation reaches beyond the range image's edge
 
 LOST_REASONS = {
     MEASURED: "measured",
@@ -28,6 +30,8 @@ LOST_REASONS = {
     SLIP: "disagrees with the frame's global motion (lattice slip)",
     LEFT_IMAGE: "left the image",
     NOT_SEEN: "nothing to measure",
+    NO_RANGE: "no range data (hole in the range image)",
+    OFF_RANGE: "outside the range image",
 }
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import _lost as lost_codes
 from ._errors import OptionError, TrackingError
 from ._tracks import Tracks
 
@@ -22,7 +23,7 @@ def _keys(t: np.ndarray) -> np.ndarray:
 
 
 def range_lookup(range_image: np.ndarray, positions: np.ndarray, order: int = 1,
-                 invalid_value: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 invalid_value: float | None = None, explain: bool = False) -> tuple[np.ndarray, ...]:
     """Depth z at image positions, interpolated, with points over holes reported as lost.
 
     A point is lost when its position is NaN, when its interpolation support (2 x 2 pixels for
@@ -34,9 +35,12 @@ def range_lookup(range_image: np.ndarray, positions: np.ndarray, order: int = 1,
         positions: (..., 2) image coordinates (x = column, y = row) in pixels.
         order: 1 (bilinear) or 3 (bicubic convolution; local, interpolating).
         invalid_value: the scanner's "no data" code, if it writes one instead of NaN.
+        explain: also return why each point is lost.
 
     Returns:
-        z (...) and lost (...) bool.
+        z (...) and lost (...) bool; with ``explain`` also reasons (...) int8 codes of
+        ``tracking._lost``: ``NO_RANGE`` (a hole or no-data pixel in the support), ``OFF_RANGE``
+        (the support leaves the image), ``NOT_SEEN`` (no position: NaN), 0 where measured.
     """
     z_image = np.asarray(range_image, dtype=np.float64)
     if z_image.ndim != 2:
@@ -69,20 +73,30 @@ def range_lookup(range_image: np.ndarray, positions: np.ndarray, order: int = 1,
     out = np.full(len(x), np.nan)
     out[good] = value[good]
     z[finite] = out
-    return z.reshape(positions.shape[:-1]), ~np.isfinite(z).reshape(positions.shape[:-1])
+    codes = np.full(len(flat), lost_codes.NOT_SEEN, np.int8)
+    codes[finite] = np.select([~inside, holes, ~np.isfinite(out)],
+                              [lost_codes.OFF_RANGE, lost_codes.NO_RANGE, lost_codes.NO_RANGE], lost_codes.MEASURED)
+    shape = positions.shape[:-1]
+    z, lost = z.reshape(shape), (codes != lost_codes.MEASURED).reshape(shape)
+    return (z, lost, codes.reshape(shape)) if explain else (z, lost)
 
 
 def points_3d(tracks: Tracks, range_images, order: int = 1,
-              invalid_value: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+              invalid_value: float | None = None, explain: bool = False) -> tuple[np.ndarray, ...]:
     """3D coordinates (x, y, z) of tracked points per frame from one range image per frame.
 
     Args:
         tracks: tracks in pixels.
         range_images: (n_frames, rows, cols) depth images registered with the intensity images.
 
+        explain: also return why each point is lost.
+
     Returns:
         xyz (n_frames, n, 3) with x, y in pixels and z in the range images' unit (NaN where
-        lost), and lost (n_frames, n): lost in tracking or over a hole of the range data.
+        lost), and lost (n_frames, n): lost in tracking or over a hole of the range data; with
+        ``explain`` also reasons (n_frames, n) int8 (``tracking._lost`` codes): the tracker's
+        ``meta["lost_reasons"]`` where tracking lost the point (``NOT_SEEN`` without them), else
+        the range lookup's (``NO_RANGE``, ``OFF_RANGE``).
     """
     if tracks.units != "px":
         raise TrackingError("points_3d needs tracks in pixels (look the range images up before to_length)")
@@ -90,10 +104,13 @@ def points_3d(tracks: Tracks, range_images, order: int = 1,
         raise TrackingError(f"{len(range_images)} range images for {tracks.n_frames} frames")
     xyz = np.full((tracks.n_frames, tracks.n_points, 3), np.nan)
     lost = np.array(tracks.lost, copy=True)
+    tracked = np.asarray(tracks.meta.get("lost_reasons", np.where(lost, lost_codes.NOT_SEEN, 0)), np.int8)
+    reasons = np.where(lost, np.where(tracked == lost_codes.MEASURED, lost_codes.NOT_SEEN, tracked), 0).astype(np.int8)
     for f, range_image in enumerate(range_images):
-        z, hole = range_lookup(range_image, tracks.positions[f], order, invalid_value)
+        z, hole, why = range_lookup(range_image, tracks.positions[f], order, invalid_value, explain=True)
+        reasons[f] = np.where(reasons[f] == lost_codes.MEASURED, why, reasons[f])  # the first reason
         lost[f] |= hole
         xyz[f, :, :2] = tracks.positions[f]
         xyz[f, :, 2] = z
     xyz[lost] = np.nan
-    return xyz, lost
+    return (xyz, lost, reasons) if explain else (xyz, lost)

@@ -34,7 +34,8 @@ def simulate(bundle, out: str | Path, h: float | None = None, quiet: bool = Fals
         bundle: a bundle directory (str or Path) or a :class:`refine.bundle.Bundle`.
         out: output directory (created if missing). Written there: ``displacements.csv`` (the
             model's displacement of every point in every frame, the bundle's format and length
-            unit), ``strain_frameNN.png`` (the model's strain map per frame) and, for ParaView,
+            unit), ``strain_frameNN.png`` (the model's strain map per frame; a 3D model:
+            ``model_frameNN.vtu`` with displacement and equivalent strain instead) and, for ParaView,
             ``paraview/model.pvd`` (the model per frame: displacement, strains, modulus, regions;
             :func:`refine.model.paraview.write_model_series`) and ``paraview/points.pvd`` (the
             tracked points with their measured and predicted displacements and residuals).
@@ -75,6 +76,10 @@ def simulate(bundle, out: str | Path, h: float | None = None, quiet: bool = Fals
         start = (sol.u.reshape(-1), {"u_D": th["u_D"], "f": th["f"], "traction": th["traction"]})
         U.append(sol)
         preds.append(np.asarray(model.probe(sol.u)))
+        if model.mesh.dim == 3:  # no 2D map: the model for ParaView (displacement, equivalent strain per cell)
+            jf.write_vtu(out_dir / f"model_frame{f + 1:02d}.vtu", model.mesh, {"displacement": np.asarray(sol.u)},
+                         {"equivalent_strain": np.asarray(jf.equivalent_strain(model.solver, sol.u, th))})
+            continue
         ax = Figure(figsize=(7, 4.5)).subplots()
         jf.plot.strain_map(model.solver, sol.u, th, ax=ax, points=obs.reference + np.nan_to_num(obs.displacements[f]),
                            title=f"{bundle.experiment.name}: frame {f + 1}, initial model")
@@ -99,6 +104,7 @@ def simulate(bundle, out: str | Path, h: float | None = None, quiet: bool = Fals
         for k in ("guide_error", "validate_error", "tracking_error"):
             if k in summary:
                 print(f"  {k.replace('_', ' ')}: {summary[k]:.4g}")
-        print(f"  wrote {out_dir / 'displacements.csv'} and {obs.n_frames} strain maps")
+        print(f"  wrote {out_dir / 'displacements.csv'} and {obs.n_frames} "
+              f"{'strain maps' if model.mesh.dim == 2 else 'model VTU files'}")
         print(f"  ParaView: open {out_dir / 'paraview' / 'model.pvd'} and {out_dir / 'paraview' / 'points.pvd'}")
     return summary

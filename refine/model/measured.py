@@ -75,7 +75,7 @@ class MeasuredModel:
 
     def __init__(self, experiment: Experiment, observations: Observations, mesh: jf.Mesh | None = None,
                  element: str = "tri3", h: float | None = None, linear_solver: str = "auto", root=None):
-        if observations.dim != 2 and mesh is None:
+        if observations.dim != 2 and mesh is None and not isinstance(experiment.domain, MeshDomain):
             raise ObservationError("3D bundles need a mesh (domain = { mesh = ... })")
         self.experiment, self.obs = experiment, observations
         self.spacing = grid_spacing(observations.reference)
@@ -85,8 +85,7 @@ class MeasuredModel:
         if len(self.boundary) < 3:
             raise ObservationError(f"only {len(self.boundary)} boundary points: at least 3 are needed to "
                                    "drive the model")
-        loop, _ = jf.boundary_interpolation(self.mesh, observations.reference[self.boundary],
-                                            tol=0.05 * self.spacing, names=observations.ids[self.boundary])
+        loop, _ = self._interpolation(observations.reference[self.boundary], names=observations.ids[self.boundary])
         self.loop = loop
         dim = self.mesh.dim
         self.problem = jf.Problem(self.mesh, experiment.law, experiment.kind,
@@ -99,6 +98,16 @@ class MeasuredModel:
         self._solve_all = jax.jit(self._solve_frames)  # traced and compiled once per model
 
     # ------------------------------------------------------------------ boundary drive
+    def _interpolation(self, points, nodes=None, names=None):
+        """``(nodes, W)``: the driven nodes and the map from boundary-point values to them; along the
+        outline in 2D, on the surface near the points in 3D (:func:`jaxfem.surface.surface_interpolation`,
+        nodes within 0.75 point spacings; ``nodes`` fixed once chosen, so lost points only change W)."""
+        if self.mesh.dim == 2:
+            return jf.boundary_interpolation(self.mesh, points, tol=0.05 * self.spacing, names=names)
+        from jaxfem.surface import surface_interpolation
+
+        return surface_interpolation(self.mesh, points, 0.75 * self.spacing, nodes=nodes, names=names)
+
     def _drive(self, frame: int) -> FrameDrive:
         obs, dim = self.obs, self.mesh.dim
         valid = obs.valid[frame, self.boundary]
@@ -106,7 +115,7 @@ class MeasuredModel:
             raise ObservationError(f"frame {frame + 1}: only {int(valid.sum())} boundary points were tracked; "
                                    "at least 3 are needed to drive the model")
         idx = np.flatnonzero(valid)
-        _, W = jf.boundary_interpolation(self.mesh, obs.reference[self.boundary[idx]], tol=0.05 * self.spacing)
+        _, W = self._interpolation(obs.reference[self.boundary[idx]], nodes=getattr(self, "loop", None))
         # node values (n_loop, dim) = W @ U[idx]; flatten to the fixed-dof order (node-major)
         n_b = len(self.boundary)
         M = np.zeros((len(self.loop) * dim, n_b * dim))
