@@ -18,7 +18,9 @@ import numpy as np
 import jaxfem as jf
 
 from refine.exceptions import ObservationError
-from refine.bundle.experiment import Experiment, MeshDomain, RectangleDomain
+from refine.bundle.experiment import Experiment, FromPointsDomain, MeshDomain, RectangleDomain
+from refine.bundle.outline import resolve_domain
+from refine.model.boundary import outline_tolerance, place_points, side_nodes
 from refine.bundle.roles import point_spacing
 from refine.bundle.observations import Observations
 
@@ -32,8 +34,12 @@ def domain_mesh(experiment: Experiment, h: float, element: str = "tri3", inclusi
                 root=None) -> jf.Mesh:
     """A mesh of the experiment's domain with target element size ``h``, minus the domain's known
     holes; optional inclusions and further holes (``jaxfem.Ellipse``/``Rect``) are followed by
-    the mesh."""
+    the mesh. A domain built from the points must be resolved first
+    (:func:`refine.bundle.outline.resolve_domain`; :class:`MeasuredModel` does it)."""
     dom = experiment.domain
+    if isinstance(dom, FromPointsDomain):
+        raise ObservationError("a domain built from the points needs them: resolve it first "
+                               "(refine.bundle.outline.resolve_domain(experiment, observations))")
     if isinstance(dom, MeshDomain):
         path = dom.path if root is None else f"{root}/{dom.path}"
         return jf.read_mesh(path)
@@ -65,6 +71,10 @@ class FrameDrive:
 class MeasuredModel:
     """A finite-element model driven by measured boundary points.
 
+    Boundary points within :func:`~refine.model.boundary.outline_tolerance` of the outline drive
+    it where they project onto it (:mod:`refine.model.boundary`); a domain built from the points
+    is resolved to its polygon here (:attr:`experiment` holds it).
+
     Args:
         experiment: the bundle's experiment (domain, kinematics, initial law, E, nu, thickness).
         observations: the tracked points and their displacements.
@@ -77,6 +87,7 @@ class MeasuredModel:
                  element: str = "tri3", h: float | None = None, linear_solver: str = "auto", root=None):
         if observations.dim != 2 and mesh is None:
             raise ObservationError("3D bundles need a mesh (domain = { mesh = ... })")
+        experiment = resolve_domain(experiment, observations)
         self.experiment, self.obs = experiment, observations
         self.spacing = grid_spacing(observations.reference)
         self.h = h or 0.5 * self.spacing
@@ -85,14 +96,23 @@ class MeasuredModel:
         if len(self.boundary) < 3:
             raise ObservationError(f"only {len(self.boundary)} boundary points: at least 3 are needed to "
                                    "drive the model")
-        loop, _ = jf.boundary_interpolation(self.mesh, observations.reference[self.boundary],
-                                            tol=0.05 * self.spacing, names=observations.ids[self.boundary])
+        positions = observations.reference
+        if self.mesh.dim == 2:
+            self.placement = place_points(self.mesh, positions, observations.roles == "boundary", observations.ids,
+                                          outline_tolerance(self.spacing, experiment.noise_std))
+            positions = self.placement.positions
+        self.positions = positions  # where each point is compared with the model
+        self._tol = np.inf if self.mesh.dim == 2 else 0.05 * self.spacing  # placement checked the offsets
+        loop, _ = jf.boundary_interpolation(self.mesh, observations.reference[self.boundary], tol=self._tol,
+                                            names=observations.ids[self.boundary])
         self.loop = loop
         dim = self.mesh.dim
         self.problem = jf.Problem(self.mesh, experiment.law, experiment.kind,
                                   fixed=jf.dofs(self.mesh, loop))
         self.solver = jf.Solver(self.problem, linear_solver)
-        self.probe = jf.locate(self.mesh, observations.reference, names=observations.ids)
+        self.probe = jf.locate(self.mesh, positions, names=observations.ids)
+        forces = observations.forces
+        self.sides = {e: side_nodes(self.mesh, experiment.domain, e) for e in (forces.edges if forces else ())}
         self.drives = [self._drive(f) for f in range(observations.n_frames)]
         self._dim = dim
         self._solve_all = jax.jit(self._solve_frames)  # traced and compiled once per model
@@ -105,7 +125,7 @@ class MeasuredModel:
             raise ObservationError(f"frame {frame + 1}: only {int(valid.sum())} boundary points were tracked; "
                                    "at least 3 are needed to drive the model")
         idx = np.flatnonzero(valid)
-        _, W = jf.boundary_interpolation(self.mesh, obs.reference[self.boundary[idx]], tol=0.05 * self.spacing)
+        _, W = jf.boundary_interpolation(self.mesh, obs.reference[self.boundary[idx]], tol=self._tol)
         # node values (n_loop, dim) = W @ U[idx]; flatten to the fixed-dof order (node-major)
         n_b = len(self.boundary)
         M = np.zeros((len(self.loop) * dim, n_b * dim))
@@ -172,5 +192,5 @@ class MeasuredModel:
         solution (reaction forces in :mod:`refine.diagnosis.forces`, strain maps), so they solve once."""
         probe = self.probe
         if self.mesh.element in ("tri3", "tet4", "tri6"):  # follow a geometry morph of the reference nodes
-            probe = probe.moved(theta["X"], self.obs.reference)
+            probe = probe.moved(theta["X"], self.positions)
         return jax.vmap(probe)(U)
