@@ -182,6 +182,22 @@ class MeasuredModel:
         start = (jnp.zeros(self.problem.n_dofs), jnp.zeros_like(U_D[0]))
         return jax.lax.scan(step, start, U_D)[1]
 
+    def raise_solve_failure(self, theta) -> None:
+        """Solve the frames one by one with the solver's checks and raise its
+        :class:`jaxfem.SolverError` (``nonlinear solve failed at load step ...``, as ``nonrigid
+        simulate`` gives it), naming the frame: for a model whose :meth:`predict` is not finite."""
+        start = None
+        for f in range(self.obs.n_frames):
+            th = {**theta, "u_D": self.prescribed(f)}
+            try:
+                sol = self.solver.solve(th, start=start)
+            except jf.SolverError as e:
+                raise jf.SolverError(f"frame {f + 1} of {self.obs.n_frames}, the model driven by the measured boundary "
+                                     f"points: {e}", step=e.step, load_factor=e.load_factor, reason=e.reason) from None
+            start = (sol.u.reshape(-1), {"u_D": th["u_D"], "f": th["f"], "traction": th["traction"]})
+        raise jf.SolverError("the model's predictions are not finite although every frame solved",
+                             step=0, load_factor=0.0, reason="nan")
+
     def predict(self, theta, frames=None, boundary=None):
         """Predicted displacements of every tracked point, ``(n_frames, n_points, dim)``."""
         return self.at_points(self.solve_frames(theta, frames, boundary), theta)
