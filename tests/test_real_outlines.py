@@ -285,3 +285,25 @@ def test_noise_free_hidden_region_is_found_and_the_evidence_quotes_the_reported_
     assert before == round(table[0]["bic"]) and table[0]["cause"] == "none"
     assert after in [round(h["bic"]) for h in table[1:]] and abs(drop - (table[0]["bic"] - after)) <= 1
     assert drop > 0
+
+
+@pytest.mark.parametrize("seed", [5, 7])
+def test_the_mesh_of_a_noisy_points_outline_has_one_outer_loop(seed):
+    """Noisy collinear points on the outline of the points meshed by jaxfem's mesher: qhull
+    keeps flat triangles of collinear nodes on the hull, which reversed a boundary edge (these
+    seeds failed with a KeyError in boundary_loop before they were dropped)."""
+    from refine.bundle.from_tracks import lattice_outline
+    from refine.bundle.outline import outline_of_points
+    from refine.bundle.roles import point_spacing
+
+    rng = np.random.default_rng(seed)
+    pts = grid_points((20.0, 10.0, 120.0, 70.0), 5.0)
+    keep, index = _cut(pts, rng, 5.0)
+    ring = np.zeros(int(keep.sum()), bool)
+    ring[lattice_outline(index[keep])] = True
+    ref = pts[keep] + rng.normal(0.0, 0.1, (int(keep.sum()), 2))
+    mesh = jf.domain(jf.Polygon(outline_of_points(ref, ring)), 0.5 * point_spacing(ref))
+    loop = jf.boundary_loop(mesh)
+    assert len(loop) == len(mesh.boundary_facets())  # one closed outer loop, every boundary edge on it
+    nodes, W = jf.boundary_interpolation(mesh, ref[ring], tol=1e-9)  # the boundary points lie on it
+    assert np.allclose(W.sum(axis=1), 1.0)
