@@ -25,7 +25,7 @@ from .io import read_mesh, read_pvd, to_meshio, write_points_vtu, write_pvd, wri
 from .materials import LAWS, Material, get_material, lame
 from .mesh import Mesh, box, check_orientation, fix_orientation, rectangle, to_quadratic
 from .newton import NewtonOptions
-from .probe import Probe, boundary_interpolation, boundary_loop, locate
+from .probe import BoundaryProjection, Probe, boundary_interpolation, boundary_loop, locate, project_to_boundary
 from .problem import Problem, dofs
 from .postprocess import (cauchy_stress, deformation_gradient, equivalent_strain, first_piola_stress,
                       green_lagrange_strain, principal_strains, second_piola_stress, strain_energy,
@@ -44,6 +44,7 @@ __all__ = [
     "write_vtu", "LAWS", "Material",
     "get_material", "lame", "Mesh", "box", "check_orientation", "fix_orientation", "rectangle",
     "to_quadratic", "NewtonOptions", "Probe", "boundary_interpolation", "boundary_loop", "locate",
+    "BoundaryProjection", "project_to_boundary",
     "Problem", "dofs", "cauchy_stress", "deformation_gradient", "equivalent_strain",
     "first_piola_stress", "green_lagrange_strain", "principal_strains", "second_piola_stress",
     "strain_energy", "von_mises_stress", "Ellipse", "Polygon", "Rect", "curve_nodes", "morph", "plate", "domain",

@@ -190,6 +190,8 @@ def _triangulate(shapes, loops, h, n_holes):
         fixed = np.concatenate(loops)
         nodes = np.concatenate([fixed, free])
         tag = _classify(nodes, tri, segs, shapes, n_holes)
+        e1, e2 = nodes[tri[:, 1]] - nodes[tri[:, 0]], nodes[tri[:, 2]] - nodes[tri[:, 0]]
+        tag[e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] <= 1e-9 * h * h] = -1  # flat: collinear nodes on the hull
         tri, tag = tri[tag >= 0], tag[tag >= 0]
         if rnd == _ROUNDS - 1 or not len(free):
             break

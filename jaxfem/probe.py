@@ -2,6 +2,7 @@
 
 - :class:`Probe` locates points in a mesh once (cell and shape-function weights) so that a nodal
   field is evaluated at them by a fixed linear map, differentiable and cheap inside ``jit``.
+- :func:`project_to_boundary` places points on a 2D mesh's outer boundary (distance, arc length).
 - :func:`boundary_interpolation` builds the linear map from displacements measured at a few
   points on a 2D boundary to every boundary node, linear in arc length between neighbouring
   points (how the paper's set P drives the model).
@@ -152,11 +153,53 @@ def boundary_loop(mesh: Mesh) -> np.ndarray:
     return outer if area(outer) > 0 else outer[::-1]
 
 
+@dataclass(frozen=True, eq=False)
+class BoundaryProjection:
+    """Points projected onto the outer boundary of a 2D mesh (:func:`project_to_boundary`).
+
+    Attributes:
+        loop: the outer boundary's nodes, counter-clockwise, ``(n_b,)``.
+        node_arc: arc length of each loop node from ``loop[0]``, ``(n_b,)``, length unit.
+        perimeter: the loop's length.
+        arc: arc length of each point's projection, ``(m,)``.
+        distance: distance of each point from the boundary, ``(m,)``.
+        foot: the projections, ``(m, 2)``.
+    """
+
+    loop: np.ndarray
+    node_arc: np.ndarray
+    perimeter: float
+    arc: np.ndarray
+    distance: np.ndarray
+    foot: np.ndarray
+
+
+def project_to_boundary(mesh: Mesh, points) -> BoundaryProjection:
+    """Project ``points (m, 2)`` onto the nearest place of the outer boundary of a 2D ``mesh``."""
+    loop = boundary_loop(mesh)
+    P = mesh.nodes[loop]
+    seg = np.roll(P, -1, axis=0) - P
+    L = np.linalg.norm(seg, axis=1)
+    s_nodes = np.concatenate([[0.0], np.cumsum(L)[:-1]])
+    pts = np.asarray(points, np.float64).reshape(-1, 2)
+    # project each point on every boundary segment, keep the nearest
+    d = pts[:, None, :] - P[None]
+    t = np.clip(np.einsum("msi,si->ms", d, seg) / (L**2)[None], 0.0, 1.0)
+    proj = P[None] + t[..., None] * seg[None]
+    dist = np.linalg.norm(pts[:, None] - proj, axis=2)
+    j = dist.argmin(axis=1)
+    rows = np.arange(len(pts))
+    return BoundaryProjection(loop, s_nodes, float(L.sum()), s_nodes[j] + t[rows, j] * L[j], dist[rows, j],
+                              proj[rows, j])
+
+
 def boundary_interpolation(mesh: Mesh, points, tol: float | None = None, names=None):
     """Linear map from values at points on the outer boundary to every node of that boundary.
 
-    Between neighbouring points (in order along the boundary) values vary linearly with arc
-    length; the loop is closed, so the last point connects to the first.
+    Each point is placed at its projection on the boundary (within ``tol`` of it). Between
+    neighbouring points (in order along the boundary) values vary linearly with arc length; the
+    loop is closed, so the last point connects to the first. Points that project to the same
+    place share it: their mean value holds there.
 
     Args:
         mesh: a 2D mesh.
@@ -166,41 +209,39 @@ def boundary_interpolation(mesh: Mesh, points, tol: float | None = None, names=N
     Returns:
         ``(nodes (n_b,), W (n_b, m))`` with values at the nodes = ``W @ values``.
     """
-    loop = boundary_loop(mesh)
-    P = mesh.nodes[loop]
-    seg = np.roll(P, -1, axis=0) - P
-    L = np.linalg.norm(seg, axis=1)
-    s_nodes = np.concatenate([[0.0], np.cumsum(L)[:-1]])
-    perimeter = L.sum()
-    tol = 0.01 * L.mean() if tol is None else tol
     pts = np.asarray(points, np.float64)
     if len(pts) < 2:
         raise MeshError("need at least two boundary points to interpolate along the boundary")
-    # project each point on every boundary segment, keep the nearest
-    d = pts[:, None, :] - P[None]
-    t = np.clip(np.einsum("msi,si->ms", d, seg) / (L**2)[None], 0.0, 1.0)
-    proj = P[None] + t[..., None] * seg[None]
-    dist = np.linalg.norm(pts[:, None] - proj, axis=2)
-    j = dist.argmin(axis=1)
-    dmin = dist[np.arange(len(pts)), j]
-    far = np.flatnonzero(dmin > tol)
+    pr = project_to_boundary(mesh, pts)
+    loop, s_nodes, perimeter = pr.loop, pr.node_arc, pr.perimeter
+    tol = 0.01 * perimeter / len(loop) if tol is None else tol
+    far = np.flatnonzero(pr.distance > tol)
     if far.size:
-        labels = [str(names[i]) if names is not None else str(i) for i in far[:10]]
-        raise MeshError(f"{far.size} boundary points are not on the mesh boundary (e.g. {', '.join(labels)}, "
-                        f"{dmin[far[0]]:.3g} away); boundary points must lie on the domain's outline")
-    s_pts = s_nodes[j] + t[np.arange(len(pts)), j] * L[j]
-    order = np.argsort(s_pts)
-    sp = s_pts[order]
-    if np.any(np.diff(sp) <= 1e-12 * perimeter):
-        raise MeshError("two boundary points project to the same place on the boundary")
+        worst = far[np.argmax(pr.distance[far])]
+        label = str(names[worst]) if names is not None else str(worst)
+        raise MeshError(f"{far.size} boundary points are not on the mesh boundary (the farthest, {label}, is "
+                        f"{pr.distance[worst]:.3g} away; allowed {tol:.3g}); boundary points must lie on the "
+                        "domain's outline")
+    # places along the boundary; points at the same place are averaged there
+    order = np.argsort(pr.arc, kind="stable")
+    sp = pr.arc[order]
+    new = np.concatenate([[True], np.diff(sp) > 1e-12 * perimeter])
+    if new.sum() < 2:
+        raise MeshError("all boundary points project to the same place on the boundary")
+    group = np.cumsum(new) - 1
+    places = sp[new]
+    A = np.zeros((len(places), len(pts)))  # values at places = A @ values at points
+    A[group, order] = 1.0
+    A /= A.sum(axis=1, keepdims=True)
     # periodic linear interpolation in arc length
-    W = np.zeros((len(loop), len(pts)))
-    ext = np.concatenate([sp - perimeter, sp, sp + perimeter])
-    idx = np.concatenate([order, order, order])
+    n = len(places)
+    Wp = np.zeros((len(loop), n))
+    ext = np.concatenate([places - perimeter, places, places + perimeter])
+    idx = np.tile(np.arange(n), 3)
     k = np.searchsorted(ext, s_nodes, side="right") - 1
     a, b = ext[k], ext[k + 1]
     w = (s_nodes - a) / (b - a)
     rows = np.arange(len(loop))
-    np.add.at(W, (rows, idx[k]), 1.0 - w)
-    np.add.at(W, (rows, idx[k + 1]), w)
-    return loop, W
+    np.add.at(Wp, (rows, idx[k]), 1.0 - w)
+    np.add.at(Wp, (rows, idx[k + 1]), w)
+    return loop, Wp @ A

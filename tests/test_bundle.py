@@ -234,7 +234,7 @@ def test_minimal_files_are_valid(tmp_path):
         ("experiment.toml", TOML.replace("E = 80.0", 'E = "80"'), None, "material.E must be a number"),
         ("experiment.toml", TOML.replace("nu = 0.3", "nu = 0.5"), None, "material.nu must lie in"),
         ("experiment.toml", TOML.replace("neo-hookean", "ogden"), None, "material.law 'ogden' is unknown"),
-        ("experiment.toml", TOML + "[measurement]\nnoise_std = 0.0\n", None, "noise_std must be positive"),
+        ("experiment.toml", TOML + "[measurement]\nnoise_std = -0.01\n", None, "noise_std must be >= 0"),
         ("experiment.toml", TOML.replace("[0.0, 0.0, 10.0, 10.0]", "[10.0, 0.0, 0.0, 10.0]"), None,
          "xmin < xmax"),
         ("experiment.toml", TOML.replace("rectangle = [0.0, 0.0, 10.0, 10.0]", "polygon = [[0,0],[0,10],[10,0]]"),
@@ -269,7 +269,7 @@ def test_write_refuses_what_it_could_not_read_back(tmp_path):
     obs = observations_2d()
     bad_edges = Observations(obs.ids, obs.reference, obs.roles, obs.displacements,
                              Forces(("east",), np.zeros((obs.n_frames, 1, 2))))
-    with pytest.raises(ObservationError, match="not sides of a rectangle"):
+    with pytest.raises(ObservationError, match="unknown edge .east.: the domain does not define that side"):
         write_bundle(tmp_path, Bundle(experiment_2d(), bad_edges))
     with pytest.raises(ObservationError, match="observations are 2D"):
         write_bundle(tmp_path, Bundle(experiment_2d(kind="solid", domain=MeshDomain("m.msh")), obs))

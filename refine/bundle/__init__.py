@@ -3,12 +3,13 @@ reading and writing the format of ``docs/measurement-bundle.md``, and building a
 tracked points. Imports neither JAX nor jaxfem."""
 
 from refine.bundle.clouds import Clouds, read_clouds, write_clouds
-from refine.bundle.experiment import Experiment, MeshDomain, PolygonDomain, RectangleDomain
+from refine.bundle.experiment import Experiment, FromPointsDomain, MeshDomain, PolygonDomain, RectangleDomain
 from refine.bundle.from_tracks import ModelSkeleton, bundle_from_tracks
 from refine.bundle.io import Bundle, read_bundle, write_bundle, write_displacements_csv
 from refine.bundle.observations import Forces, Observations
+from refine.bundle.outline import outline_of_points, resolve_domain
 from refine.bundle.roles import ROLES, assign_roles
 
-__all__ = ["Clouds", "read_clouds", "write_clouds", "Bundle", "Experiment", "Forces", "MeshDomain", "ModelSkeleton", "Observations", "PolygonDomain",
-           "ROLES", "RectangleDomain", "assign_roles", "bundle_from_tracks", "read_bundle", "write_bundle",
-           "write_displacements_csv"]
+__all__ = ["Clouds", "read_clouds", "write_clouds", "Bundle", "Experiment", "Forces", "FromPointsDomain", "MeshDomain", "ModelSkeleton", "Observations", "PolygonDomain",
+           "ROLES", "RectangleDomain", "assign_roles", "bundle_from_tracks", "outline_of_points", "read_bundle",
+           "resolve_domain", "write_bundle", "write_displacements_csv"]

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any, Union
 
 from refine.exceptions import ExperimentError, nearest_key
+from refine.bundle.sides import checked_sides, sides_to_toml
 
 RECTANGLE_EDGES = ("left", "right", "bottom", "top")
 
@@ -59,6 +60,7 @@ class RectangleDomain:
     xmax: float
     ymax: float
     holes: tuple = ()
+    sides: tuple = ()  # named sides beyond left/right/bottom/top (refine.bundle.sides)
 
     def __post_init__(self):
         for name in ("xmin", "ymin", "xmax", "ymax"):
@@ -69,9 +71,16 @@ class RectangleDomain:
                 f"got {[self.xmin, self.ymin, self.xmax, self.ymax]}"
             )
         object.__setattr__(self, "holes", _holes(self.holes))
+        object.__setattr__(self, "sides", checked_sides(self.sides, None))
+
+    @property
+    def side_names(self) -> tuple[str, ...]:
+        """The sides a measured force may cross: left, right, bottom, top and the named ones."""
+        return tuple(dict.fromkeys([*RECTANGLE_EDGES, *(n for n, _, _ in self.sides)]))
 
     def to_toml(self) -> dict:
-        return {"rectangle": [self.xmin, self.ymin, self.xmax, self.ymax], **_holes_toml(self.holes)}
+        return {"rectangle": [self.xmin, self.ymin, self.xmax, self.ymax], **_holes_toml(self.holes),
+                **sides_to_toml(self.sides)}
 
 
 @dataclass(frozen=True)
@@ -81,6 +90,7 @@ class PolygonDomain:
 
     vertices: tuple[tuple[float, float], ...]
     holes: tuple = ()
+    sides: tuple = ()  # named sides (refine.bundle.sides): a polygon has none of its own
 
     def __post_init__(self):
         verts = _loop(self.vertices, "domain.polygon")
@@ -90,9 +100,54 @@ class PolygonDomain:
             )
         object.__setattr__(self, "vertices", verts)
         object.__setattr__(self, "holes", _holes(self.holes))
+        object.__setattr__(self, "sides", checked_sides(self.sides, len(verts)))
+
+    @property
+    def side_names(self) -> tuple[str, ...]:
+        """The sides a measured force may cross: the named ones only."""
+        return tuple(n for n, _, _ in self.sides)
+
+    # the bounding box, as a rectangle's (e.g. to keep a shape inside the domain)
+    xmin = property(lambda self: min(x for x, _ in self.vertices))
+    xmax = property(lambda self: max(x for x, _ in self.vertices))
+    ymin = property(lambda self: min(y for _, y in self.vertices))
+    ymax = property(lambda self: max(y for _, y in self.vertices))
 
     def to_toml(self) -> dict:
-        return {"polygon": [list(v) for v in self.vertices], **_holes_toml(self.holes)}
+        return {"polygon": [list(v) for v in self.vertices], **_holes_toml(self.holes), **sides_to_toml(self.sides)}
+
+
+OUTLINES = ("concave", "convex")
+
+
+@dataclass(frozen=True)
+class FromPointsDomain:
+    """A 2-D domain whose outline is built from the tracked points themselves
+    (:func:`refine.bundle.outline.outline_of_points`): their ``"concave"`` outline (an alpha
+    shape whose edges are at most ``max_edge`` long, length unit; None: 2.5 point spacings) or
+    their ``"convex"`` hull, through every boundary point; minus the known ``holes``, with named
+    ``sides`` (as for :class:`PolygonDomain`)."""
+
+    outline: str = "concave"
+    max_edge: float | None = None
+    holes: tuple = ()
+    sides: tuple = ()
+
+    def __post_init__(self):
+        if self.outline not in OUTLINES:
+            raise ExperimentError(f"domain.from_points must be one of {list(OUTLINES)}, got {self.outline!r}")
+        if self.max_edge is not None:
+            object.__setattr__(self, "max_edge", _number(self.max_edge, "domain.max_edge", positive=True))
+        object.__setattr__(self, "holes", _holes(self.holes))
+        object.__setattr__(self, "sides", checked_sides(self.sides, None))
+
+    @property
+    def side_names(self) -> tuple[str, ...]:
+        return tuple(n for n, _, _ in self.sides)
+
+    def to_toml(self) -> dict:
+        return {"from_points": self.outline, **({} if self.max_edge is None else {"max_edge": self.max_edge}),
+                **_holes_toml(self.holes), **sides_to_toml(self.sides)}
 
 
 def _holes_toml(holes) -> dict:
@@ -109,11 +164,13 @@ class MeshDomain:
         if not isinstance(self.path, str) or not self.path:
             raise ExperimentError(f"domain.mesh must be a file name, got {self.path!r}")
 
+    side_names = None  # forces may name the mesh's bounding-box sides (left, right, ..., back, front)
+
     def to_toml(self) -> dict:
         return {"mesh": self.path}
 
 
-Domain = Union[RectangleDomain, PolygonDomain, MeshDomain]
+Domain = Union[RectangleDomain, PolygonDomain, MeshDomain, FromPointsDomain]
 
 
 @dataclass(frozen=True)
@@ -123,15 +180,16 @@ class Experiment:
     Attributes:
         name: experiment name.
         kind: ``"plane-stress"`` | ``"plane-strain"`` | ``"solid"`` (3-D).
-        domain: :class:`RectangleDomain`, :class:`PolygonDomain` or :class:`MeshDomain` (required for solid).
+        domain: :class:`RectangleDomain`, :class:`PolygonDomain`, :class:`FromPointsDomain` or
+            :class:`MeshDomain` (required for solid).
         law: ``"neo-hookean"`` | ``"linear-elastic"`` | ``"saint-venant-kirchhoff"`` |
             ``"mooney-rivlin"``.
         E: background Young's modulus, stress unit (> 0).
         nu: Poisson's ratio, in (-1, 0.5).
         thickness: assumed sheet thickness for plane stress, length unit; None if not given.
         units: e.g. ``{"length": "mm", "stress": "kPa", "force": "mN"}`` (free text, a consistent set).
-        noise_std: standard deviation of each measured displacement component, length unit; None
-            if unknown.
+        noise_std: standard deviation of each measured displacement component, length unit (>= 0;
+            0: noise-free data); None if unknown.
         extra: the free tables of experiment.toml (:data:`FREE_TABLES`: ``meta``, user-defined
             metadata; ``diagnose``, settings of the diagnosis), nested as in the file.
     """
@@ -153,7 +211,7 @@ class Experiment:
         kinds, laws = _registries()
         if self.kind not in kinds:
             raise ExperimentError(f"model.kind {self.kind!r} is unknown; use one of {list(kinds)}")
-        if not isinstance(self.domain, (RectangleDomain, PolygonDomain, MeshDomain)):
+        if not isinstance(self.domain, (RectangleDomain, PolygonDomain, MeshDomain, FromPointsDomain)):
             raise ExperimentError(f"domain must be a RectangleDomain, PolygonDomain or MeshDomain, got {self.domain!r}")
         if self.kind == "solid" and not isinstance(self.domain, MeshDomain):
             raise ExperimentError('a "solid" model needs domain = { mesh = "FILE" }')
@@ -167,7 +225,10 @@ class Experiment:
         if self.thickness is not None:
             object.__setattr__(self, "thickness", _number(self.thickness, "model.thickness", positive=True))
         if self.noise_std is not None:
-            object.__setattr__(self, "noise_std", _number(self.noise_std, "measurement.noise_std", positive=True))
+            noise = _number(self.noise_std, "measurement.noise_std")
+            if noise < 0:  # 0 is a standard deviation too: noise-free data
+                raise ExperimentError(f"measurement.noise_std must be >= 0, got {noise}")
+            object.__setattr__(self, "noise_std", noise)
         if not isinstance(self.units, dict) or not all(isinstance(v, str) for v in self.units.values()):
             raise ExperimentError('experiment.units must be a table of strings, e.g. { length = "mm" }')
         _check_extra(self.extra)
@@ -228,27 +289,36 @@ def _domain_from_toml(table: Any) -> Domain:
         raise ExperimentError(f"model.domain must be a table, e.g. {{ rectangle = [0, 0, 100, 60] }}; got {table!r}")
     table = dict(table)
     holes = table.pop("holes", [])
+    sides = table.pop("sides", {})
+    max_edge = table.pop("max_edge", None)
     if len(table) != 1:
         raise ExperimentError(
             "model.domain must hold exactly one of rectangle = [xmin, ymin, xmax, ymax], "
-            f"polygon = [[x, y], ...] or mesh = \"FILE\" (and optionally holes = [[[x, y], ...], ...]); got {table!r}"
+            "polygon = [[x, y], ...], from_points = \"concave\" or mesh = \"FILE\" (and optionally "
+            f"holes = [[[x, y], ...], ...] and sides = {{ NAME = [[x0, y0], [x1, y1]] }}); got {table!r}"
         )
     if not isinstance(holes, list):
         raise ExperimentError(f"domain.holes must be a list of polygons [[[x, y], ...], ...], got {holes!r}")
     (kind, value), = table.items()
+    if max_edge is not None and kind != "from_points":
+        raise ExperimentError("domain.max_edge goes with from_points = \"concave\"")
+    if kind == "from_points":
+        return FromPointsDomain(value, max_edge, holes=holes, sides=sides)
+    if sides and kind == "mesh":
+        raise ExperimentError("domain.sides goes with a rectangle, a polygon or from_points")
     if kind == "rectangle":
         if not isinstance(value, list) or len(value) != 4:
             raise ExperimentError(f"domain.rectangle must be [xmin, ymin, xmax, ymax], got {value!r}")
-        return RectangleDomain(*value, holes=holes)
+        return RectangleDomain(*value, holes=holes, sides=sides)
     if kind == "polygon":
         if not isinstance(value, list) or not all(isinstance(v, list) and len(v) == 2 for v in value):
             raise ExperimentError(f"domain.polygon must be a list of [x, y] pairs, got {value!r}")
-        return PolygonDomain(tuple(tuple(v) for v in value), holes=holes)
+        return PolygonDomain(tuple(tuple(v) for v in value), holes=holes, sides=sides)
     if kind == "mesh":
         if holes:
             raise ExperimentError("domain.holes goes with a rectangle or a polygon; a mesh has its holes already")
         return MeshDomain(value)
-    raise ExperimentError(f"model.domain kind {kind!r} is unknown; use rectangle, polygon or mesh")
+    raise ExperimentError(f"model.domain kind {kind!r} is unknown; use rectangle, polygon, from_points or mesh")
 
 
 def _number(value: Any, what: str, positive: bool = False) -> float:

@@ -18,8 +18,9 @@ import numpy as np
 import tomli_w
 
 from refine.exceptions import BundleError, ExperimentError, ObservationError
-from refine.bundle.experiment import RECTANGLE_EDGES, Experiment, MeshDomain, RectangleDomain
+from refine.bundle.experiment import Experiment, MeshDomain
 from refine.bundle.clouds import Clouds, read_clouds, write_clouds
+from refine.bundle.sides import undefined_side
 from refine.bundle.observations import Forces, Observations
 from refine.bundle.roles import ROLES
 
@@ -63,8 +64,7 @@ def read_bundle(path: str | Path) -> Bundle:
     displacements = _read_displacements(root / "displacements.csv", ids, experiment.dim)
     forces = None
     if (root / "forces.csv").exists():
-        edges = RECTANGLE_EDGES if isinstance(experiment.domain, RectangleDomain) else None
-        forces = _read_forces(root / "forces.csv", len(displacements), experiment.dim, edges)
+        forces = _read_forces(root / "forces.csv", len(displacements), experiment.dim, experiment.domain.side_names)
     return Bundle(experiment, Observations(ids, reference, roles, displacements, forces), root=root, clouds=clouds)
 
 
@@ -81,10 +81,10 @@ def write_bundle(path: str | Path, bundle: Bundle) -> Path:
         raise ObservationError("a bundle needs tracked points (observations) or clouds, or both")
     if obs is not None and obs.dim != exp.dim:
         raise ObservationError(f"observations are {obs.dim}D but model.kind {exp.kind!r} is {exp.dim}D")
-    if obs is not None and isinstance(exp.domain, RectangleDomain) and obs.forces is not None:
-        unknown = sorted(set(obs.forces.edges) - set(RECTANGLE_EDGES))
+    if obs is not None and exp.domain.side_names is not None and obs.forces is not None:
+        unknown = sorted(set(obs.forces.edges) - set(exp.domain.side_names))
         if unknown:
-            raise ObservationError(f"force edges {unknown} are not sides of a rectangle {list(RECTANGLE_EDGES)}")
+            raise ObservationError(undefined_side(unknown[0], exp.domain.side_names))
     (root / "experiment.toml").write_text(tomli_w.dumps(exp.to_toml()), encoding="utf-8")
     if bundle.clouds is not None:
         write_clouds(root / "clouds.csv", bundle.clouds)
@@ -215,7 +215,7 @@ def _read_forces(path: Path, n_frames: int, dim: int, allowed_edges) -> Forces:
             raise BundleError(path, f"frame {frame} is not in displacements.csv (frames 1..{n_frames})", line)
         edge = cells[1]
         if not edge or (allowed_edges is not None and edge not in allowed_edges):
-            raise BundleError(path, f"unknown edge {edge!r}; for a rectangle use one of {list(RECTANGLE_EDGES)}", line)
+            raise BundleError(path, undefined_side(edge, allowed_edges), line)
         if (frame, edge) in seen:
             raise BundleError(path, f"edge {edge!r} has two rows in frame {frame} (lines {seen[frame, edge]} and "
                                     f"{line})", line)

@@ -51,7 +51,8 @@ class ForcedObjective(Objective):
         model: the measured model; its bundle must carry forces on ``edge``.
         param: a parametrisation; fit the background too (``RegionModuli(background=True)``),
             since only the force can fix it.
-        edge: the side the force was measured on (``"right"``, ``"left"``, ``"bottom"``, ``"top"``).
+        edge: the side the force was measured on (a rectangle's ``"right"``, ``"left"``,
+            ``"bottom"``, ``"top"``, or a side the domain names: :mod:`refine.bundle.sides`).
         force_std: standard deviation of each measured force component, force unit (default: 1 %
             of the largest measured force, a typical load cell).
         **kw: as :class:`~refine.model.Objective` (``theta``, ``role``, ``points``, ``noise_std``).
@@ -66,7 +67,7 @@ class ForcedObjective(Objective):
         if forces is None or edge not in forces.edges:
             raise IdentifiabilityError(f"the bundle has no measured force on the {edge!r} side, so " + RELATIVE_ONLY)
         self.edge = edge
-        self.nodes = model.mesh.side(edge)
+        self.nodes = model.sides[edge]  # the domain's named side (refine.model.boundary.side_nodes)
         if not np.isin(self.nodes, model.loop).all():
             raise IdentifiabilityError(f"the {edge!r} side of the mesh is not driven by boundary points, so "
                                        "its reaction is not the force across it")
@@ -189,11 +190,8 @@ def force_scale(model: MeasuredModel, theta) -> ForceScale | None:
     if forces is None:
         return None
     edges = []
-    for edge in forces.edges:
-        try:
-            nodes = model.mesh.side(edge)
-        except Exception:  # noqa: BLE001 - a side the mesh cannot name (a polygon domain)
-            continue
+    for edge in forces.edges:  # every side is defined (the model refuses a force on an undefined one)
+        nodes = model.sides[edge]
         if len(nodes) and np.isin(nodes, model.loop).all():
             edges.append((edge, nodes))
     if not edges:

@@ -101,7 +101,7 @@ def null_test(residuals: Float[np.ndarray, "frames m dim"], valid: Bool[np.ndarr
     keep = np.repeat(valid.reshape(-1), residuals.shape[-1])
     r = residuals.reshape(-1)[keep]
     K = len(propagated)
-    V = propagated.reshape(K, -1)[:, keep].T / np.sqrt(max(K - 1, 1))  # (n, K)
+    V = propagated.reshape(K, -1)[:, keep].T / np.sqrt(max(K - 1, 1)) if K else np.zeros((len(r), 0))  # (n, K)
     d = sigma**2 + sigma_model**2
     if d <= 0:
         d = 1e-30

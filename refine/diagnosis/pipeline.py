@@ -55,6 +55,7 @@ class Diagnosis:
     seconds: float = 0.0
     force: ForceScale | None = None
     config: DiagnoseConfig = field(default_factory=DiagnoseConfig)
+    selected: Fitted | None = None  # the chosen hypothesis as fitted and scored beside the others (before its refit)
 
     @property
     def absolute(self) -> bool:
@@ -72,10 +73,14 @@ class Diagnosis:
         return findings(self.chosen, self._evidence(), self.background_modulus if self.absolute else None)
 
     def _evidence(self) -> str:
-        b, c = self.baseline, self.chosen
+        # the numbers of the hypotheses' table (report.json's decision): the baseline and the chosen
+        # hypothesis scored on the same fitting and held-out points, before the chosen one's refit on
+        # every guide point (whose misfit sums over more points and is not comparable)
+        b, c = self.baseline, self.selected or self.chosen
+        refit = f"; refitted on every guide point as {self.chosen.cause}" if self.chosen.cause != c.cause else ""
         return (f"initial model misfit {self.null.ratio:.1f}x its null level (p = {self.null.p_value:.2g}); "
-                f"{c.cause} lowers BIC by {b.bic - c.bic:.0f} and the held-out guide misfit from "
-                f"{b.chi2_holdout:.0f} to {c.chi2_holdout:.0f}")
+                f"{c.cause} lowers BIC from {b.bic:.0f} to {c.bic:.0f} (by {b.bic - c.bic:.0f}) and the held-out "
+                f"guide misfit from {b.chi2_holdout:.0f} to {c.chi2_holdout:.0f}{refit}")
 
     def _modulus_note(self) -> str:
         ex = self.bundle.experiment
@@ -123,7 +128,9 @@ def _discretisation_floor(model: MeasuredModel, guide) -> float:
     fine = MeasuredModel(model.experiment, model.obs, h=0.5 * model.h, linear_solver=model.linear_solver)
     d = np.asarray(fine.predict(fine.params())) - np.asarray(model.predict(model.params()))
     d = d[:, guide]
-    return float(4.0 / 3.0 * np.sqrt(np.nanmean(d**2)))
+    if not np.isfinite(d).all():  # a model that cannot be solved: diagnose stops with the solver's message
+        return float("nan")
+    return float(4.0 / 3.0 * np.sqrt(np.mean(d**2)))
 
 
 def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) -> Diagnosis:
@@ -143,7 +150,9 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
 
     pool = ThreadPoolExecutor(max(1, cfg.workers))
     floor = pool.submit(_discretisation_floor, model, guide)  # a finer model, compiled beside the initial one
-    model.predict(model.params())
+    if not np.isfinite(np.asarray(model.predict(model.params()))).all():
+        pool.shutdown(cancel_futures=True)
+        model.raise_solve_failure(model.params())  # e.g. boundary motion that folds the sheet: no fit can help
     sigma = ex.noise_std if ex.noise_std is not None else estimate_noise(obs)
     sigma_model = floor.result()
     sigma_eff = float(np.sqrt(sigma**2 + sigma_model**2)) or 1.0
@@ -156,7 +165,7 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
     null = null_test(at_guide.difference(base.predicted), at_guide.valid, sigma, sigma_model,
                      V.reshape((-1,) + shape) if V.size else np.zeros((0,) + shape))
     log(f"initial model: misfit {null.ratio:.2f}x its null level over {null.dof} residuals (p = {null.p_value:.3g})")
-    tried, candidates, z = [base], [], None
+    tried, candidates, z, selected = [base], [], None, None
     chosen = base
     if null.p_value < cfg.alpha:
         n_res = Residuals.at(obs.displacements, fit).n
@@ -168,14 +177,14 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
                       for c in candidates))
         trials = Trials(model, fit, hold, sigma_eff, cfg, null, n_res, log, pool)
         tried += _try_hypotheses(trials, candidates)
-        chosen = _choose(base, tried, cfg)
+        chosen = selected = _choose(base, tried, cfg)
         if chosen is not base:  # refit the chosen model on every guide point
             chosen = refit(chosen, guide, hold, sigma_eff, element=cfg.refit_element)
             if chosen.cause == "softer-region" and chosen.shapes[0].ratio < cfg.hole_refit_below:
                 chosen = _hole_if_as_likely(trials, chosen, guide)
     pool.shutdown()
     log(f"chosen: {chosen.describe()}")
-    d = Diagnosis(bundle, null, base, chosen, tried, candidates, z, model, seconds=0.0, config=cfg)
+    d = Diagnosis(bundle, null, base, chosen, tried, candidates, z, model, seconds=0.0, config=cfg, selected=selected)
     eb, er = _errors(obs, base.predicted), _errors(obs, chosen.predicted)
     gain = (eb["validation_error"] / er["validation_error"]) if er.get("validation_error") else None
     d.errors = {"baseline": eb, "refined": er, "gain": gain}

@@ -18,7 +18,9 @@ import numpy as np
 import jaxfem as jf
 
 from refine.exceptions import ObservationError
-from refine.bundle.experiment import Experiment, MeshDomain, RectangleDomain
+from refine.bundle.experiment import Experiment, FromPointsDomain, MeshDomain, RectangleDomain
+from refine.bundle.outline import resolve_domain
+from refine.model.boundary import outline_tolerance, place_points, side_nodes
 from refine.bundle.roles import point_spacing
 from refine.bundle.observations import Observations
 
@@ -32,8 +34,12 @@ def domain_mesh(experiment: Experiment, h: float, element: str = "tri3", inclusi
                 root=None) -> jf.Mesh:
     """A mesh of the experiment's domain with target element size ``h``, minus the domain's known
     holes; optional inclusions and further holes (``jaxfem.Ellipse``/``Rect``) are followed by
-    the mesh."""
+    the mesh. A domain built from the points must be resolved first
+    (:func:`refine.bundle.outline.resolve_domain`; :class:`MeasuredModel` does it)."""
     dom = experiment.domain
+    if isinstance(dom, FromPointsDomain):
+        raise ObservationError("a domain built from the points needs them: resolve it first "
+                               "(refine.bundle.outline.resolve_domain(experiment, observations))")
     if isinstance(dom, MeshDomain):
         path = dom.path if root is None else f"{root}/{dom.path}"
         return jf.read_mesh(path)
@@ -65,6 +71,10 @@ class FrameDrive:
 class MeasuredModel:
     """A finite-element model driven by measured boundary points.
 
+    Boundary points within :func:`~refine.model.boundary.outline_tolerance` of the outline drive
+    it where they project onto it (:mod:`refine.model.boundary`); a domain built from the points
+    is resolved to its polygon here (:attr:`experiment` holds it).
+
     Args:
         experiment: the bundle's experiment (domain, kinematics, initial law, E, nu, thickness).
         observations: the tracked points and their displacements.
@@ -77,6 +87,7 @@ class MeasuredModel:
                  element: str = "tri3", h: float | None = None, linear_solver: str = "auto", root=None):
         if observations.dim != 2 and mesh is None and not isinstance(experiment.domain, MeshDomain):
             raise ObservationError("3D bundles need a mesh (domain = { mesh = ... })")
+        experiment = resolve_domain(experiment, observations)
         self.experiment, self.obs = experiment, observations
         self.spacing = grid_spacing(observations.reference)
         self.h = h or 0.5 * self.spacing
@@ -85,6 +96,13 @@ class MeasuredModel:
         if len(self.boundary) < 3:
             raise ObservationError(f"only {len(self.boundary)} boundary points: at least 3 are needed to "
                                    "drive the model")
+        positions = observations.reference
+        if self.mesh.dim == 2:
+            self.placement = place_points(self.mesh, positions, observations.roles == "boundary", observations.ids,
+                                          outline_tolerance(self.spacing, experiment.noise_std))
+            positions = self.placement.positions
+        self.positions = positions  # where each point is compared with the model
+        self._tol = np.inf if self.mesh.dim == 2 else 0.05 * self.spacing  # placement checked the offsets
         loop, _ = self._interpolation(observations.reference[self.boundary], names=observations.ids[self.boundary])
         self.loop = loop
         dim = self.mesh.dim
@@ -92,7 +110,9 @@ class MeasuredModel:
                                   fixed=jf.dofs(self.mesh, loop))
         self.linear_solver = linear_solver  # as asked ("auto" included): models derived from this one ask the same
         self.solver = jf.Solver(self.problem, linear_solver)
-        self.probe = jf.locate(self.mesh, observations.reference, names=observations.ids)
+        self.probe = jf.locate(self.mesh, positions, names=observations.ids)
+        forces = observations.forces
+        self.sides = {e: side_nodes(self.mesh, experiment.domain, e) for e in (forces.edges if forces else ())}
         self.drives = [self._drive(f) for f in range(observations.n_frames)]
         self._dim = dim
         self._solve_all = jax.jit(self._solve_frames)  # traced and compiled once per model
@@ -103,7 +123,7 @@ class MeasuredModel:
         outline in 2D, on the surface near the points in 3D (:func:`jaxfem.surface.surface_interpolation`,
         nodes within 0.75 point spacings; ``nodes`` fixed once chosen, so lost points only change W)."""
         if self.mesh.dim == 2:
-            return jf.boundary_interpolation(self.mesh, points, tol=0.05 * self.spacing, names=names)
+            return jf.boundary_interpolation(self.mesh, points, tol=self._tol, names=names)
         from jaxfem.surface import surface_interpolation
 
         return surface_interpolation(self.mesh, points, 0.75 * self.spacing, nodes=nodes, names=names)
@@ -172,6 +192,22 @@ class MeasuredModel:
         start = (jnp.zeros(self.problem.n_dofs), jnp.zeros_like(U_D[0]))
         return jax.lax.scan(step, start, U_D)[1]
 
+    def raise_solve_failure(self, theta) -> None:
+        """Solve the frames one by one with the solver's checks and raise its
+        :class:`jaxfem.SolverError` (``nonlinear solve failed at load step ...``, as ``nonrigid
+        simulate`` gives it), naming the frame: for a model whose :meth:`predict` is not finite."""
+        start = None
+        for f in range(self.obs.n_frames):
+            th = {**theta, "u_D": self.prescribed(f)}
+            try:
+                sol = self.solver.solve(th, start=start)
+            except jf.SolverError as e:
+                raise jf.SolverError(f"frame {f + 1} of {self.obs.n_frames}, the model driven by the measured boundary "
+                                     f"points: {e}", step=e.step, load_factor=e.load_factor, reason=e.reason) from None
+            start = (sol.u.reshape(-1), {"u_D": th["u_D"], "f": th["f"], "traction": th["traction"]})
+        raise jf.SolverError("the model's predictions are not finite although every frame solved",
+                             step=0, load_factor=0.0, reason="nan")
+
     def predict(self, theta, frames=None, boundary=None):
         """Predicted displacements of every tracked point, ``(n_frames, n_points, dim)``."""
         return self.at_points(self.solve_frames(theta, frames, boundary), theta)
@@ -182,5 +218,5 @@ class MeasuredModel:
         solution (reaction forces in :mod:`refine.diagnosis.forces`, strain maps), so they solve once."""
         probe = self.probe
         if self.mesh.element in ("tri3", "tet4", "tri6"):  # follow a geometry morph of the reference nodes
-            probe = probe.moved(theta["X"], self.obs.reference)
+            probe = probe.moved(theta["X"], self.positions)
         return jax.vmap(probe)(U)

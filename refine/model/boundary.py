@@ -1,0 +1,107 @@
+"""Where measured points meet the model's outline: how far off it they may lie, where they are
+placed, and the named sides a measured force crosses.
+
+Measured points never lie exactly on a drawn outline (a specimen's edge seen by DIC is a ragged
+row of points; a nominal rectangle is not the cut specimen). A point within
+:func:`outline_tolerance` of the outline is accepted: a boundary point drives the model where it
+projects onto the outline (its measured displacement is the value there, interpolated along the
+outline to the boundary nodes between it and its neighbours), and any point just outside the
+mesh is compared with the model at its projection. Its position in the bundle is kept as given.
+The drive error this makes is about the displacement gradient times the offset, which is why the
+tolerance is a quarter of the point spacing unless the noise is larger; points farther off are
+an error that names the worst one (build the domain from the points instead:
+``domain = { from_points = "concave" }``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+import jaxfem as jf
+
+from refine.bundle.experiment import MeshDomain, RectangleDomain
+from refine.bundle.sides import undefined_side
+from refine.exceptions import ObservationError
+
+SPACING_FRACTION = 0.25  # of the point spacing: how far a boundary point may lie off the outline
+NOISE_MULTIPLE = 3.0  # or this many noise standard deviations, where that is more
+
+
+def outline_tolerance(spacing: float, noise_std: float | None) -> float:
+    """How far from the domain's outline a boundary point may lie (length unit):
+    ``max(3 noise_std, 0.25 spacing)`` (``noise_std`` None or 0: the spacing term alone)."""
+    return max(NOISE_MULTIPLE * (noise_std or 0.0), SPACING_FRACTION * spacing)
+
+
+@dataclass(frozen=True, eq=False)
+class Placement:
+    """The tracked points placed on a model's mesh.
+
+    Attributes:
+        positions: ``(n, 2)`` where each point is compared with the model: its reference position,
+            or its projection onto the outline where it lies just outside the mesh.
+        offsets: ``(n,)`` distance of each boundary point from the outline (0 for other points).
+        tolerance: the largest offset allowed (:func:`outline_tolerance`).
+    """
+
+    positions: np.ndarray
+    offsets: np.ndarray
+    tolerance: float
+
+
+def place_points(mesh: jf.Mesh, reference, boundary, ids, tolerance: float) -> Placement:
+    """Place 2D points on ``mesh`` (see :class:`Placement`).
+
+    Args:
+        mesh: the model's mesh; reference: ``(n, 2)`` point positions; boundary: ``(n,)`` bool,
+        the driving points; ids: ``(n,)`` point ids; tolerance: length unit.
+
+    Raises:
+        ObservationError: a boundary point farther than ``tolerance`` from the outline, or another
+            point farther than that outside it (the worst point named, with its distance).
+    """
+    from matplotlib.path import Path
+
+    pts = np.asarray(reference, np.float64)
+    pr = jf.project_to_boundary(mesh, pts)
+    outside = ~Path(mesh.nodes[pr.loop]).contains_points(pts) & (pr.distance > 1e-9 * np.ptp(pts, axis=0).max())
+    for bad, what in ((boundary & (pr.distance > tolerance), "boundary points are not on the domain's outline"),
+                      (~boundary & outside & (pr.distance > tolerance), "points lie outside the domain")):
+        if bad.any():
+            worst = np.flatnonzero(bad)[np.argmax(pr.distance[bad])]
+            raise ObservationError(
+                f"{int(bad.sum())} {what}: the farthest, point {ids[worst]}, is {pr.distance[worst]:.3g} away (allowed: "
+                f"{tolerance:.3g}, the larger of {NOISE_MULTIPLE:g} noise_std and {SPACING_FRACTION:g} x the point "
+                "spacing). Correct the domain's outline, build it from the points (domain = { from_points = "
+                "\"concave\" }), or give such points another role")
+    positions = np.where(outside[:, None], pr.foot, pts)
+    return Placement(positions, np.where(boundary, pr.distance, 0.0), tolerance)
+
+
+def side_nodes(mesh: jf.Mesh, domain, name: str) -> np.ndarray:
+    """The nodes of the side ``name`` of ``domain`` on ``mesh`` (whose reactions sum to the force
+    across it), ``(k,)``: a rectangle's ``left``/``right``/``bottom``/``top``, a mesh domain's
+    bounding-box sides, or a side the domain names (:mod:`refine.bundle.sides`): the outer
+    boundary nodes from the first end's projection counter-clockwise to the second's.
+
+    Raises:
+        ObservationError: the domain does not define the side (no guess is made).
+    """
+    named = {n: (a, b) for n, a, b in getattr(domain, "sides", ())}
+    if name not in named:
+        if isinstance(domain, MeshDomain) or (isinstance(domain, RectangleDomain) and name in domain.side_names):
+            return mesh.side(name)
+        raise ObservationError(undefined_side(name, domain.side_names))
+    ends = [domain.vertices[e] if isinstance(e, int) else e for e in named[name]]  # a vertex index: a polygon's
+    pr = jf.project_to_boundary(mesh, np.asarray(ends, np.float64))
+    s0, s1 = pr.arc
+    span = (s1 - s0) % pr.perimeter
+    tol = 1e-9 * pr.perimeter
+    along = (pr.node_arc - s0) % pr.perimeter
+    nodes = pr.loop[(along <= span + tol) | (along >= pr.perimeter - tol)]
+    if len(nodes) < 2:
+        raise ObservationError(f"the side {name!r} spans fewer than two nodes of the model's outline; give ends "
+                               "farther apart")
+    return nodes
