@@ -72,7 +72,7 @@ def test_a_bad_table_is_an_error_of_the_command(tmp_path, capsys, table, message
 def test_a_bad_option_value_is_an_error_of_the_command(tmp_path, capsys):
     path = _bundle(tmp_path / "b", {})
     assert main(["diagnose", str(path), "--out", str(tmp_path / "o"), "--alpha", "2"]) == 2
-    assert "alpha must be a number in (0, 1), got 2.0" in capsys.readouterr().err
+    assert "alpha must be a number in [0, 1) (0: never reject the initial model), got 2.0" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("line,section,nearest", [

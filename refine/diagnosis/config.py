@@ -104,7 +104,7 @@ class DiagnoseConfig:
 
 #: (types, check, what it must be) per setting; int is accepted where a float is asked
 _RULES = {
-    "alpha": (float, lambda v: 0 < v < 1, "a number in (0, 1)"),
+    "alpha": (float, lambda v: 0 <= v < 1, "a number in [0, 1) (0: never reject the initial model)"),
     "holdout_fraction": (float, lambda v: 0 < v < 1, "a number in (0, 1)"),
     "bic_margin": (float, lambda v: v >= 0, "a number >= 0"),
     "field_weight": (float, lambda v: v > 0, "a number > 0"),
