@@ -27,7 +27,8 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
     Args:
         bundle: a bundle directory (str or Path) or a :class:`refine.bundle.Bundle`.
         out: output directory (created if missing): ``report.json``, ``summary.txt`` and the
-            figures of :func:`refine.diagnosis.report.write`.
+            figures of :func:`refine.diagnosis.report.write`, and ``refined/``, a bundle whose
+            initial model is the chosen one (:func:`refine.diagnosis.refined.write`).
         config: a :class:`refine.diagnosis.DiagnoseConfig`; None: the defaults.
         quiet: print neither the progress log nor the summary.
 
@@ -38,13 +39,14 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
         refine.exceptions.BundleError: the bundle directory is malformed.
     """
     from refine.bundle.io import read_bundle
-    from refine.diagnosis import diagnose as diagnosis_of, report
+    from refine.diagnosis import diagnose as diagnosis_of, refined, report
 
     if isinstance(bundle, (str, Path)):
         bundle = read_bundle(bundle)
     d = diagnosis_of(bundle, config, log=(lambda m: None) if quiet else print)
     path = report.write(d, out)
+    again = refined.write(d, out)  # OUT/refined/: a bundle whose initial model is the chosen one
     if not quiet:
         print(report.summary(d))
-        print(f"wrote {path} and figures in {Path(out)}")
+        print(f"wrote {path} and figures in {Path(out)}" + (f"; the refined model as a bundle in {again}" if again else ""))
     return d

@@ -21,6 +21,7 @@ from refine.exceptions import ObservationError
 from refine.bundle.experiment import Experiment, MeshDomain, RectangleDomain
 from refine.bundle.roles import point_spacing
 from refine.bundle.observations import Observations
+from refine.model.known import cell_parameters, hole_geometry, known_inclusions, model_material
 
 
 def grid_spacing(points: np.ndarray) -> float:
@@ -31,13 +32,17 @@ def grid_spacing(points: np.ndarray) -> float:
 def domain_mesh(experiment: Experiment, h: float, element: str = "tri3", inclusions=(), holes=(),
                 root=None) -> jf.Mesh:
     """A mesh of the experiment's domain with target element size ``h``, minus the domain's known
-    holes; optional inclusions and further holes (``jaxfem.Ellipse``/``Rect``) are followed by
-    the mesh."""
+    holes, following its known regions (tagged ``known:NAME``); optional inclusions (tagged 1,
+    2, ... in their order) and further holes (``jaxfem.Ellipse``/``Rect``) are followed too."""
     dom = experiment.domain
     if isinstance(dom, MeshDomain):
         path = dom.path if root is None else f"{root}/{dom.path}"
         return jf.read_mesh(path)
-    holes = [*(jf.Polygon(np.asarray(v)) for v in dom.holes), *holes]
+    holes = [*(hole_geometry(v) for v in dom.holes), *holes]
+    if experiment.regions:
+        named = dict(inclusions) if isinstance(inclusions, dict) else {
+            f"inclusion{k + 1}": s for k, s in enumerate(inclusions)}
+        inclusions = {**named, **known_inclusions(experiment)}
     if isinstance(dom, RectangleDomain):
         if not inclusions and not holes:
             nx = max(2, int(round((dom.xmax - dom.xmin) / h)))
@@ -66,9 +71,12 @@ class MeasuredModel:
     """A finite-element model driven by measured boundary points.
 
     Args:
-        experiment: the bundle's experiment (domain, kinematics, initial law, E, nu, thickness).
+        experiment: the bundle's experiment (domain, known regions and holes, kinematics, initial
+            law, E, nu, thickness).
         observations: the tracked points and their displacements.
-        mesh: the mesh to use (default: a structured mesh of the domain at half the grid spacing).
+        mesh: the mesh to use (default: the experiment's ``model.mesh`` file where it has one and
+            no ``h`` is given, else a mesh of the domain at ``h``, half the grid spacing by default,
+            that follows its known regions and holes).
         element: element type of the default mesh.
         linear_solver: see :mod:`jaxfem.linsolve`.
     """
@@ -80,6 +88,8 @@ class MeasuredModel:
         self.experiment, self.obs = experiment, observations
         self.spacing = grid_spacing(observations.reference)
         self.h = h or 0.5 * self.spacing
+        if mesh is None and h is None and experiment.mesh is not None:
+            mesh = jf.read_mesh(experiment.mesh if root is None else f"{root}/{experiment.mesh}")
         self.mesh = mesh if mesh is not None else domain_mesh(experiment, self.h, element, root=root)
         self.boundary = np.flatnonzero(observations.roles == "boundary")
         if len(self.boundary) < 3:
@@ -89,7 +99,7 @@ class MeasuredModel:
                                             tol=0.05 * self.spacing, names=observations.ids[self.boundary])
         self.loop = loop
         dim = self.mesh.dim
-        self.problem = jf.Problem(self.mesh, experiment.law, experiment.kind,
+        self.problem = jf.Problem(self.mesh, model_material(experiment), experiment.kind,
                                   fixed=jf.dofs(self.mesh, loop))
         self.solver = jf.Solver(self.problem, linear_solver)
         self.probe = jf.locate(self.mesh, observations.reference, names=observations.ids)
@@ -127,10 +137,13 @@ class MeasuredModel:
 
     # ------------------------------------------------------------------ parameters and prediction
     def params(self, E=None, nu=None, thickness=None, **kw) -> dict:
-        """Parameters of the initial model (the experiment's E, nu, thickness unless given)."""
+        """Parameters of the initial model (the experiment's E, nu, thickness unless given; the
+        background modulus ``E`` scales the known regions' relative moduli)."""
         ex = self.experiment
-        return self.problem.params(E=ex.E if E is None else E, nu=ex.nu if nu is None else nu,
-                                   thickness=(ex.thickness or 1.0) if thickness is None else thickness, **kw)
+        cellwise = cell_parameters(self.mesh, ex, ex.E if E is None else E) if E is None or ex.regions else {"E": E}
+        return self.problem.params(nu=ex.nu if nu is None else nu,
+                                   thickness=(ex.thickness or 1.0) if thickness is None else thickness,
+                                   **{**cellwise, **kw})
 
     def measured_boundary(self) -> np.ndarray:
         """Measured boundary displacements of every frame, ``(n_frames, n_boundary * dim)`` (lost = 0)."""
