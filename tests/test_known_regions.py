@@ -88,11 +88,12 @@ def test_bad_regions_and_holes_are_named(model, message):
 
 
 def test_a_missing_model_mesh_file_is_named(tmp_path):
-    from refine.synthetic import Truth, synthetic_bundle
+    from refine.bundle import Bundle, Observations
 
-    bundle = synthetic_bundle(Truth(), seed=0, spacing=20.0, fractions=(1.0,), h=10.0)
-    ex = dataclasses.replace(bundle.experiment, mesh="mesh.vtu")
-    write_bundle(tmp_path, dataclasses.replace(bundle, experiment=ex))
+    pts = np.array([[0.0, 0.0], [100.0, 0.0], [100.0, 60.0], [0.0, 60.0], [50.0, 30.0]])
+    obs = Observations(np.arange(1, 6), pts, np.array(["boundary"] * 4 + ["guide"]), np.zeros((1, 5, 2)))
+    ex = dataclasses.replace(_random_experiment(4), mesh="mesh.vtu")
+    write_bundle(tmp_path, Bundle(ex, obs))
     with pytest.raises(BundleError, match="model.mesh names mesh file 'mesh.vtu'"):
         read_bundle(tmp_path)
 
@@ -128,3 +129,22 @@ def test_the_model_follows_known_regions_and_holes():
     assert model.problem.material.name == "neo-hookean+mooney-rivlin"
     assert np.allclose(np.asarray(theta["share:mooney-rivlin"]), cells[1])
     assert np.allclose(np.asarray(theta["c01_fraction"])[cells[1]], 0.4)
+
+
+def test_a_mixture_of_laws_is_each_law_where_its_share_is_one():
+    import jax.numpy as jnp
+
+    from jaxfem.materials import LAWS, mixture, share
+    from jaxfem.exceptions import ProblemError
+
+    rng = np.random.default_rng(0)
+    F = jnp.asarray(np.eye(3) + 0.1 * rng.standard_normal((3, 3)))
+    laws = (LAWS["neo-hookean"], LAWS["mooney-rivlin"], LAWS["saint-venant-kirchhoff"])
+    mix = mixture(laws)
+    p = {"E": 3.0, "nu": 0.3, "c01_fraction": 0.4}
+    for law in laws:
+        shares = {share(m.name): float(m is law) for m in laws}
+        assert float(mix.energy(F, {**p, **shares})) == pytest.approx(float(law.energy(F, p)), rel=1e-12)
+    assert [q.default for q in mix.extra if q.name.startswith("share:")] == [1.0, 0.0, 0.0]
+    with pytest.raises(ProblemError, match="two or more distinct laws"):
+        mixture((LAWS["neo-hookean"], LAWS["neo-hookean"]))
