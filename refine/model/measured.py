@@ -140,7 +140,11 @@ class MeasuredModel:
         """Parameters of the initial model (the experiment's E, nu, thickness unless given; the
         background modulus ``E`` scales the known regions' relative moduli)."""
         ex = self.experiment
-        cellwise = cell_parameters(self.mesh, ex, ex.E if E is None else E) if E is None or ex.regions else {"E": E}
+        background = ex.E if E is None else E
+        if ex.regions:  # a given background modulus scales the relative ones
+            cellwise = cell_parameters(self.mesh, ex, float(background))
+        else:  # (E may be an array or traced)
+            cellwise = {**cell_parameters(self.mesh, ex, ex.E), "E": background}
         return self.problem.params(nu=ex.nu if nu is None else nu,
                                    thickness=(ex.thickness or 1.0) if thickness is None else thickness,
                                    **{**cellwise, **kw})
