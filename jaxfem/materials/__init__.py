@@ -19,6 +19,7 @@ import pkgutil
 
 from ..exceptions import ProblemError
 from ._base import Material, Parameter, lame
+from ._mixture import mixture, share
 
 
 def _discover() -> dict[str, Material]:
@@ -58,4 +59,4 @@ def alternatives(law: str | Material) -> tuple[str, ...]:
     return tuple(name for name, other in LAWS.items() if other.finite and name != m.name)
 
 
-__all__ = ["LAWS", "Material", "Parameter", "alternatives", "get_material", "lame"]
+__all__ = ["LAWS", "Material", "Parameter", "alternatives", "get_material", "lame", "mixture", "share"]

@@ -8,8 +8,10 @@ from refine.bundle.from_tracks import ModelSkeleton, bundle_from_tracks
 from refine.bundle.io import Bundle, read_bundle, write_bundle, write_displacements_csv
 from refine.bundle.observations import Forces, Observations
 from refine.bundle.outline import outline_of_points, resolve_domain
+from refine.bundle.regions import KnownRegion
 from refine.bundle.roles import ROLES, assign_roles
+from refine.bundle.shapes import SHAPES, EllipseShape, PolygonShape, RectangleShape
 
-__all__ = ["Clouds", "read_clouds", "write_clouds", "Bundle", "Experiment", "Forces", "FromPointsDomain", "MeshDomain", "ModelSkeleton", "Observations", "PolygonDomain",
+__all__ = ["SHAPES", "EllipseShape", "KnownRegion", "PolygonShape", "RectangleShape", "Clouds", "read_clouds", "write_clouds", "Bundle", "Experiment", "Forces", "FromPointsDomain", "MeshDomain", "ModelSkeleton", "Observations", "PolygonDomain",
            "ROLES", "RectangleDomain", "assign_roles", "bundle_from_tracks", "outline_of_points", "read_bundle",
            "resolve_domain", "write_bundle", "write_displacements_csv"]

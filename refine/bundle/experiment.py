@@ -16,6 +16,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Union
 
+from refine.bundle.regions import KnownRegion, check_layout, check_parameters, regions_from_toml
+from refine.bundle.shapes import PolygonShape, shape_from_toml
 from refine.exceptions import ExperimentError, nearest_key
 from refine.bundle.sides import checked_sides, sides_to_toml
 
@@ -39,9 +41,18 @@ def _signed_area2(verts) -> float:
     return sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(verts, verts[1:] + verts[:1]))
 
 
-def _holes(holes) -> tuple[tuple[tuple[float, float], ...], ...]:
+def _holes(holes) -> tuple:
+    """Polygons as tuples of (x, y), counter-clockwise; an ellipse or a rectangle (a table
+    ``{ ellipse = {...} }`` or a shape of :mod:`refine.bundle.shapes`) as its shape."""
     out = []
     for k, h in enumerate(holes or ()):
+        if isinstance(h, dict):
+            h = shape_from_toml(h, f"domain.holes[{k}]")
+        if isinstance(h, PolygonShape):
+            h = h.vertices
+        if hasattr(h, "kind"):
+            out.append(h)
+            continue
         verts = _loop(h, f"domain.holes[{k}]")
         area = _signed_area2(verts)
         if area == 0:
@@ -151,7 +162,15 @@ class FromPointsDomain:
 
 
 def _holes_toml(holes) -> dict:
-    return {"holes": [[list(v) for v in h] for h in holes]} if holes else {}
+    return {"holes": [h.to_toml() if hasattr(h, "kind") else [list(v) for v in h] for h in holes]} if holes else {}
+
+
+def _outline(domain) -> list:
+    """The outline of a rectangle or polygon domain, ``[(x, y), ...]`` counter-clockwise."""
+    if isinstance(domain, RectangleDomain):
+        return [(domain.xmin, domain.ymin), (domain.xmax, domain.ymin), (domain.xmax, domain.ymax),
+                (domain.xmin, domain.ymax)]
+    return list(domain.vertices)
 
 
 @dataclass(frozen=True)
@@ -192,6 +211,12 @@ class Experiment:
             0: noise-free data); None if unknown.
         extra: the free tables of experiment.toml (:data:`FREE_TABLES`: ``meta``, user-defined
             metadata; ``diagnose``, settings of the diagnosis), nested as in the file.
+        regions: known regions of other stiffness or law (:class:`~refine.bundle.regions.KnownRegion`,
+            ``[[model.regions]]``), inside the domain and apart from each other and the holes.
+        parameters: the law's extra parameters (e.g. ``{"c01_fraction": 0.3}``; ``[material]``).
+        mesh: a mesh file (relative to the bundle) of this domain that the initial model uses as
+            it is (``model.mesh``; e.g. the refined model's, which follows its regions); None: the
+            domain is meshed at the element size asked for.
     """
 
     name: str
@@ -204,6 +229,9 @@ class Experiment:
     units: dict[str, str] = field(default_factory=dict)
     noise_std: float | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+    regions: tuple[KnownRegion, ...] = ()
+    parameters: dict[str, float] = field(default_factory=dict)
+    mesh: str | None = None
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name:
@@ -232,6 +260,26 @@ class Experiment:
         if not isinstance(self.units, dict) or not all(isinstance(v, str) for v in self.units.values()):
             raise ExperimentError('experiment.units must be a table of strings, e.g. { length = "mm" }')
         _check_extra(self.extra)
+        self._check_model()
+
+    def _check_model(self):
+        """Regions, their laws and parameters, shaped holes and the model's mesh file."""
+        laws = _laws()
+        object.__setattr__(self, "regions", tuple(self.regions))
+        check_parameters(self.parameters, self.law, laws, "[material]")
+        for r in self.regions:
+            check_parameters(r.parameters, r.law or self.law, laws, f"model.regions {r.name!r}")
+        if self.mesh is not None and (not isinstance(self.mesh, str) or not self.mesh):
+            raise ExperimentError(f"model.mesh must be a file name, got {self.mesh!r}")
+        holes = getattr(self.domain, "holes", ())
+        if self.regions and isinstance(self.domain, MeshDomain):
+            raise ExperimentError("model.regions go with a 2-D rectangle or polygon domain; a mesh domain gives its "
+                                  "regions as the mesh's cell tags")
+        if len({r.name for r in self.regions}) != len(self.regions):
+            raise ExperimentError(f"model.regions names must differ, got {[r.name for r in self.regions]}")
+        if self.regions or any(hasattr(h, "kind") for h in holes):
+            check_layout(_outline(self.domain), [h if hasattr(h, "kind") else PolygonShape(h) for h in holes],
+                         self.regions)
 
     @property
     def dim(self) -> int:
@@ -265,7 +313,12 @@ class Experiment:
             E=mat.pop("E"),
             nu=mat.pop("nu"),
             noise_std=meas.pop("noise_std", None),
+            regions=regions_from_toml(model.pop("regions", [])),
+            mesh=model.pop("mesh", None),
         )
+        law = get_law(fields["law"])
+        if law is not None:  # the law's extra parameters ([material] c01_fraction = ...)
+            fields["parameters"] = {q.name: mat.pop(q.name) for q in law.extra if q.name in mat}
         extra = {s: t for s, t in sections.items() if t}
         extra.update(rest)
         return cls(**fields, extra=extra)
@@ -276,8 +329,12 @@ class Experiment:
             "experiment": {"name": self.name, **({"units": dict(self.units)} if self.units else {})},
             "model": {"kind": self.kind, **({} if self.thickness is None else {"thickness": self.thickness}),
                       "domain": self.domain.to_toml()},
-            "material": {"law": self.law, "E": self.E, "nu": self.nu},
+            "material": {"law": self.law, "E": self.E, "nu": self.nu, **self.parameters},
         }
+        if self.regions:
+            data["model"]["regions"] = [r.to_toml() for r in self.regions]
+        if self.mesh is not None:
+            data["model"]["mesh"] = self.mesh
         if self.noise_std is not None:
             data["measurement"] = {"noise_std": self.noise_std}
         _merge(data, copy.deepcopy(self.extra))
@@ -298,7 +355,8 @@ def _domain_from_toml(table: Any) -> Domain:
             f"holes = [[[x, y], ...], ...] and sides = {{ NAME = [[x0, y0], [x1, y1]] }}); got {table!r}"
         )
     if not isinstance(holes, list):
-        raise ExperimentError(f"domain.holes must be a list of polygons [[[x, y], ...], ...], got {holes!r}")
+        raise ExperimentError(f"domain.holes must be a list of polygons [[[x, y], ...], ...] or shapes "
+                              f"{{ ellipse = {{ centre = [x, y], axes = [a, b], angle = RADIANS }} }}, got {holes!r}")
     (kind, value), = table.items()
     if max_edge is not None and kind != "from_points":
         raise ExperimentError("domain.max_edge goes with from_points = \"concave\"")
@@ -353,7 +411,7 @@ def _registries() -> tuple[tuple[str, ...], tuple[str, ...]]:
 
 
 #: the keys of experiment.toml's tables that are fields of :class:`Experiment`
-KNOWN_KEYS = {"experiment": ("name", "units"), "model": ("kind", "thickness", "domain"),
+KNOWN_KEYS = {"experiment": ("name", "units"), "model": ("kind", "thickness", "domain", "regions", "mesh"),
               "material": ("law", "E", "nu"), "measurement": ("noise_std",)}
 #: tables kept as they are in :attr:`Experiment.extra`: ``meta`` (user-defined metadata, any
 #: keys) and ``diagnose`` (settings of the diagnosis, checked by refine.diagnosis)
@@ -380,3 +438,15 @@ def _check_extra(extra: Any) -> None:
                 raise ExperimentError(f"extra key {table}.{key} would overwrite a key the library writes itself")
             raise ExperimentError(f"experiment.toml: unknown key {table}.{key}{nearest_key(f'{table}.{key}', known)}"
                                   f"{hint}")
+
+
+def _laws() -> dict:
+    """jaxfem's law registry, name -> ``jaxfem.Material`` (imported on first use)."""
+    from jaxfem.materials import LAWS
+
+    return LAWS
+
+
+def get_law(name: Any):
+    """The ``jaxfem.Material`` called ``name``, or None for an unknown name (reported later)."""
+    return _laws().get(name) if isinstance(name, str) else None

@@ -57,6 +57,9 @@ def read_bundle(path: str | Path) -> Bundle:
     if isinstance(experiment.domain, MeshDomain) and not (root / experiment.domain.path).is_file():
         raise BundleError(root / "experiment.toml", f"model.domain names mesh file {experiment.domain.path!r}, "
                                                     f"which is not in {root}")
+    if experiment.mesh is not None and not (root / experiment.mesh).is_file():
+        raise BundleError(root / "experiment.toml", f"model.mesh names mesh file {experiment.mesh!r}, which is not "
+                                                    f"in {root}")
     clouds = read_clouds(root, experiment.dim)
     if clouds is not None and not (root / "points.csv").exists():
         return Bundle(experiment, None, root=root, clouds=clouds)
@@ -104,8 +107,11 @@ def write_bundle(path: str | Path, bundle: Bundle) -> Path:
             for frame, per_edge in enumerate(obs.forces.values, start=1):
                 for edge, force in zip(obs.forces.edges, per_edge):
                     out.writerow([frame, edge, *map(repr, force.tolist())])
-    if isinstance(exp.domain, MeshDomain) and bundle.root is not None:
-        source, target = bundle.root / exp.domain.path, root / exp.domain.path
+    files = [exp.domain.path] if isinstance(exp.domain, MeshDomain) else []
+    for name in files + ([exp.mesh] if exp.mesh is not None else []):
+        if bundle.root is None:
+            break
+        source, target = bundle.root / name, root / name
         if source.is_file() and source.resolve() != target.resolve():
             target.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(source, target)

@@ -75,7 +75,8 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
         bundle: a bundle directory (str or Path) or a :class:`refine.bundle.Bundle`.
         out: output directory (created if missing): ``report.json`` (with the settings and
             provenance), ``summary.txt``, ``report.html``, the figures and ``paraview/`` of
-            :func:`refine.diagnosis.report.write`.
+            :func:`refine.diagnosis.report.write`, and ``refined/``, a bundle whose initial model
+            is the chosen one (:func:`refine.diagnosis.refined.write`).
         config: the settings: None, the bundle's ``[diagnose]`` table over the defaults; a dict
             of settings, applied over that table; a :class:`refine.diagnosis.DiagnoseConfig`,
             used as it is (the table is not read).
@@ -89,7 +90,7 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
         refine.exceptions.SettingsError: a setting is unknown (the nearest is named) or invalid.
     """
     from refine.bundle.io import read_bundle
-    from refine.diagnosis import DiagnoseConfig, diagnose as diagnosis_of, report
+    from refine.diagnosis import DiagnoseConfig, diagnose as diagnosis_of, refined, report
 
     if isinstance(bundle, (str, Path)):
         bundle = read_bundle(bundle)
@@ -102,10 +103,11 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
         config = settings_of(bundle, config)
     d = diagnosis_of(bundle, config, log=(lambda m: None) if quiet else print)
     path = report.write(d, out)
+    again = refined.write(d, out)  # OUT/refined/: a bundle whose initial model is the chosen one
     if not quiet:
         print(report.summary(d))
         print(f"wrote {path}, {Path(out) / 'report.html'} and figures in {Path(out)}; "
-              f"ParaView: open {Path(out) / 'paraview'}/*.pvd")
+              f"ParaView: open {Path(out) / 'paraview'}/*.pvd" + (f"; the refined model as a bundle in {again}" if again else ""))
     return d
 
 

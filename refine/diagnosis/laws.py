@@ -19,7 +19,7 @@ def fit_law(base: MeasuredModel, law: str, fit_mask, hold_mask, sigma) -> Fitted
     parameters (its :attr:`jaxfem.Material.extra`, from their defaults within their bounds) fitted."""
     from dataclasses import replace
 
-    ex = replace(base.experiment, law=law)
+    ex = replace(base.experiment, law=law, parameters={})  # the initial law's extra parameters are not this law's
     model = MeasuredModel(ex, base.obs, mesh=base.mesh, h=base.h, linear_solver=base.linear_solver)
     parts = [UniformParameter("nu", float(ex.nu), 0.0, 0.499)]
     parts += [UniformParameter(q.name, q.default, q.lower, q.upper) for q in get_material(law).extra]

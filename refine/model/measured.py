@@ -23,6 +23,7 @@ from refine.bundle.outline import resolve_domain
 from refine.model.boundary import outline_tolerance, place_points, side_nodes
 from refine.bundle.roles import point_spacing
 from refine.bundle.observations import Observations
+from refine.model.known import cell_parameters, hole_geometry, known_inclusions, model_material
 
 
 def grid_spacing(points: np.ndarray) -> float:
@@ -33,8 +34,8 @@ def grid_spacing(points: np.ndarray) -> float:
 def domain_mesh(experiment: Experiment, h: float, element: str = "tri3", inclusions=(), holes=(),
                 root=None) -> jf.Mesh:
     """A mesh of the experiment's domain with target element size ``h``, minus the domain's known
-    holes; optional inclusions and further holes (``jaxfem.Ellipse``/``Rect``) are followed by
-    the mesh. A domain built from the points must be resolved first
+    holes, following its known regions (tagged ``known:NAME``); optional inclusions (tagged 1,
+    2, ... in their order) and further holes (``jaxfem.Ellipse``/``Rect``) are followed too. A domain built from the points must be resolved first
     (:func:`refine.bundle.outline.resolve_domain`; :class:`MeasuredModel` does it)."""
     dom = experiment.domain
     if isinstance(dom, FromPointsDomain):
@@ -43,7 +44,11 @@ def domain_mesh(experiment: Experiment, h: float, element: str = "tri3", inclusi
     if isinstance(dom, MeshDomain):
         path = dom.path if root is None else f"{root}/{dom.path}"
         return jf.read_mesh(path)
-    holes = [*(jf.Polygon(np.asarray(v)) for v in dom.holes), *holes]
+    holes = [*(hole_geometry(v) for v in dom.holes), *holes]
+    if experiment.regions:
+        named = dict(inclusions) if isinstance(inclusions, dict) else {
+            f"inclusion{k + 1}": s for k, s in enumerate(inclusions)}
+        inclusions = {**named, **known_inclusions(experiment)}
     if isinstance(dom, RectangleDomain):
         if not inclusions and not holes:
             nx = max(2, int(round((dom.xmax - dom.xmin) / h)))
@@ -76,9 +81,12 @@ class MeasuredModel:
     is resolved to its polygon here (:attr:`experiment` holds it).
 
     Args:
-        experiment: the bundle's experiment (domain, kinematics, initial law, E, nu, thickness).
+        experiment: the bundle's experiment (domain, known regions and holes, kinematics, initial
+            law, E, nu, thickness).
         observations: the tracked points and their displacements.
-        mesh: the mesh to use (default: a structured mesh of the domain at half the grid spacing).
+        mesh: the mesh to use (default: the experiment's ``model.mesh`` file where it has one and
+            no ``h`` is given, else a mesh of the domain at ``h``, half the grid spacing by default,
+            that follows its known regions and holes).
         element: element type of the default mesh.
         linear_solver: see :mod:`jaxfem.linsolve`.
     """
@@ -91,6 +99,8 @@ class MeasuredModel:
         self.experiment, self.obs = experiment, observations
         self.spacing = grid_spacing(observations.reference)
         self.h = h or 0.5 * self.spacing
+        if mesh is None and h is None and experiment.mesh is not None:
+            mesh = jf.read_mesh(experiment.mesh if root is None else f"{root}/{experiment.mesh}")
         self.mesh = mesh if mesh is not None else domain_mesh(experiment, self.h, element, root=root)
         self.boundary = np.flatnonzero(observations.roles == "boundary")
         if len(self.boundary) < 3:
@@ -106,7 +116,7 @@ class MeasuredModel:
         loop, _ = self._interpolation(observations.reference[self.boundary], names=observations.ids[self.boundary])
         self.loop = loop
         dim = self.mesh.dim
-        self.problem = jf.Problem(self.mesh, experiment.law, experiment.kind,
+        self.problem = jf.Problem(self.mesh, model_material(experiment), experiment.kind,
                                   fixed=jf.dofs(self.mesh, loop))
         self.linear_solver = linear_solver  # as asked ("auto" included): models derived from this one ask the same
         self.solver = jf.Solver(self.problem, linear_solver)
@@ -157,10 +167,17 @@ class MeasuredModel:
 
     # ------------------------------------------------------------------ parameters and prediction
     def params(self, E=None, nu=None, thickness=None, **kw) -> dict:
-        """Parameters of the initial model (the experiment's E, nu, thickness unless given)."""
+        """Parameters of the initial model (the experiment's E, nu, thickness unless given; the
+        background modulus ``E`` scales the known regions' relative moduli)."""
         ex = self.experiment
-        return self.problem.params(E=ex.E if E is None else E, nu=ex.nu if nu is None else nu,
-                                   thickness=(ex.thickness or 1.0) if thickness is None else thickness, **kw)
+        background = ex.E if E is None else E
+        if ex.regions:  # a given background modulus scales the relative ones
+            cellwise = cell_parameters(self.mesh, ex, float(background))
+        else:  # (E may be an array or traced)
+            cellwise = {**cell_parameters(self.mesh, ex, ex.E), "E": background}
+        return self.problem.params(nu=ex.nu if nu is None else nu,
+                                   thickness=(ex.thickness or 1.0) if thickness is None else thickness,
+                                   **{**cellwise, **kw})
 
     def measured_boundary(self) -> np.ndarray:
         """Measured boundary displacements of every frame, ``(n_frames, n_boundary * dim)`` (lost = 0)."""

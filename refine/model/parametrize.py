@@ -20,7 +20,8 @@ from refine.exceptions import ParametrizationError
 
 @dataclass(frozen=True, eq=False)
 class RegionModuli:
-    """One modulus per region: E = E0 exp(z_k) on the cells of region k.
+    """One modulus per region: E = E0 exp(z_k) on the cells of region k (applied as a factor
+    exp(z_k) on the base parameters' moduli, which are E0 where the initial model is uniform).
 
     Args:
         masks: ``(n_regions, n_cells)`` membership (1 inside, 0 outside).
@@ -58,7 +59,8 @@ class RegionModuli:
         return self.E0 * jnp.exp(logE)
 
     def apply(self, theta, z):
-        return {**theta, "E": self.moduli(z)}
+        # relative to the base moduli (E0 where the initial model is uniform; known regions keep theirs)
+        return {**theta, "E": theta["E"] * (self.moduli(z) / self.E0)}
 
     def regularization(self, z):
         return 0.0
@@ -95,7 +97,8 @@ def cell_adjacency(mesh: jf.Mesh) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class ModulusField:
-    """A modulus per cell, E = E0 exp(z), with a smoothness penalty on neighbouring cells.
+    """A modulus per cell, E = E0 exp(z) (applied as a factor exp(z) on the base moduli), with a
+    smoothness penalty on neighbouring cells.
 
     Args:
         mesh: the inversion mesh.
@@ -130,7 +133,8 @@ class ModulusField:
         return self.E0 * jnp.exp(jnp.asarray(z))
 
     def apply(self, theta, z):
-        return {**theta, "E": self.moduli(z)}
+        # relative to the base moduli (E0 where the initial model is uniform; known regions keep theirs)
+        return {**theta, "E": theta["E"] * (self.moduli(z) / self.E0)}
 
     def regularization(self, z):
         d = jnp.asarray(z)[self.pairs[:, 0]] - jnp.asarray(z)[self.pairs[:, 1]]
