@@ -90,7 +90,8 @@ class Fitted:
         sigma: the noise the residuals were weighted with (length unit).
         shapes: the fitted shapes (none for a material law or the initial model).
         compiled, z, result: the compiled model, its fitted unknowns and the fit (None for the
-            initial model); z_std: standard errors of z (after :func:`refit`).
+            initial model); z_std: standard errors of z and z_cov ``(k, k)`` their covariance
+            (after :func:`refit`; :mod:`refine.diagnosis.uncertainty` carries it to the shapes).
     """
 
     hypothesis: Hypothesis
@@ -107,6 +108,7 @@ class Fitted:
     z: Float[np.ndarray, "k"] | None = None
     result: RefineResult | None = None
     z_std: Float[np.ndarray, "k"] | None = None
+    z_cov: Float[np.ndarray, "k k"] | None = None
 
     @property
     def cause(self) -> str:
@@ -169,19 +171,25 @@ def refit(f: Fitted, points: Mask, hold_mask: Mask, sigma: float, max_remesh: in
             start = h
     if g is None:  # no shapes, or no remesh could be fitted: refit the compiled model as it is
         g = fit_compiled(f.hypothesis, f.compiled, points, hold_mask, sigma, z0=f.z)
-    return replace(g, z_std=standard_errors(g, points, sigma))
+    cov = covariance(g, points, sigma)
+    return replace(g, z_std=np.sqrt(np.clip(np.diag(cov), 0, None)), z_cov=cov)
 
 
-def standard_errors(f: Fitted, points: Mask, sigma: float) -> Float[np.ndarray, "k"]:
-    """Standard errors of the fitted unknowns z from the Gauss-Newton covariance
-    (J^T J)^-1 scaled by the reduced chi^2 (at least 1): how well the data fix each one."""
+def covariance(f: Fitted, points: Mask, sigma: float) -> Float[np.ndarray, "k k"]:
+    """Covariance of the fitted unknowns z: the Gauss-Newton (J^T J)^-1 scaled by the reduced
+    chi^2 (at least 1, so a misfit above the noise widens it); NaN where J^T J is singular."""
     J = Residuals.at(f.compiled.model.obs.displacements, points, sigma).jacobian(f.compiled.jacobian(f.z))
     n, k = J.shape
     scale = max(f.chi2_fit / max(n - k, 1), 1.0)
     try:
-        return np.sqrt(np.clip(np.diag(np.linalg.inv(J.T @ J)), 0, None) * scale)
+        return np.linalg.inv(J.T @ J) * scale
     except np.linalg.LinAlgError:
-        return np.full(k, np.nan)
+        return np.full((k, k), np.nan)
+
+
+def standard_errors(f: Fitted, points: Mask, sigma: float) -> Float[np.ndarray, "k"]:
+    """Standard errors of the fitted unknowns z (:func:`covariance`): how well the data fix each one."""
+    return np.sqrt(np.clip(np.diag(covariance(f, points, sigma)), 0, None))
 
 
 def baseline(model: MeasuredModel, fit_mask: Mask, hold_mask: Mask, sigma: float) -> Fitted:
