@@ -150,20 +150,23 @@ def summarise(rows: list[dict]) -> dict:
     for kind in KINDS:
         zs = np.array([v for r in noisy if r["kind"] == kind for v in r["z"] if v is not None], float)
         if zs.size:
-            kinds[kind] = {"cases": sum(r["kind"] == kind for r in noisy), "within_2_std": float(np.mean(np.abs(zs) <= 2))}
+            kinds[kind] = {"cases": sum(r["kind"] == kind for r in noisy),
+                           "within_2_std": float(np.mean(np.abs(zs) <= 2))}
     ratio_ok = [abs(r["ratio_error"]) <= 0.10 or abs(r["z"][6]) <= 2 for r in noisy if r["ratio_error"] is not None]
     clean_err = [abs(r["ratio_error"]) for r in clean if r["ratio_error"] is not None]
     overall = float(np.mean(np.abs(allz) <= 2)) if allz.size else None
     targets = {
-        "coverage_about_95_percent": {"value": overall, "range": list(COVERAGE_TARGET), "quantities": int(allz.size),
-                                      "pass": overall is not None and COVERAGE_TARGET[0] <= overall <= COVERAGE_TARGET[1]},
+        "coverage_about_95_percent": {
+            "value": overall, "range": list(COVERAGE_TARGET), "quantities": int(allz.size),
+            "pass": overall is not None and COVERAGE_TARGET[0] <= overall <= COVERAGE_TARGET[1]},
         "ratio_within_10_percent_or_2_std": {"value": float(np.mean(ratio_ok)) if ratio_ok else None,
                                              "target": 0.95, "pass": bool(ratio_ok) and np.mean(ratio_ok) >= 0.95},
         "noise_free_ratio_within_1_percent": {"value": max(clean_err) if clean_err else None,
                                               "cases": len(clean_err), "target": NOISE_FREE_RATIO_TOL,
                                               "pass": bool(clean_err) and max(clean_err) <= NOISE_FREE_RATIO_TOL},
     }
-    return {"cases": len(rows), "failed": len(rows) - len(ok), "noisy_cases": len(noisy), "noise_free_cases": len(clean),
+    return {"cases": len(rows), "failed": len(rows) - len(ok), "noisy_cases": len(noisy),
+            "noise_free_cases": len(clean),
             "coverage_within_2_std": overall, "per_quantity": per, "per_kind": kinds,
             "noise_free_ratio_errors": clean_err, "targets": targets,
             "median_seconds": float(np.median([r["seconds"] for r in ok])) if ok else None}
@@ -179,7 +182,8 @@ def _plot(rows: list[dict], summary: dict, path: Path):
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
     for i, name in enumerate(QUANTITIES):
         zs = [r["z"][i] for r in noisy if r["z"][i] is not None]
-        a.plot(np.full(len(zs), i) + np.random.default_rng(i).uniform(-0.2, 0.2, len(zs)), np.clip(zs, -8, 8), ".", ms=4)
+        jitter = np.random.default_rng(i).uniform(-0.2, 0.2, len(zs))
+        a.plot(np.full(len(zs), i) + jitter, np.clip(zs, -8, 8), ".", ms=4)
     a.axhline(2, color="r", lw=0.6)
     a.axhline(-2, color="r", lw=0.6)
     a.set_xticks(range(len(QUANTITIES)), QUANTITIES)
