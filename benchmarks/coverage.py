@@ -132,8 +132,17 @@ def run_case(case: dict) -> dict:
                ratio_error=None if kind == "hole" else float(q_fit[6] / q_true[6] - 1),
                area_error=float(q_fit[5] / q_true[5] - 1), chi2=f.chi2_fit, k=f.k,
                seconds=time.perf_counter() - t0, load_average=[round(x, 2) for x in os.getloadavg()],
-               fitted=f.describe())
+               fitted=f.describe(), code=_code_version())
     return row
+
+
+def _code_version() -> str:
+    """The commit of this run's code (\"+dirty\" when the tree differs from it)."""
+    import subprocess
+
+    git = lambda *a: subprocess.run(["git", *a], capture_output=True, text=True,  # noqa: E731
+                                    cwd=Path(__file__).parent).stdout.strip()
+    return git("rev-parse", "--short", "HEAD") + ("+dirty" if git("status", "--porcelain", "refine") else "")
 
 
 def summarise(rows: list[dict]) -> dict:

@@ -94,3 +94,24 @@ def test_a_noise_free_rectangle_is_recovered_within_one_percent():
     values = [*std["centroid"], *std["axes"], std["angle"], std["area"], std["relative_elasticity"]]
     assert all(v is not None and np.isfinite(v) and v > 0 for v in values), std
     assert finding["relative_elasticity_std"] == pytest.approx(std["relative_elasticity"], rel=1e-3, abs=1e-4)
+
+
+@pytest.mark.slow  # a whole diagnosis with its rectangle fits: ~17 min at load 30 on 2 cores
+def test_the_papers_rectangle_without_noise_is_named_a_rectangle():
+    """The paper's Sec. 3.1 rectangle (ratio 10, 10 mm grid) on noise-free data from an
+    independent finer solve: the default diagnosis tries a rectangle (its ellipse leaves misfit
+    above the null level) and names it; ratio within 2 % (fitted as an ellipse it came out 5.4 %
+    low; on a 10 mm grid the boundary points' linear interpolation alone moves it 1.7 % with the
+    rectangle known), centre within 0.5 mm, area within 3 %."""
+    from refine.diagnosis import diagnose
+    from refine.paper.experiment import BACKGROUND, INCLUSION, EmbeddedRectangle
+
+    cfg = EmbeddedRectangle(noise=0.0)
+    d = diagnose(cfg.bundle(), log=lambda m: None)
+    [f] = d.findings
+    assert f["region"]["shape"] == "rectangle", d.chosen.describe()
+    assert abs(f["relative_elasticity"] / (INCLUSION / BACKGROUND) - 1) < 0.02, f
+    cx, cy = cfg.shape.params[:2]
+    assert np.hypot(f["region"]["centroid"][0] - cx, f["region"]["centroid"][1] - cy) < 0.5
+    assert abs(f["region"]["area"] / cfg.shape.area - 1) < 0.03
+    assert f["std"]["relative_elasticity"] > 0
