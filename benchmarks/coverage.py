@@ -167,12 +167,12 @@ def summarise(rows: list[dict]) -> dict:
     targets = {
         "coverage_about_95_percent": {
             "value": overall, "range": list(COVERAGE_TARGET), "quantities": int(allz.size),
-            "pass": overall is not None and COVERAGE_TARGET[0] <= overall <= COVERAGE_TARGET[1]},
+            "pass": overall is not None and bool(COVERAGE_TARGET[0] <= overall <= COVERAGE_TARGET[1])},
         "ratio_within_10_percent_or_2_std": {"value": float(np.mean(ratio_ok)) if ratio_ok else None,
-                                             "target": 0.95, "pass": bool(ratio_ok) and np.mean(ratio_ok) >= 0.95},
+                                             "target": 0.95, "pass": bool(ratio_ok) and bool(np.mean(ratio_ok) >= 0.95)},
         "noise_free_ratio_within_1_percent": {"value": max(clean_err) if clean_err else None,
                                               "cases": len(clean_err), "target": NOISE_FREE_RATIO_TOL,
-                                              "pass": bool(clean_err) and max(clean_err) <= NOISE_FREE_RATIO_TOL},
+                                              "pass": bool(clean_err) and bool(max(clean_err) <= NOISE_FREE_RATIO_TOL)},
     }
     return {"cases": len(rows), "failed": len(rows) - len(ok), "noisy_cases": len(noisy),
             "noise_free_cases": len(clean),
