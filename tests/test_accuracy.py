@@ -54,31 +54,43 @@ def test_errors_are_the_covariance_carried_to_every_quantity(kind):
     assert len(shape_quantities(f.shapes)[0]) == len(QUANTITIES)
 
 
-def _rectangle_case(seed: int):
-    """A rectangle of random place, size (20-30 x 14-22 mm) and ratio (3-10) in the 100 x 60 mm
-    region of interest."""
+SMALL = {"roi": (20.0, 10.0, 80.0, 50.0), "sheet": (0.0, 0.0, 100.0, 60.0), "sides": ((14, 20), (10, 14))}
+"""A 60 x 40 mm region of interest (117 points on a 5 mm grid) in a 100 x 60 mm sheet."""
+FULL = {"roi": (20.0, 10.0, 120.0, 70.0), "sheet": (0.0, 0.0, 140.0, 80.0), "sides": ((20, 30), (14, 22))}
+"""The 100 x 60 mm region of interest of the other tests (273 points) in a 140 x 80 mm sheet."""
+
+
+def _rectangle_case(seed: int, size: dict):
+    """A rectangle of random place, sides (in ``size["sides"]``, mm) and ratio (3-10) at least
+    a third of its sides away from the region of interest's edges."""
     from refine.synthetic.sheet import Inclusion, Truth
 
     rng = np.random.default_rng(seed)
-    w, h = rng.uniform(20, 30), rng.uniform(14, 22)
-    cx, cy, ratio = rng.uniform(45, 95), rng.uniform(30, 50), float(rng.uniform(3, 10))
+    (w0, w1), (h0, h1) = size["sides"]
+    w, h = rng.uniform(w0, w1), rng.uniform(h0, h1)
+    x0, y0, x1, y1 = size["roi"]
+    cx, cy = rng.uniform(x0 + 0.85 * w, x1 - 0.85 * w), rng.uniform(y0 + 0.85 * h, y1 - 0.85 * h)
+    ratio = float(rng.uniform(3, 10))
     return Truth(inclusions=(Inclusion(jf.Rect(cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2), ratio),))
 
 
-def test_a_noise_free_rectangle_is_recovered_within_one_percent():
+@pytest.mark.parametrize("size", [SMALL, pytest.param(FULL, marks=pytest.mark.slow)], ids=["small", "full"])
+def test_a_noise_free_rectangle_is_recovered_within_one_percent(size):
     """Noise-free data of a random rectangle (independent finer quadratic solve, 5 mm grid, two
     frames); the rectangle hypothesis fitted from a start off the truth (centre 1.5 mm, sides
     10-15 %, 0.05 rad, ratio 3), then refitted on every guide point with quadratic triangles
     at its fit (as the diagnosis does its chosen model): ratio within 1 %, centre within 0.3 mm,
-    area within 2 %; its finding reports a standard error for every quantity."""
+    area within 2 %; its finding reports a standard error for every quantity. (The full size
+    takes minutes: slow; ``benchmarks/coverage.py --noise 0 --kinds rectangle`` measures more.)"""
     from refine.diagnosis.fitted import refit
     from refine.diagnosis.regions import fit_regions
     from refine.model.measured import MeasuredModel
     from refine.synthetic.sheet import synthetic_bundle
 
-    truth = _rectangle_case(4101)
+    truth = _rectangle_case(4101, size)
     rect, ratio = truth.inclusions[0].shape, truth.inclusions[0].ratio
-    bundle = synthetic_bundle(truth, seed=4101, spacing=5.0, noise=0.0, fractions=(0.5, 1.0))
+    bundle = synthetic_bundle(truth, seed=4101, roi=size["roi"], sheet=size["sheet"], spacing=5.0, noise=0.0,
+                              fractions=(0.5, 1.0))
     model = MeasuredModel(bundle.experiment, bundle.observations)
     guide, hold = bundle.observations.mask("guide"), bundle.observations.mask("validate")
     cx, cy, a, b, _ = rect.params
