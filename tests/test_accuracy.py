@@ -81,7 +81,8 @@ def test_a_noise_free_rectangle_is_recovered_within_one_percent(size):
     10-15 %, 0.05 rad, ratio 3), then refitted on every guide point with quadratic triangles
     at its fit (as the diagnosis does its chosen model): ratio within 1 %, centre within 0.3 mm,
     area within 2 %; its finding reports a standard error for every quantity. (The full size
-    takes minutes: slow; ``benchmarks/coverage.py --noise 0 --kinds rectangle`` measures more.)"""
+    takes minutes: slow; the small one 75 s at load 2-5 on 2 cores; ``benchmarks/coverage.py
+    --noise 0 --kinds rectangle`` measures more.)"""
     from refine.diagnosis.fitted import refit
     from refine.diagnosis.regions import fit_regions
     from refine.model.measured import MeasuredModel
@@ -108,7 +109,7 @@ def test_a_noise_free_rectangle_is_recovered_within_one_percent(size):
     assert finding["relative_elasticity_std"] == pytest.approx(std["relative_elasticity"], rel=1e-3, abs=1e-4)
 
 
-@pytest.mark.slow  # a whole diagnosis with its rectangle fits: ~17 min at load 30 on 2 cores
+@pytest.mark.slow  # a whole diagnosis with its rectangle fits: 165 s at load 4 on 2 cores
 def test_the_papers_rectangle_without_noise_is_named_a_rectangle():
     """The paper's Sec. 3.1 rectangle (ratio 10, 10 mm grid) on noise-free data from an
     independent finer solve: the default diagnosis tries a rectangle (its ellipse leaves misfit
