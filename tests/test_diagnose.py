@@ -115,8 +115,9 @@ def test_a_rectangle_hypothesis_recovers_the_papers_rectangle():
 
 
 def test_rectangles_are_tried_only_where_the_points_resolve_corners():
-    """With ``try_rectangles=None`` a region is also fitted as a rectangle only when its fitted
-    ellipse's smaller semi-axis spans 1.5 grid spacings; True / False (the default) force it."""
+    """With ``try_rectangles=None`` (the default) a region is also fitted as a rectangle only when
+    its fitted ellipse's smaller semi-axis spans 1.5 grid spacings and the ellipse leaves a misfit
+    the noise does not explain; True / False force it."""
     from types import SimpleNamespace
 
     from refine.diagnosis.pipeline import DiagnoseConfig, _rectangles_wanted
@@ -129,7 +130,9 @@ def test_rectangles_are_tried_only_where_the_points_resolve_corners():
     assert not _rectangles_wanted(region(11.6, 7.4), model, auto)
     assert not _rectangles_wanted(region(11.6, 9.0), SimpleNamespace(spacing=10.0), auto)  # 10 mm grid
     assert _rectangles_wanted(region(3.0, 3.0), model, DiagnoseConfig(try_rectangles=True))
-    assert not _rectangles_wanted(region(20.0, 20.0), model, DiagnoseConfig())
+    assert not _rectangles_wanted(region(20.0, 20.0), model, DiagnoseConfig(try_rectangles=False))
+    assert not _rectangles_wanted(region(20.0, 20.0), model, DiagnoseConfig(), explained=True)  # the default, None
+    assert _rectangles_wanted(region(20.0, 20.0), model, DiagnoseConfig(), explained=False)
 
 
 def test_a_soft_region_over_tracked_material_is_not_renamed_a_hole():

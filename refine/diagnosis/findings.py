@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from refine.diagnosis.uncertainty import ShapeErrors, shape_errors
+
 
 @dataclass(frozen=True)
 class FoundRegion:
@@ -39,6 +41,8 @@ class Finding:
         modulus: the absolute modulus where measured forces fixed it, else None.
         relative_elasticity_std: its standard error, where known.
         law: the material law found (a material-law finding only).
+        std: standard errors of every fitted quantity of the region (centroid, axes, angle,
+            area, relative elasticity; :mod:`refine.diagnosis.uncertainty`), where known.
         evidence: a sentence: the null test and what the hypothesis gains.
 
     ``finding["key"]`` reads the report.json entry (:meth:`to_json`).
@@ -51,6 +55,7 @@ class Finding:
     modulus: float | None = None
     relative_elasticity_std: float | None = None
     law: str | None = None
+    std: ShapeErrors | None = None
 
     def to_json(self) -> dict:
         """The report.json entry (keys in the order of the bundle spec's example)."""
@@ -58,6 +63,8 @@ class Finding:
             return {"cause": self.cause, "region": None, "relative_elasticity": None, "modulus": None,
                     "law": self.law, "evidence": self.evidence}
         std = {} if self.relative_elasticity_std is None else {"relative_elasticity_std": self.relative_elasticity_std}
+        if self.std is not None:
+            std["std"] = self.std.to_json()
         return {"cause": self.cause, "region": self.region.to_json(), "relative_elasticity": self.relative_elasticity,
                 "modulus": self.modulus, **std, "evidence": self.evidence}
 
@@ -76,6 +83,7 @@ def findings(chosen, evidence: str, background_modulus: float | None) -> list[Fi
     if chosen.cause == "material-law":
         return [Finding("material-law", evidence, law=chosen.law)]
     out = []
+    errors = shape_errors(chosen) or [None] * len(chosen.shapes)
     for i, shape in enumerate(chosen.shapes):
         # z holds the log ratios first, then the geometry unknowns: ratio i's standard error is std[i]
         std = None
@@ -87,5 +95,5 @@ def findings(chosen, evidence: str, background_modulus: float | None) -> list[Fi
                              (round(float(shape.axes[0]), 4), round(float(shape.axes[1]), 4)),
                              round(float(shape.angle), 4))
         modulus = None if background_modulus is None else round(float(shape.ratio) * background_modulus, 4)
-        out.append(Finding(shape.cause, evidence, region, round(float(shape.ratio), 4), modulus, std))
+        out.append(Finding(shape.cause, evidence, region, round(float(shape.ratio), 4), modulus, std, std=errors[i]))
     return out

@@ -17,6 +17,7 @@ import numpy as np
 from jaxtyping import Bool, Float
 
 from refine.diagnosis.shapes import Hole, RegionShape
+from refine.diagnosis.uncertainty import shape_errors
 from refine.exceptions import RefineError
 from refine.measures import Residuals
 from refine.model.measured import MeasuredModel
@@ -90,7 +91,8 @@ class Fitted:
         sigma: the noise the residuals were weighted with (length unit).
         shapes: the fitted shapes (none for a material law or the initial model).
         compiled, z, result: the compiled model, its fitted unknowns and the fit (None for the
-            initial model); z_std: standard errors of z (after :func:`refit`).
+            initial model); z_std: standard errors of z and z_cov ``(k, k)`` their covariance
+            (after :func:`refit`; :mod:`refine.diagnosis.uncertainty` carries it to the shapes).
     """
 
     hypothesis: Hypothesis
@@ -107,6 +109,7 @@ class Fitted:
     z: Float[np.ndarray, "k"] | None = None
     result: RefineResult | None = None
     z_std: Float[np.ndarray, "k"] | None = None
+    z_cov: Float[np.ndarray, "k k"] | None = None
 
     @property
     def cause(self) -> str:
@@ -146,7 +149,8 @@ def refit(f: Fitted, points: Mask, hold_mask: Mask, sigma: float, max_remesh: in
     errors of its unknowns.
 
     A hypothesis with fitted shapes is remeshed at them first and refitted from there, again
-    while its shapes still move by more than a fifth of the element size: a morph of the first
+    while its shapes still move by more than a fifth of the element size, or by more than their
+    standard errors where the data fix them better (:func:`_settled`): a morph of the first
     mesh can only take a shape so far (its cells distort, then invert), which leaves a region
     fitted too small with too large a ratio, or a hole too small. The new meshes use
     ``element`` (quadratic triangles are far less stiff in a strongly strained region than
@@ -164,24 +168,41 @@ def refit(f: Fitted, points: Mask, hold_mask: Mask, sigma: float, max_remesh: in
             if g is None or h.chi2_fit < g.chi2_fit:
                 g = h
             moved = max(a.moved(b) for a, b in zip(start.shapes, h.shapes))
-            if moved < 0.2 * f.model.h:
+            if moved < _settled(h, points, sigma, 0.2 * f.model.h):
                 break
             start = h
     if g is None:  # no shapes, or no remesh could be fitted: refit the compiled model as it is
         g = fit_compiled(f.hypothesis, f.compiled, points, hold_mask, sigma, z0=f.z)
-    return replace(g, z_std=standard_errors(g, points, sigma))
+    cov = covariance(g, points, sigma)
+    return replace(g, z_std=np.sqrt(np.clip(np.diag(cov), 0, None)), z_cov=cov)
 
 
-def standard_errors(f: Fitted, points: Mask, sigma: float) -> Float[np.ndarray, "k"]:
-    """Standard errors of the fitted unknowns z from the Gauss-Newton covariance
-    (J^T J)^-1 scaled by the reduced chi^2 (at least 1): how well the data fix each one."""
+def _settled(f: Fitted, points: Mask, sigma: float, coarse: float) -> float:
+    """How little a remesh must move ``f``'s shapes (length unit) for the fit to count as
+    settled: ``coarse`` (a fifth of the first mesh's element size), or the largest standard error
+    of a centre or axis where the data fix the shapes better. A fit on a morphed mesh can stop
+    short where the morph would squash cells (noise-free, a rectangle's ratio stopped 1.3 % low,
+    chi2 35 times its value at the true shape); a fresh mesh lets it go on."""
+    errors = shape_errors(replace(f, z_cov=covariance(f, points, sigma))) or ()
+    lengths = [v for e in errors for v in (*e.centroid, *e.axes) if np.isfinite(v)]
+    return min(coarse, max(lengths)) if lengths else coarse
+
+
+def covariance(f: Fitted, points: Mask, sigma: float) -> Float[np.ndarray, "k k"]:
+    """Covariance of the fitted unknowns z: the Gauss-Newton (J^T J)^-1 scaled by the reduced
+    chi^2 (at least 1, so a misfit above the noise widens it); NaN where J^T J is singular."""
     J = Residuals.at(f.compiled.model.obs.displacements, points, sigma).jacobian(f.compiled.jacobian(f.z))
     n, k = J.shape
     scale = max(f.chi2_fit / max(n - k, 1), 1.0)
     try:
-        return np.sqrt(np.clip(np.diag(np.linalg.inv(J.T @ J)), 0, None) * scale)
+        return np.linalg.inv(J.T @ J) * scale
     except np.linalg.LinAlgError:
-        return np.full(k, np.nan)
+        return np.full((k, k), np.nan)
+
+
+def standard_errors(f: Fitted, points: Mask, sigma: float) -> Float[np.ndarray, "k"]:
+    """Standard errors of the fitted unknowns z (:func:`covariance`): how well the data fix each one."""
+    return np.sqrt(np.clip(np.diag(covariance(f, points, sigma)), 0, None))
 
 
 def baseline(model: MeasuredModel, fit_mask: Mask, hold_mask: Mask, sigma: float) -> Fitted:

@@ -299,7 +299,8 @@ def _try_hypotheses(trials: Trials, candidates: list[Candidate]) -> list[Fitted]
                 and (hole is None or (soft.bic < hole.bic and hole.chi2_fit < 2.0 * soft.chi2_fit))):
             fits.update(side_by_side(**{"hole from region": lambda: fit_hole(model, soft.shapes[0], fit, hold, sigma)}))
         region = fits.get("ellipse")
-        if (not used and region is not None and _rectangles_wanted(region, model, cfg)  # one region: never "regions"
+        if (not used and region is not None  # one region: never "regions"
+                and _rectangles_wanted(region, model, cfg, trials.explains(region))
                 and min((f for f in fits.values() if f is not None), key=_score) is region):
             # the region as a rectangle, from the fitted ellipse, turned 0 and pi/4 from it, beside
             # the ellipse remeshed at its fit (each rectangle is remeshed at its fit too)
@@ -326,14 +327,15 @@ def _try_hypotheses(trials: Trials, candidates: list[Candidate]) -> list[Fitted]
     return out
 
 
-def _rectangles_wanted(region: Fitted, model, cfg: DiagnoseConfig) -> bool:
+def _rectangles_wanted(region: Fitted, model, cfg: DiagnoseConfig, explained: bool = False) -> bool:
     """Whether to fit ``region`` (one fitted ellipse) as a rectangle too: as
-    ``cfg.try_rectangles`` says, or, when it is None, where the ellipse's smaller semi-axis spans
+    ``cfg.try_rectangles`` says, or, when it is None, where the ellipse leaves a misfit the noise
+    does not explain (``explained`` False) and its smaller semi-axis spans
     ``cfg.rectangle_spacings`` grid spacings (fewer tracked points along a side cannot tell a
     corner from a curve)."""
     if cfg.try_rectangles is not None:
         return bool(cfg.try_rectangles)
-    return min(region.shapes[0].axes) >= cfg.rectangle_spacings * model.spacing
+    return not explained and min(region.shapes[0].axes) >= cfg.rectangle_spacings * model.spacing
 
 
 def _score(f: Fitted) -> float:

@@ -1,0 +1,85 @@
+"""Standard errors of every fitted quantity of a shape (centre, axes or half sides, angle, area,
+relative elasticity), propagated from the covariance of the fitted unknowns.
+
+A fit's unknowns z are not the quantities a report gives: a region's are its log ratio and the
+changes of its shape (for an ellipse the entries of a symmetric matrix, for a rectangle its half
+sides and a scaled angle; :class:`~refine.model.parametrize.ShapeGeometry`). The covariance of z
+(Gauss-Newton, :func:`~refine.diagnosis.fitted.covariance`) is carried to the reported
+quantities by the delta method, ``C_q = G C_z G^T`` with ``G = dq/dz`` by central differences of
+the hypothesis' own map from z to shapes (``shapes_at``, cheap: no solve).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from jaxtyping import Float
+
+QUANTITIES = ("cx", "cy", "a", "b", "angle", "area", "ratio")
+"""What :func:`shape_quantities` gives per shape, in this order (lengths in the bundle's unit,
+the angle in radians, the area in length squared, the ratio dimensionless)."""
+
+
+@dataclass(frozen=True)
+class ShapeErrors:
+    """Standard errors of one fitted shape's reported quantities (None: not fitted, e.g. a hole's
+    ratio, which is 0 by definition).
+
+    Attributes:
+        centroid: ``(x, y)``; axes: semi-axes or half sides ``(a, b)``; angle: radians; area:
+        length squared; relative_elasticity: the ratio's (dimensionless).
+    """
+
+    centroid: tuple[float, float]
+    axes: tuple[float, float]
+    angle: float
+    area: float
+    relative_elasticity: float | None
+
+    def to_json(self, digits: int = 4) -> dict:
+        """report.json's ``std`` entry of a finding (rounded to ``digits`` decimals)."""
+        r = lambda v: None if v is None or not np.isfinite(v) else round(float(v), digits)  # noqa: E731
+        return {"centroid": [r(v) for v in self.centroid], "axes": [r(v) for v in self.axes],
+                "angle": r(self.angle), "area": r(self.area), "relative_elasticity": r(self.relative_elasticity)}
+
+
+def shape_quantities(shapes) -> Float[np.ndarray, "shapes 7"]:
+    """The reported quantities of ``shapes`` (:class:`~refine.diagnosis.shapes.RegionShape` or
+    ``Hole``), one row of :data:`QUANTITIES` each (a hole's ratio is 0)."""
+    rows = []
+    for s in shapes:
+        area, _ = s.outline()
+        rows.append([*s.centre, *s.axes, s.angle, area, float(s.ratio)])
+    return np.asarray(rows, float)
+
+
+def quantity_jacobian(fitted, step: float = 1e-6) -> Float[np.ndarray, "q k"]:
+    """``d quantities / dz`` ``(7 n_shapes, k)`` at the fitted unknowns, by central differences
+    of ``fitted.hypothesis.shapes_at`` (angle differences wrapped to half a turn, so a step never
+    reads as a flip of the orientation)."""
+    h, compiled, z = fitted.hypothesis, fitted.compiled, np.asarray(fitted.z, float)
+    G = np.zeros((len(QUANTITIES) * len(fitted.shapes), z.size))
+    for j in range(z.size):
+        dz = np.zeros_like(z)
+        dz[j] = step * max(1.0, abs(z[j]))
+        hi, lo = (shape_quantities(h.shapes_at(compiled, z + s * dz)) for s in (1, -1))
+        d = hi - lo
+        d[:, 4] = np.angle(np.exp(1j * d[:, 4] * 2)) / 2  # an orientation is defined modulo pi
+        G[:, j] = d.ravel() / (2 * dz[j])
+    return G
+
+
+def shape_errors(fitted) -> list[ShapeErrors] | None:
+    """Standard errors of every fitted shape's quantities (:class:`ShapeErrors`, in the order of
+    ``fitted.shapes``), or None where the fit has no covariance (``fitted.z_cov``, set by
+    :func:`~refine.diagnosis.fitted.refit`) or no shapes."""
+    cov = getattr(fitted, "z_cov", None)
+    if cov is None or not getattr(fitted, "shapes", ()) or getattr(fitted, "compiled", None) is None:
+        return None
+    G = quantity_jacobian(fitted)
+    var = np.einsum("qk,kl,ql->q", G, cov, G).reshape(len(fitted.shapes), len(QUANTITIES))
+    std = np.sqrt(np.clip(var, 0, None))
+    std[~np.isfinite(var)] = np.nan
+    return [ShapeErrors((s[0], s[1]), (s[2], s[3]), s[4], s[5], None if shape.kind == "hole" else s[6])
+            for s, shape in zip(std, fitted.shapes)]
