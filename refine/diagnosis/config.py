@@ -40,6 +40,15 @@ class DiagnoseConfig:
         workers: hypotheses (and the set-up's independent models) fitted side by side in this
             many threads; XLA compiles and solves outside Python's lock, and compilation is most
             of a diagnosis.
+        max_cells: the models' element size is half the point spacing, but at most this many
+            linear triangles over the domain (:func:`refine.diagnosis.scale.mesh_size`): the
+            cost of a solve follows the domain, not the number of tracked points.
+        search_frames: the null test, the field and every hypothesis use this many frames, those
+            of most motion (:func:`refine.diagnosis.scale.search_frames`); the chosen model is
+            refitted on every frame. 0: all frames.
+        strain_candidates: at most this many candidate regions also from the measured strain
+            map (:func:`refine.diagnosis.candidates.strain_regions`), beside the field's and the
+            gaps in the points.
     """
 
     alpha: float = 1e-3
@@ -55,3 +64,6 @@ class DiagnoseConfig:
     workers: int = 2
     try_rectangles: bool | None = False
     rectangle_spacings: float = 1.5
+    max_cells: int = 3000
+    search_frames: int = 2
+    strain_candidates: int = 1
