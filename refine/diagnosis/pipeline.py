@@ -213,7 +213,7 @@ def _candidates(model: MeasuredModel, z, base: Fitted, fit, sigma: float, cfg: D
     twice is kept once."""
     obs = model.obs
     field = segment(model.mesh, z, min_area=0.5 * model.spacing**2, max_regions=cfg.max_regions)
-    field = [c for c in field if c.strength >= 0.2 * field[0].strength]
+    field = [c for c in field if c.strength >= 0.2 * field[0].strength] if field else []
     gaps = missing_point_regions(obs.reference, model.experiment.domain)[:cfg.max_regions]
     strain = []
     if cfg.strain_candidates > 0:
