@@ -15,7 +15,7 @@ from scipy.spatial import cKDTree
 import jaxfem as jf
 
 from refine.bundle.experiment import PolygonDomain, RectangleDomain
-from refine.diagnosis.localize import Candidate, moment_ellipse, segment_cells
+from refine.diagnosis.localize import Candidate, moment_ellipse, segment, segment_cells
 from refine.diagnosis.measured_strain import equivalent_strain, point_spacing, point_triangles, triangle_gradients
 
 GAP = 1.5
@@ -127,3 +127,26 @@ def merged(*lists: list[Candidate]) -> list[Candidate]:
                    for k in out):
             out.append(c)
     return out
+
+
+def data_candidates(model, z, predicted, fit, sigma: float, cfg) -> list[Candidate]:
+    """Where to look, strongest evidence first: gaps in the tracked points inside the domain
+    (no material was seen there: a hole, or material that could not be tracked), the fitted
+    modulus field's regions, then the measured strain map's departures from the initial
+    model's in the frame of most motion; one place seen twice is kept once.
+
+    Args: model: the search's model; z: the fitted log-modulus field per cell; predicted: the
+    initial model's displacements ``(frames, n_points, 2)``; fit: ``(n_points,)`` mask of the
+    fitting points (no held-out point proposes a place); sigma: the noise (length unit); cfg: a
+    :class:`~refine.diagnosis.config.DiagnoseConfig`."""
+    obs = model.obs
+    field = segment(model.mesh, z, min_area=0.5 * model.spacing**2, max_regions=cfg.max_regions)
+    field = [c for c in field if c.strength >= 0.2 * field[0].strength] if field else []
+    gaps = missing_point_regions(obs.reference, model.experiment.domain)[:cfg.max_regions]
+    strain = []
+    if cfg.strain_candidates > 0:
+        k = int(np.nanargmax(np.nanmedian(np.linalg.norm(obs.displacements, axis=2), axis=1)))
+        seen = (fit | (obs.roles == "boundary")) & obs.valid[k]  # no held-out point proposes a place
+        strain = strain_regions(obs.reference[seen], obs.displacements[k, seen], predicted[k, seen], sigma,
+                                min_area=2.0 * model.spacing**2, max_regions=cfg.strain_candidates)
+    return merged(gaps, field, strain)

@@ -36,15 +36,14 @@ from refine.diagnosis.forces import ForceScale, force_scale
 from refine.diagnosis.config import DiagnoseConfig
 from refine.diagnosis.findings import Finding, findings
 from refine.diagnosis.fitted import Fitted, NotApplicable, baseline, refit
-from refine.diagnosis.candidates import merged, missing_point_regions, strain_regions
+from refine.diagnosis.candidates import data_candidates
 from refine.diagnosis.holes import fit_hole, named_hole
 from refine.diagnosis.laws import ALTERNATIVE_LAWS, fit_law
 from refine.diagnosis.regions import fit_rectangle, fit_regions, refit_ellipse
 from refine.diagnosis.shapes import RegionShape, report_row
-from refine.diagnosis.localize import Candidate, fit_field, segment
-from refine.diagnosis.scale import at_frames, mesh_size, search_frames
+from refine.diagnosis.localize import Candidate, fit_field
+from refine.diagnosis.scale import at_frames, mesh_size, on_frames, search_frames
 from refine.model.measured import MeasuredModel, grid_spacing
-from refine.model.objective import Compiled
 from refine.diagnosis.noise import NullTest, estimate_noise, null_test, propagated_noise
 
 
@@ -63,6 +62,7 @@ class Diagnosis:
     errors: dict = field(default_factory=dict)
     seconds: float = 0.0
     force: ForceScale | None = None
+    search_frames: tuple = ()
 
     @property
     def absolute(self) -> bool:
@@ -109,7 +109,11 @@ class Diagnosis:
                                              "chi2_holdout": f.chi2_holdout, "law": f.law,
                                              "shapes": [report_row(s) for s in f.shapes],
                                              "kinds": [s.kind for s in f.shapes]}
-                                            for f in self.tried]},
+                                            for f in self.tried],
+                             "candidates": [{"source": c.source, "sign": c.sign,
+                                             "centroid": [round(float(v), 4) for v in c.centroid],
+                                             "axes": [round(float(v), 4) for v in c.axes]} for c in self.candidates],
+                             "search_frames": [int(f) + 1 for f in self.search_frames]},
                 "note": self._modulus_note(),
                 "seconds": round(self.seconds, 2)}
 
@@ -173,7 +177,7 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
     if null.p_value < cfg.alpha:
         n_res = Residuals.at(model.obs.displacements, fit).n
         z, _ = fit_field(model, weight=cfg.field_weight * n_res / model.mesh.n_cells, sigma=sigma_eff, points=fit)
-        candidates = _candidates(model, z, base, fit, sigma, cfg)
+        candidates = data_candidates(model, z, base.predicted, fit, sigma, cfg)
         log(f"{len(candidates)} candidate regions: " +
             ", ".join(f"{'stiffer' if c.sign > 0 else 'softer'} at ({c.centroid[0]:.1f}, {c.centroid[1]:.1f}) "
                       f"from the {c.source}" for c in candidates))
@@ -192,7 +196,7 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
     chosen = base if chosen is tried[0] else chosen
     pool.shutdown()
     log(f"chosen: {chosen.describe()}")
-    d = Diagnosis(bundle, null, base, chosen, tried, candidates, z, model, seconds=0.0)
+    d = Diagnosis(bundle, null, base, chosen, tried, candidates, z, model, seconds=0.0, search_frames=frames)
     eb, er = _errors(obs, base.predicted), _errors(obs, chosen.predicted)
     gain = (eb["validation_error"] / er["validation_error"]) if er.get("validation_error") else None
     d.errors = {"baseline": eb, "refined": er, "gain": gain}
@@ -203,36 +207,6 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
                 f"{100 * d.force.relative_residual:.1f} %)")
     d.seconds = time.perf_counter() - t0
     return d
-
-
-def _candidates(model: MeasuredModel, z, base: Fitted, fit, sigma: float, cfg: DiagnoseConfig) -> list[Candidate]:
-    """Where to look, strongest evidence first: gaps in the tracked points inside the domain
-    (no material was seen there: a hole, or material that could not be tracked), the fitted
-    modulus field's regions, then the measured strain map's departures from the initial
-    model's in the frame of most motion (:mod:`refine.diagnosis.candidates`); one place seen
-    twice is kept once."""
-    obs = model.obs
-    field = segment(model.mesh, z, min_area=0.5 * model.spacing**2, max_regions=cfg.max_regions)
-    field = [c for c in field if c.strength >= 0.2 * field[0].strength] if field else []
-    gaps = missing_point_regions(obs.reference, model.experiment.domain)[:cfg.max_regions]
-    strain = []
-    if cfg.strain_candidates > 0:
-        k = int(np.nanargmax(np.nanmedian(np.linalg.norm(obs.displacements, axis=2), axis=1)))
-        seen = (fit | (obs.roles == "boundary")) & obs.valid[k]  # no held-out point proposes a place
-        strain = strain_regions(obs.reference[seen], obs.displacements[k, seen], base.predicted[k, seen], sigma,
-                                min_area=2.0 * model.spacing**2, max_regions=cfg.strain_candidates)
-    return merged(gaps, field, strain)
-
-
-def on_frames(f: Fitted, full: MeasuredModel) -> Fitted:
-    """A hypothesis fitted on the search's frames moved onto ``full`` (every frame): its
-    hypothesis rebuilt on ``full`` (for remeshing), its compiled model the same mesh and
-    parametrisation driven on every frame. Its misfits are those of the search until refitted."""
-    if f.model.obs is full.obs:
-        return f
-    model = MeasuredModel(f.model.experiment, full.obs, mesh=f.model.mesh, h=f.model.h)
-    hypothesis = replace(f.hypothesis, base=full) if hasattr(f.hypothesis, "base") else f.hypothesis
-    return replace(f, hypothesis=hypothesis, model=model, compiled=Compiled(model, f.compiled.param))
 
 
 @dataclass(frozen=True)

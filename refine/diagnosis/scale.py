@@ -18,6 +18,9 @@ import numpy as np
 
 from refine.bundle.experiment import MeshDomain, PolygonDomain, RectangleDomain
 from refine.bundle.observations import Observations
+from refine.diagnosis.fitted import Fitted
+from refine.model.measured import MeasuredModel
+from refine.model.objective import Compiled
 
 
 def _polygon_area(vertices) -> float:
@@ -72,3 +75,14 @@ def at_frames(obs: Observations, frames) -> Observations:
         return obs
     forces = None if obs.forces is None else replace(obs.forces, values=obs.forces.values[frames])
     return Observations(obs.ids, obs.reference, obs.roles, obs.displacements[frames], forces)
+
+
+def on_frames(f: Fitted, full: MeasuredModel) -> Fitted:
+    """A hypothesis fitted on the search's frames moved onto ``full`` (every frame): its
+    hypothesis rebuilt on ``full`` (for remeshing), its compiled model the same mesh and
+    parametrisation driven on every frame. Its misfits are those of the search until refitted."""
+    if f.model.obs is full.obs:
+        return f
+    model = MeasuredModel(f.model.experiment, full.obs, mesh=f.model.mesh, h=f.model.h)
+    hypothesis = replace(f.hypothesis, base=full) if hasattr(f.hypothesis, "base") else f.hypothesis
+    return replace(f, hypothesis=hypothesis, model=model, compiled=Compiled(model, f.compiled.param))
