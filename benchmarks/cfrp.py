@@ -46,24 +46,25 @@ def image_hole(path: Path) -> tuple[np.ndarray, float, float]:
     return np.array([xs.mean(), ys.mean()]), float(hole.sum()), float(speckled.max() - speckled.min() + 1)
 
 
-def run(work: Path, log=print) -> dict:
-    """Track, diagnose without the hole, diagnose with the found hole; the figures as a dict
-    (``"diagnoses"``: the two :class:`~refine.diagnosis.Diagnosis`, not JSON)."""
-    from refine.bundle.io import Bundle
+def run(work: Path, log=print, tracked: Path | None = None) -> dict:
+    """Track (or read the bundle ``tracked`` wrote by ``nonrigid track --pattern speckle --scale 1
+    --keep-holes``), diagnose without the hole, diagnose with the found hole; the figures as a
+    dict (``"diagnoses"``: the two :class:`~refine.diagnosis.Diagnosis`, not JSON)."""
+    from refine.bundle.io import Bundle, read_bundle
     from refine.cli import track
     from refine.diagnosis import diagnose
 
     centre, area, width = image_hole(SAMPLE / "oht_cfrp_00.tiff")
     t = time.perf_counter()
-    bundle = track(sorted(SAMPLE.glob("oht_cfrp_*.tiff")), Path(work) / "cfrp", pattern="speckle", scale=1.0,
-                   cut_holes=False, quiet=True)
-    track_s = time.perf_counter() - t
+    bundle = read_bundle(tracked) if tracked else track(sorted(SAMPLE.glob("oht_cfrp_*.tiff")), Path(work) / "cfrp",
+                                                         pattern="speckle", scale=1.0, cut_holes=False, quiet=True)
+    track_s = None if tracked else time.perf_counter() - t
     obs = bundle.observations
-    log(f"tracked {obs.n_points} points x {obs.n_frames} frames in {track_s:.0f} s")
+    log(f"{obs.n_points} points x {obs.n_frames} frames (tracking: {track_s or 0:.0f} s)")
     whole = diagnose(bundle, log=log)
     holes = [f for f in whole.findings if f.cause == "hole"]
     out = {"image_hole": {"centre": centre.round(2).tolist(), "area": round(area, 1)},
-           "specimen_width": width, "points": obs.n_points, "frames": obs.n_frames, "track_seconds": round(track_s, 1),
+           "specimen_width": width, "points": obs.n_points, "frames": obs.n_frames, "track_seconds": track_s and round(track_s, 1),
            "without_hole": {"findings": [f.to_json() for f in whole.findings], "seconds": round(whole.seconds, 1),
                             "null_ratio": whole.null.ratio, "gain": whole.errors["gain"],
                             "validation_error": [whole.errors["baseline"]["validation_error"],
@@ -94,13 +95,17 @@ def run(work: Path, log=print) -> dict:
 
 
 def main() -> None:
+    import argparse
     import tempfile
 
     from refine.diagnosis.strain_figures import diagnosis_strain_figure
 
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--tracked", type=Path, help="a bundle tracked before (speckle, --scale 1, --keep-holes)")
+    args = p.parse_args()
     with tempfile.TemporaryDirectory() as work:
         load = os.getloadavg()[0]
-        result = run(Path(work))
+        result = run(Path(work), tracked=args.tracked)
     diagnoses = result.pop("diagnoses")
     result["load_average"] = [round(load, 2), round(os.getloadavg()[0], 2)]
     OUT.mkdir(exist_ok=True)
