@@ -17,13 +17,18 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-SAMPLE = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "dic-challenge-sample12"
+ROOT = Path(__file__).resolve().parents[1]
+# benchmarks/tracking.py would shadow the tracking package that `track` imports: keep this folder off the path
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+sys.path.insert(0, str(ROOT))
+SAMPLE = ROOT.parent / "shared" / "data" / "dic-challenge-sample12"
 OUT = Path(__file__).parent / "results"
 CENTRE_TOL, AREA_TOL = 0.02, 0.10
 
