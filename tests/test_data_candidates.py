@@ -4,6 +4,7 @@ strain map points at a hidden stiff region, and a hole without points is named a
 diagnosis whose search uses fewer frames than the bundle has (the chosen model refitted on all)."""
 
 import numpy as np
+import pytest
 
 from refine.diagnosis import DiagnoseConfig, diagnose
 from refine.diagnosis.candidates import strain_regions
@@ -26,6 +27,7 @@ def test_the_measured_strain_map_points_at_a_stiff_region():
     assert np.hypot(*(stiff[0].centroid - [shape.cx, shape.cy])) < 0.05 * DIAGONAL, (stiff[0].centroid, shape)
 
 
+@pytest.mark.slow  # a whole diagnosis and its refit on 3 frames: ~95 CPU s (1,726 s wall at load 35)
 def test_a_hole_without_points_is_named_from_a_search_on_one_frame():
     truth = random_truth(np.random.default_rng(43), "hole")
     bundle = synthetic_bundle(truth, seed=43, spacing=5.0, noise=0.02, fractions=(0.3, 0.6, 1.0))
