@@ -47,9 +47,18 @@ class DiagnoseConfig:
         workers: hypotheses (and the set-up's independent models) fitted side by side in this
             many threads; XLA compiles and solves outside Python's lock, and compilation is most
             of a diagnosis.
-        h: element size of the initial model's mesh, length unit; None: half the point spacing.
+        h: element size of the models' meshes, length unit; None: from ``max_cells``.
         linear_solver: ``"auto"`` or a solver of :data:`jaxfem.linsolve.SOLVERS` that is
             installed, for every model of the diagnosis.
+        max_cells: the models' element size is half the point spacing, but at most this many
+            linear triangles over the domain (:func:`refine.diagnosis.scale.mesh_size`): the
+            cost of a solve follows the domain, not the number of tracked points.
+        search_frames: the null test, the field and every hypothesis use this many frames, those
+            of most motion (:func:`refine.diagnosis.scale.search_frames`); the chosen model is
+            refitted on every frame. 0: all frames.
+        strain_candidates: at most this many candidate regions also from the measured strain
+            map (:func:`refine.diagnosis.candidates.strain_regions`), beside the field's and the
+            gaps in the points.
     """
 
     alpha: float = 1e-3
@@ -67,6 +76,9 @@ class DiagnoseConfig:
     rectangle_spacings: float = 1.5
     h: float | None = None
     linear_solver: str = "auto"
+    max_cells: int = 3000
+    search_frames: int = 2
+    strain_candidates: int = 1
 
     def __post_init__(self):
         for f in fields(self):
@@ -122,6 +134,9 @@ _RULES = {
     "rectangle_spacings": (float, lambda v: v > 0, "a number > 0"),
     "h": ((float, type(None)), lambda v: v is None or v > 0, "an element size > 0 (length unit)"),
     "linear_solver": (str, None, '"auto" or an installed solver of jaxfem.linsolve'),
+    "max_cells": (int, lambda v: v >= 10, "an integer >= 10"),
+    "search_frames": (int, lambda v: v >= 0, "an integer >= 0 (0: all frames)"),
+    "strain_candidates": (int, lambda v: v >= 0, "an integer >= 0"),
 }
 
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -89,3 +89,47 @@ def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | 
              element: str = "tri3") -> Fitted:
     """A hole (:func:`hole_hypothesis`), its centre, axes and orientation fitted."""
     return fit(hole_hypothesis(base, shape, h, element), fit_mask, hold_mask, sigma)
+
+
+@dataclass(frozen=True, eq=False)
+class EmptyRegion:
+    """A fitted softer region named a hole (:func:`named_hole`): its shapes read as holes, its
+    fit (model, moduli, misfits) kept as they are."""
+
+    region: object
+    remeshable = False
+
+    @property
+    def law(self) -> str:
+        return self.region.law
+
+    def cause_of(self, shapes) -> str:
+        return "hole"
+
+    def shapes_at(self, compiled: Compiled, z) -> tuple[Hole, ...]:
+        return tuple(Hole(s.centre, s.axes, s.angle) for s in self.region.shapes_at(compiled, z))
+
+    def at(self, shapes, element: str) -> None:
+        return None
+
+
+def stiffness_indistinguishable_from_zero(soft: Fitted, below: float) -> bool:
+    """Whether a one-region softer fit's relative elasticity is indistinguishable from zero: below
+    ``below`` (a region that carries almost no load moves the points as a hole does), or within
+    two standard errors of zero (``z_std`` of its log ratio at least 1/2)."""
+    ratio = soft.shapes[0].ratio
+    z_std = None if soft.z_std is None else float(soft.z_std[0])
+    return ratio < below or (z_std is not None and np.isfinite(z_std) and z_std >= 0.5)
+
+
+def named_hole(soft: Fitted, points, below: float) -> Fitted:
+    """A one-region softer ellipse whose stiffness is indistinguishable from zero
+    (:func:`stiffness_indistinguishable_from_zero`) and which holds no tracked point (``points
+    (n, 2)``: no material was seen inside) is a hole, and is named one (its fit unchanged);
+    anything else is returned as it is."""
+    if soft.cause != "softer-region" or len(soft.shapes) != 1 or soft.shapes[0].kind != "ellipse":
+        return soft
+    if not stiffness_indistinguishable_from_zero(soft, below) or soft.shapes[0].geometry().contains(points).any():
+        return soft
+    hypothesis = EmptyRegion(soft.hypothesis)
+    return replace(soft, hypothesis=hypothesis, shapes=tuple(Hole(s.centre, s.axes, s.angle) for s in soft.shapes))

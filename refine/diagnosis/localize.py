@@ -29,6 +29,8 @@ class Candidate:
             semi-axes, radians).
         strength: integrated |log modulus deviation| x area (ranks candidates).
         peak: largest |log modulus deviation| in it.
+        source: what proposed it: ``"field"`` (the fitted modulus field), ``"strain"`` (the
+            measured strain map) or ``"missing-points"`` (a gap in the tracked points).
     """
 
     sign: int
@@ -38,6 +40,7 @@ class Candidate:
     angle: float
     strength: float
     peak: float
+    source: str = "field"
 
 
 def fit_field(model, weight: float, sigma: float, points=None, maxiter: int = 80, kind: str = "tv"):
@@ -60,11 +63,17 @@ def segment(mesh, z: np.ndarray, threshold: float | None = None, min_area: float
     form a candidate; the ``max_regions`` strongest of at least ``min_area`` are returned (up to
     rounding: four triangles of a 5 mm mesh sum to 49.99999999999999, not 50).
     """
-    d = z - np.median(z)
-    area = mesh.volumes()
-    cent = mesh.centroids()
-    pairs = cell_adjacency(mesh)
+    return segment_cells(z - np.median(z), mesh.volumes(), mesh.centroids(), cell_adjacency(mesh), threshold,
+                         min_area, max_regions)
+
+
+def segment_cells(d: np.ndarray, area: np.ndarray, cent: np.ndarray, pairs: np.ndarray,
+                  threshold: float | None = None, min_area: float = 0.0, max_regions: int = 3,
+                  source: str = "field") -> list[Candidate]:
+    """:func:`segment` on any cells: deviations ``d (n,)`` (positive: stiffer), cell areas
+    ``(n,)``, centroids ``(n, 2)`` and neighbouring pairs ``(m, 2)``."""
     out = []
+    n = len(d)
     for sign in (1, -1):
         ds = sign * d
         if ds.max() <= 0:
@@ -72,7 +81,6 @@ def segment(mesh, z: np.ndarray, threshold: float | None = None, min_area: float
         thr = max(0.5 * ds.max(), 0.1) if threshold is None else threshold
         on = ds > thr
         keep = on[pairs[:, 0]] & on[pairs[:, 1]]
-        n = mesh.n_cells
         g = coo_matrix((np.ones(keep.sum()), (pairs[keep, 0], pairs[keep, 1])), shape=(n, n))
         _, label = connected_components(g, directed=False)
         for lab in np.unique(label[on]):
@@ -81,17 +89,23 @@ def segment(mesh, z: np.ndarray, threshold: float | None = None, min_area: float
                 continue
             w = area[cells] * ds[cells]
             c = (w[:, None] * cent[cells]).sum(0) / w.sum()
-            # moments of the region's cells (uniform weight: the shape, not the field's peak)
-            a = area[cells]
-            dx = cent[cells] - (a[:, None] * cent[cells]).sum(0) / a.sum()
-            cov = (a[:, None, None] * dx[:, :, None] * dx[:, None, :]).sum(0) / a.sum()
-            cov += np.eye(2) * a.mean() / (4 * np.pi)  # a single cell is a disc of its area, not a point
-            ev, evec = np.linalg.eigh(cov)
-            axes = 2.0 * np.sqrt(np.maximum(ev[::-1], 1e-12))  # uniform ellipse: second moment = a^2/4
-            angle = float(np.arctan2(evec[1, -1], evec[0, -1]))
-            out.append(Candidate(sign, cells, c, axes, angle, float(w.sum()), float(ds[cells].max())))
+            centre, axes, angle = moment_ellipse(cent[cells], area[cells])
+            out.append(Candidate(sign, cells, c, axes, angle, float(w.sum()), float(ds[cells].max()), source))
     out.sort(key=lambda c: -c.strength)
     return out[:max_regions]
+
+
+def moment_ellipse(cent: np.ndarray, area: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The uniform ellipse with the second moments of cells (centroids ``(n, 2)``, areas ``(n,)``):
+    its centre, semi-axes (larger first) and angle (radians)."""
+    a = area
+    centre = (a[:, None] * cent).sum(0) / a.sum()
+    dx = cent - centre
+    cov = (a[:, None, None] * dx[:, :, None] * dx[:, None, :]).sum(0) / a.sum()
+    cov += np.eye(2) * a.mean() / (4 * np.pi)  # a single cell is a disc of its area, not a point
+    ev, evec = np.linalg.eigh(cov)
+    axes = 2.0 * np.sqrt(np.maximum(ev[::-1], 1e-12))  # uniform ellipse: second moment = a^2/4
+    return centre, axes, float(np.arctan2(evec[1, -1], evec[0, -1]))
 
 
 def ellipse_polygon(cx, cy, a, b, angle, n: int = 48) -> list[list[float]]:

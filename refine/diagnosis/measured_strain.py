@@ -1,10 +1,10 @@
-"""The strain the tracked points themselves show, before any model: a Green-Lagrange strain per
-triangle of a Delaunay triangulation of the reference points.
+"""The strain of the measured point cloud itself (the paper's Figs. 8, 10, 11 read the abnormal
+region from the strain of the measured grid): per triangle of a Delaunay triangulation of the
+reference points, from the three corners' displacements, no model involved.
 
-Each triangle's three points define an affine motion, so its deformation gradient is exact for
-the points (F = I + grad u with u linear over the triangle) and E = (F^T F - I) / 2. This is the
-measured counterpart of the model's strain map: a model that explains the data shows the same
-pattern. It is noisy (noise / spacing per component), with no smoothing.
+Triangles that bridge a gap in the points (a hole, a concave outline, a patch of lost points)
+are left out: an edge longer than ``max_edge`` (default 2.5 median point spacings) spans no
+material that was seen.
 """
 
 from __future__ import annotations
@@ -13,43 +13,70 @@ import numpy as np
 from jaxtyping import Float, Int
 from scipy.spatial import Delaunay
 
-#: a Delaunay triangle whose longest edge exceeds this many median edge lengths is dropped: it
-#: spans a hole, a notch or the concave part of the outline, where there is no material to measure
-MAX_EDGE = 2.5
+from refine.bundle.roles import point_spacing
+
+__all__ = ["equivalent", "equivalent_strain", "measured_strain", "point_spacing", "point_triangles",
+           "triangle_gradients"]
 
 
-def measured_strain(points: Float[np.ndarray, "n 2"], displacements: Float[np.ndarray, "*frames n 2"]
-                    ) -> tuple[Int[np.ndarray, "t 3"], Float[np.ndarray, "*frames t 2 2"]]:
-    """Green-Lagrange strain of the tracked points per triangle.
+def point_triangles(points: Float[np.ndarray, "n 2"], max_edge: float | None = None) -> Int[np.ndarray, "t 3"]:
+    """Delaunay triangles of ``points (n, 2)``, counter-clockwise, without those having an edge
+    longer than ``max_edge`` (length unit; default 2.5 median point spacings) or a vanishing area."""
+    points = np.asarray(points, float)
+    tri = Delaunay(points).simplices
+    P = points[tri]
+    edge = np.linalg.norm(P - np.roll(P, -1, axis=1), axis=2).max(axis=1)
+    limit = 2.5 * point_spacing(points) if max_edge is None else max_edge
+    a = P[:, 1] - P[:, 0]
+    b = P[:, 2] - P[:, 0]
+    area2 = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    tri = np.where((area2 < 0)[:, None], tri[:, [0, 2, 1]], tri)
+    keep = (edge <= limit) & (np.abs(area2) > 1e-9 * limit**2)
+    return tri[keep]
+
+
+def triangle_gradients(points: Float[np.ndarray, "n 2"], triangles: Int[np.ndarray, "t 3"],
+                       displacements: Float[np.ndarray, "... n 2"]) -> Float[np.ndarray, "... t 2 2"]:
+    """Displacement gradient ``du/dX`` per triangle (constant over a linear triangle), for one
+    frame ``(n, 2)`` or several ``(frames, n, 2)``; NaN where a corner was lost."""
+    P = np.asarray(points, float)[triangles]  # (t, 3, 2)
+    D = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=2)  # (t, 2, 2): columns are edges
+    Dinv = np.linalg.inv(D)
+    U = np.asarray(displacements, float)[..., triangles, :]  # (..., t, 3, 2)
+    dU = np.stack([U[..., 1, :] - U[..., 0, :], U[..., 2, :] - U[..., 0, :]], axis=-1)  # (..., t, 2, 2)
+    return dU @ Dinv
+
+
+def measured_strain(points: Float[np.ndarray, "n 2"], displacements: Float[np.ndarray, "... n 2"],
+                    max_edge: float | None = None) -> tuple[Int[np.ndarray, "t 3"], Float[np.ndarray, "... t 2 2"]]:
+    """Green-Lagrange strain ``E = (F^T F - I) / 2`` of the measured point cloud, per triangle of
+    a Delaunay triangulation of the reference ``points (n, 2)`` (:func:`point_triangles`).
 
     Args:
-        points: reference positions ``(n, 2)``, length unit.
-        displacements: their displacements ``(n, 2)`` or ``(frames, n, 2)``, length unit; NaN
-            where a point was lost (its triangles get NaN in that frame).
+        points: reference positions, length unit.
+        displacements: one frame ``(n, 2)`` or several ``(frames, n, 2)``, same unit; NaN where lost.
+        max_edge: longest triangle edge kept (default 2.5 median point spacings).
 
-    Returns:
-        ``(triangles, E)``: ``triangles (t, 3)`` indices into ``points``, counter-clockwise, of
-        the Delaunay triangulation of ``points`` less the triangles with an edge over
-        :data:`MAX_EDGE` median edge lengths or of (near) zero area; ``E (t, 2, 2)`` or
-        ``(frames, t, 2, 2)``, the in-plane Green-Lagrange strain (dimensionless) of each.
+    Returns ``(triangles (t, 3), E (..., t, 2, 2))``, dimensionless, NaN in triangles with a lost
+    corner.
 
     Raises:
         ValueError: fewer than 3 points, or points or displacements of the wrong shape.
     """
-    X = np.asarray(points, dtype=np.float64)
-    u = np.asarray(displacements, dtype=np.float64)
+    X, u = np.asarray(points, dtype=np.float64), np.asarray(displacements, dtype=np.float64)
     if X.ndim != 2 or X.shape[1] != 2 or len(X) < 3:
         raise ValueError(f"measured_strain needs at least 3 points of shape (n, 2), got {X.shape}")
     if u.shape[-2:] != X.shape:
         raise ValueError(f"displacements must have shape (..., {len(X)}, 2) like the points, got {u.shape}")
-    tri = _triangles(X)
-    # edge matrices of each triangle in the reference (columns x1 - x0, x2 - x0) and their inverse
-    D = np.stack([X[tri[:, 1]] - X[tri[:, 0]], X[tri[:, 2]] - X[tri[:, 0]]], axis=-1)  # (t, 2, 2)
-    Dinv = np.linalg.inv(D)
-    du = np.stack([u[..., tri[:, 1], :] - u[..., tri[:, 0], :],
-                   u[..., tri[:, 2], :] - u[..., tri[:, 0], :]], axis=-1)  # (..., t, 2, 2)
-    F = np.eye(2) + du @ Dinv
-    return tri, 0.5 * (np.swapaxes(F, -1, -2) @ F - np.eye(2))
+    triangles = point_triangles(points, max_edge)
+    G = triangle_gradients(points, triangles, displacements)
+    F = G + np.eye(2)
+    return triangles, 0.5 * (np.swapaxes(F, -1, -2) @ F - np.eye(2))
+
+
+def equivalent_strain(E: Float[np.ndarray, "... 2 2"]) -> Float[np.ndarray, "..."]:
+    """A scalar size of a strain tensor: its Frobenius norm ``sqrt(E:E)`` (dimensionless)."""
+    return np.sqrt(np.einsum("...ij,...ij->...", E, E))
 
 
 def equivalent(E: Float[np.ndarray, "*batch 2 2"]) -> Float[np.ndarray, "*batch"]:
@@ -60,14 +87,3 @@ def equivalent(E: Float[np.ndarray, "*batch 2 2"]) -> Float[np.ndarray, "*batch"
     E3[..., :2, :2] = E
     dev = E3 - np.trace(E3, axis1=-2, axis2=-1)[..., None, None] * np.eye(3) / 3.0
     return np.sqrt(2.0 / 3.0 * np.sum(dev * dev, axis=(-2, -1)))
-
-
-def _triangles(X: np.ndarray) -> np.ndarray:
-    tri = Delaunay(X).simplices.astype(np.int64)
-    a, b, c = X[tri[:, 0]], X[tri[:, 1]], X[tri[:, 2]]
-    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-    tri[area2 < 0] = tri[area2 < 0][:, [0, 2, 1]]  # counter-clockwise
-    edges = np.stack([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1), np.linalg.norm(a - c, axis=1)], 1)
-    longest = edges.max(axis=1)
-    keep = (longest <= MAX_EDGE * np.median(edges)) & (np.abs(area2) > 1e-9 * longest**2)
-    return tri[keep]

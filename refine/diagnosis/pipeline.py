@@ -1,24 +1,31 @@
 """Diagnosis: show what the initial model gets wrong, decide whether anything is wrong at all,
 name the cause, extend the model, and measure the gain on held-out points.
 
+0. Scale: the models' mesh size follows the domain (at most ``max_cells`` cells), and the search
+   (steps 2 and 3) runs on the frames of most motion (:mod:`refine.diagnosis.scale`), so that a
+   diagnosis costs about the same for 300 or 3,000 points, 2 or 20 frames.
 1. Show: drive the initial (uniform) model with the boundary points; residuals at guide points
    and the strain map.
 2. Decide: compare the misfit with its null level (noise, its propagation from the driving
    points, the model's discretisation error); a homogeneous sample gives no finding.
-3. Name: a regularised modulus field fitted by adjoint gradients shows where; its segmentation
-   proposes regions; stiffer/softer regions, holes and other material laws are fitted by exact
-   gradients and compared by BIC plus their misfit on held-out guide points, never by training
-   error alone; a hole is not tried where tracked points lie near the candidate's middle.
-4. Extend and measure: the chosen model is refitted on all guide points, remeshed at its fitted
-   shapes with quadratic triangles (linear ones bias a strained soft region's modulus low);
-   validation points, held out of every fit, measure the gain.
+3. Name: candidate places come from gaps in the tracked points inside the domain (a hole has no
+   material points), from a regularised modulus field fitted by adjoint gradients and from the
+   measured strain map's departures from the model's (:mod:`refine.diagnosis.candidates`);
+   stiffer/softer regions, holes and other material laws are fitted by exact gradients and
+   compared by BIC plus their misfit on held-out guide points, never by training error alone;
+   a hole is not tried where tracked points lie near the candidate's middle.
+4. Extend and measure: the chosen model is refitted on all guide points and every frame,
+   remeshed at its fitted shapes with quadratic triangles (linear ones bias a strained soft
+   region's modulus low); a softer region whose stiffness is indistinguishable from zero and
+   that holds no tracked point is named a hole; validation points, held out of every fit,
+   measure the gain.
 """
 
 from __future__ import annotations
 
 import time
 from concurrent.futures import Executor, ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -29,12 +36,14 @@ from refine.diagnosis.forces import ForceScale, force_scale
 from refine.diagnosis.config import DiagnoseConfig
 from refine.diagnosis.findings import Finding, findings
 from refine.diagnosis.fitted import Fitted, NotApplicable, baseline, refit
-from refine.diagnosis.holes import fit_hole
+from refine.diagnosis.candidates import data_candidates
+from refine.diagnosis.holes import fit_hole, named_hole
 from refine.diagnosis.laws import ALTERNATIVE_LAWS, fit_law
 from refine.diagnosis.regions import fit_rectangle, fit_regions, refit_ellipse
 from refine.diagnosis.shapes import RegionShape, report_row
-from refine.diagnosis.localize import Candidate, fit_field, segment
-from refine.model.measured import MeasuredModel
+from refine.diagnosis.localize import Candidate, fit_field
+from refine.diagnosis.scale import at_frames, mesh_size, on_frames, search_frames
+from refine.model.measured import MeasuredModel, grid_spacing
 from refine.diagnosis.noise import NullTest, estimate_noise, null_test, propagated_noise
 from refine.diagnosis.provenance import provenance
 
@@ -56,6 +65,7 @@ class Diagnosis:
     force: ForceScale | None = None
     config: DiagnoseConfig = field(default_factory=DiagnoseConfig)
     selected: Fitted | None = None  # the chosen hypothesis as fitted and scored beside the others (before its refit)
+    search_frames: tuple = ()
 
     @property
     def absolute(self) -> bool:
@@ -106,7 +116,11 @@ class Diagnosis:
                                              "chi2_holdout": f.chi2_holdout, "law": f.law,
                                              "shapes": [report_row(s) for s in f.shapes],
                                              "kinds": [s.kind for s in f.shapes]}
-                                            for f in self.tried]},
+                                            for f in self.tried],
+                             "candidates": [{"source": c.source, "sign": c.sign,
+                                             "centroid": [round(float(v), 4) for v in c.centroid],
+                                             "axes": [round(float(v), 4) for v in c.axes]} for c in self.candidates],
+                             "search_frames": [int(f) + 1 for f in self.search_frames]},
                 "note": self._modulus_note(),
                 "seconds": round(self.seconds, 2),
                 "provenance": provenance(self)}
@@ -140,7 +154,13 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
     say = log
     log = lambda msg: say(f"[{time.perf_counter() - t0:6.1f} s] {msg}")  # noqa: E731
     ex, obs = bundle.experiment, bundle.observations
-    model = MeasuredModel(ex, obs, root=bundle.root, h=cfg.h, linear_solver=cfg.linear_solver)
+    h = cfg.h if cfg.h is not None else mesh_size(ex.domain, grid_spacing(obs.reference), cfg.max_cells)
+    full = MeasuredModel(ex, obs, root=bundle.root, h=h, linear_solver=cfg.linear_solver)
+    frames = search_frames(obs, cfg.search_frames)
+    model = full if len(frames) == obs.n_frames else MeasuredModel(ex, at_frames(obs, frames), mesh=full.mesh, h=full.h,
+                                                                   linear_solver=cfg.linear_solver)
+    log(f"{obs.n_points} points x {obs.n_frames} frames; mesh of {full.mesh.n_cells} cells (size {full.h:.3g}); "
+        f"search on frame{'s' if len(frames) > 1 else ''} {', '.join(str(f + 1) for f in frames)}")
     guide = obs.mask("guide")
     rng = np.random.default_rng(cfg.seed)
     gidx = np.flatnonzero(guide)
@@ -150,6 +170,7 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
 
     pool = ThreadPoolExecutor(max(1, cfg.workers))
     floor = pool.submit(_discretisation_floor, model, guide)  # a finer model, compiled beside the initial one
+    full_compiled = pool.submit(full.predict, full.params()) if model is not full else None
     if not np.isfinite(np.asarray(model.predict(model.params()))).all():
         pool.shutdown(cancel_futures=True)
         model.raise_solve_failure(model.params())  # e.g. boundary motion that folds the sheet: no fit can help
@@ -160,7 +181,7 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
         f"error {sigma_model:.3g}")
     base = baseline(model, fit, hold, sigma_eff)
     V = propagated_noise(model, model.params(), sigma, guide, seed=cfg.seed) if sigma > 0 else np.zeros((0,))
-    at_guide = Residuals.at(obs.displacements, guide)
+    at_guide = Residuals.at(model.obs.displacements, guide)
     shape = at_guide.measured.shape
     null = null_test(at_guide.difference(base.predicted), at_guide.valid, sigma, sigma_model,
                      V.reshape((-1,) + shape) if V.size else np.zeros((0,) + shape))
@@ -168,23 +189,29 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
     tried, candidates, z, selected = [base], [], None, None
     chosen = base
     if null.p_value < cfg.alpha:
-        n_res = Residuals.at(obs.displacements, fit).n
+        n_res = Residuals.at(model.obs.displacements, fit).n
         z, _ = fit_field(model, weight=cfg.field_weight * n_res / model.mesh.n_cells, sigma=sigma_eff, points=fit)
-        candidates = segment(model.mesh, z, min_area=0.5 * model.spacing**2, max_regions=cfg.max_regions)
-        candidates = [c for c in candidates if c.strength >= 0.2 * candidates[0].strength]
-        log(f"field: {len(candidates)} candidate regions " +
-            ", ".join(f"{'stiffer' if c.sign > 0 else 'softer'} at ({c.centroid[0]:.1f}, {c.centroid[1]:.1f})"
-                      for c in candidates))
+        candidates = data_candidates(model, z, base.predicted, fit, sigma, cfg)
+        log(f"{len(candidates)} candidate regions: " +
+            ", ".join(f"{'stiffer' if c.sign > 0 else 'softer'} at ({c.centroid[0]:.1f}, {c.centroid[1]:.1f}) "
+                      f"from the {c.source}" for c in candidates))
         trials = Trials(model, fit, hold, sigma_eff, cfg, null, n_res, log, pool)
         tried += _try_hypotheses(trials, candidates)
         chosen = selected = _choose(base, tried, cfg)
-        if chosen is not base:  # refit the chosen model on every guide point
-            chosen = refit(chosen, guide, hold, sigma_eff, element=cfg.refit_element)
+        if chosen is not base:  # refit the chosen model on every guide point and every frame
+            log(f"refit on every frame: {chosen.describe()}")
+            chosen = refit(on_frames(chosen, full), guide, hold, sigma_eff, element=cfg.refit_element)
             if chosen.cause == "softer-region" and chosen.shapes[0].ratio < cfg.hole_refit_below:
-                chosen = _hole_if_as_likely(trials, chosen, guide)
+                chosen = _hole_if_as_likely(replace(trials, model=full), chosen, guide)
+            chosen = named_hole(chosen, obs.reference, cfg.hole_refit_below)
+    if full_compiled is not None:
+        full_compiled.result()
+        base = baseline(full, fit, hold, sigma_eff)
+    chosen = base if chosen is tried[0] else chosen
     pool.shutdown()
     log(f"chosen: {chosen.describe()}")
-    d = Diagnosis(bundle, null, base, chosen, tried, candidates, z, model, seconds=0.0, config=cfg, selected=selected)
+    d = Diagnosis(bundle, null, base, chosen, tried, candidates, z, model, seconds=0.0, config=cfg, selected=selected,
+                  search_frames=frames)
     eb, er = _errors(obs, base.predicted), _errors(obs, chosen.predicted)
     gain = (eb["validation_error"] / er["validation_error"]) if er.get("validation_error") else None
     d.errors = {"baseline": eb, "refined": er, "gain": gain}

@@ -15,6 +15,16 @@ from refine.diagnosis.localize import shape_outline
 from refine.model.parametrize import make_shape
 
 
+def _bounds(domain) -> tuple[float, float, float, float] | None:
+    """``(xmin, ymin, xmax, ymax)`` of a rectangle or polygon domain; None for a mesh file."""
+    if hasattr(domain, "xmax"):
+        return domain.xmin, domain.ymin, domain.xmax, domain.ymax
+    if hasattr(domain, "vertices"):
+        v = np.asarray(domain.vertices, float)
+        return (*v.min(axis=0), *v.max(axis=0))
+    return None
+
+
 @dataclass(frozen=True)
 class _Outline:
     """Centre ``(cx, cy)``, semi-axes (half sides for a rectangle) ``(a, b)`` and angle."""
@@ -46,15 +56,19 @@ class _Outline:
         return float(max(np.max(np.abs(np.subtract(here, there))), turn))
 
     def clamped(self, domain, spacing: float):
-        """The shape kept inside ``domain`` (a margin of half a grid spacing) and at least about
-        one grid ``spacing`` across."""
+        """The shape kept inside ``domain``'s bounding box (a margin of half a grid spacing;
+        a polygon's box, the whole plane for a mesh file) and at least about one grid
+        ``spacing`` across."""
         a, b = max(self.axes[0], 0.6 * spacing), max(self.axes[1], 0.6 * spacing)
         m = 0.5 * spacing
         cx, cy = self.centre
-        if domain.xmax - domain.xmin > 2 * (a + m):
-            cx = float(np.clip(cx, domain.xmin + a + m, domain.xmax - a - m))
-        if domain.ymax - domain.ymin > 2 * (b + m):
-            cy = float(np.clip(cy, domain.ymin + b + m, domain.ymax - b - m))
+        box = _bounds(domain)
+        if box is not None:
+            xmin, ymin, xmax, ymax = box
+            if xmax - xmin > 2 * (a + m):
+                cx = float(np.clip(cx, xmin + a + m, xmax - a - m))
+            if ymax - ymin > 2 * (b + m):
+                cy = float(np.clip(cy, ymin + b + m, ymax - b - m))
         return replace(self, centre=(cx, cy), axes=(a, b))
 
     def _words(self, ratio: float) -> str:
