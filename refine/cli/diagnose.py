@@ -15,8 +15,9 @@ OPTIONS = (
     (("--laws",), "try_laws", dict(action=argparse.BooleanOptionalAction,
                                    help="also try other material laws (default: --laws)")),
     (("--workers",), "workers", dict(type=int, help="hypotheses fitted side by side in this many threads (default 2)")),
-    (("--h", "--element-size"), "h", dict(type=float, help="element size of the initial model's mesh, length unit "
-                                                          "(default: half the point spacing)")),
+    (("--h", "--element-size"), "h", dict(type=float, help="element size of the models' meshes, length unit "
+                                                          "(default: half the point spacing, at most --max-cells "
+                                                          "triangles)")),
     (("--linear-solver",), "linear_solver", dict(help="auto (default) or a solver of jaxfem.linsolve: pardiso, "
                                                       "klu, superlu, cholmod, cg, dense")),
     (("--holdout-fraction",), "holdout_fraction", dict(type=float, help="share of guide points held out to choose "
@@ -28,7 +29,8 @@ OPTIONS = (
     (("--refit-element",), "refit_element", dict(choices=("tri3", "tri6"), help="element of the chosen model's "
                                                                                  "final meshes (default tri6)")),
     (("--try-rectangles",), "try_rectangles", dict(choices=("yes", "no", "auto"), help="also fit a found region as "
-                                                   "a rectangle; auto: where the points resolve corners (default no)")),
+                                                   "a rectangle; auto (default): where the ellipse leaves misfit above the null "
+                                                   "level and the points resolve corners")),
     (("--hole-below",), "hole_below", dict(type=float, help="a softer region below this ratio is also fitted as a "
                                                             "hole (default 0.3)")),
     (("--hole-refit-below",), "hole_refit_below", dict(type=float, help="a chosen softer region refitted below "
@@ -36,6 +38,11 @@ OPTIONS = (
                                                                         "(default 0.05)")),
     (("--rectangle-spacings",), "rectangle_spacings", dict(type=float, help="the gate of --try-rectangles auto, in "
                                                                             "grid spacings (default 1.5)")),
+    (("--max-cells",), "max_cells", dict(type=int, help="most linear triangles of a model's mesh (default 3000)")),
+    (("--search-frames",), "search_frames", dict(type=int, help="frames of most motion the search uses; the chosen "
+                                                                "model is refitted on all (default 2; 0: all)")),
+    (("--strain-candidates",), "strain_candidates", dict(type=int, help="candidate regions also from the measured "
+                                                                        "strain map (default 1)")),
 )
 
 

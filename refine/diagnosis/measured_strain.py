@@ -3,7 +3,7 @@ region from the strain of the measured grid): per triangle of a Delaunay triangu
 reference points, from the three corners' displacements, no model involved.
 
 Triangles that bridge a gap in the points (a hole, a concave outline, a patch of lost points)
-are left out: an edge longer than ``max_edge`` (default 2.5 median point spacings) spans no
+are left out: an edge longer than ``max_edge`` (default 2.5 median edge lengths) spans no
 material that was seen.
 """
 
@@ -21,12 +21,15 @@ __all__ = ["equivalent", "equivalent_strain", "measured_strain", "point_spacing"
 
 def point_triangles(points: Float[np.ndarray, "n 2"], max_edge: float | None = None) -> Int[np.ndarray, "t 3"]:
     """Delaunay triangles of ``points (n, 2)``, counter-clockwise, without those having an edge
-    longer than ``max_edge`` (length unit; default 2.5 median point spacings) or a vanishing area."""
+    longer than ``max_edge`` (length unit; default 2.5 median edge lengths) or a vanishing area."""
     points = np.asarray(points, float)
     tri = Delaunay(points).simplices
     P = points[tri]
     edge = np.linalg.norm(P - np.roll(P, -1, axis=1), axis=2).max(axis=1)
-    limit = 2.5 * point_spacing(points) if max_edge is None else max_edge
+    # the median Delaunay edge, not the nearest-neighbour spacing: on irregular clouds most edges
+    # are well longer than the nearest neighbour, and a gap is long against the typical edge
+    all_edges = np.linalg.norm(P - np.roll(P, -1, axis=1), axis=2)
+    limit = 2.5 * float(np.median(all_edges)) if max_edge is None else max_edge
     a = P[:, 1] - P[:, 0]
     b = P[:, 2] - P[:, 0]
     area2 = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
@@ -55,7 +58,7 @@ def measured_strain(points: Float[np.ndarray, "n 2"], displacements: Float[np.nd
     Args:
         points: reference positions, length unit.
         displacements: one frame ``(n, 2)`` or several ``(frames, n, 2)``, same unit; NaN where lost.
-        max_edge: longest triangle edge kept (default 2.5 median point spacings).
+        max_edge: longest triangle edge kept (default 2.5 median edge lengths of the triangulation).
 
     Returns ``(triangles (t, 3), E (..., t, 2, 2))``, dimensionless, NaN in triangles with a lost
     corner.
