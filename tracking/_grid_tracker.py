@@ -19,6 +19,9 @@ A crossing is lost in a frame, with its reason in ``meta["lost_reasons"]`` (see 
 the refiner rejects it, when saturated pixels lie on it, when its motion disagrees with its
 neighbours' by more than ``max_jump`` pitches, or when it is more than half a pitch from the
 frame's supported global prediction (a lattice slip); it is looked for again in the next frame.
+A supported global map under which fewer than half the crossings in view are measured is not
+borne out: the frame is measured again from the temporal prior, and if that measures no more
+than half either, every crossing of the frame is lost as a slip (``_borne_out``).
 """
 
 from __future__ import annotations
