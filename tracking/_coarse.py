@@ -75,11 +75,17 @@ def silhouette(image: np.ndarray, scale: float, ignore: np.ndarray | None = None
 
     Blurred at a pitch, a grid is a uniform grey; what is left are edges (the specimen's, a
     hole's) and lighting, whose slow ramps have a small, even gradient. ``ignore`` (e.g. glare,
-    which stays in the camera's frame) is set to zero.
+    which stays in the camera's frame) is set to zero, and so is a band of two ``scale`` along
+    the image's border: there the blur sees the pattern cut off by the frame (a false edge that
+    stays in the camera's frame; with a grid filling the view it alone would fix a translation,
+    a wrong one).
     """
     blurred = ndimage.gaussian_filter(np.asarray(image, dtype=np.float64), scale, mode="nearest")
     gy, gx = np.gradient(blurred)
     out = np.hypot(gx, gy)
+    band = int(np.ceil(2.0 * scale))
+    if 2 * band < min(out.shape):
+        out[:band], out[-band:], out[:, :band], out[:, -band:] = 0.0, 0.0, 0.0, 0.0
     if ignore is not None and ignore.any():
         out[ndimage.binary_dilation(ignore, iterations=max(1, int(round(2 * scale))))] = 0.0
     return out.astype(np.float32)

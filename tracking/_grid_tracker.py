@@ -19,6 +19,9 @@ A crossing is lost in a frame, with its reason in ``meta["lost_reasons"]`` (see 
 the refiner rejects it, when saturated pixels lie on it, when its motion disagrees with its
 neighbours' by more than ``max_jump`` pitches, or when it is more than half a pitch from the
 frame's supported global prediction (a lattice slip); it is looked for again in the next frame.
+A supported global map under which fewer than half the crossings in view are measured is not
+borne out: the frame is measured again from the temporal prior, and if that measures no more
+than half either, every crossing of the frame is lost as a slip (``_borne_out``).
 """
 
 from __future__ import annotations
@@ -126,8 +129,9 @@ class GridTracker:
             prior = fitted[-1].extrapolated(fitted[-2]) if len(fitted) >= 2 else fitted[-1]
             motion = grid_motion(features, image, geometry, prior, min_contrast, saturated(image)) \
                 if self.coarse else prior
-            positions, quality, reason = self._frame(image, history, fitted, motion, active, geometry, refiner,
-                                                     material, roi)
+            measure = lambda m: self._frame(image, history, fitted, m, active, geometry, refiner,  # noqa: E731
+                                            material, roi)
+            motion, (positions, quality, reason) = _borne_out(motion, prior, measure, active)
             history.append(positions)
             qualities.append(quality)
             reasons.append(reason)
@@ -239,6 +243,37 @@ class GridTracker:
                 "lost_reasons": codes, "lost_reason_names": dict(lost_codes.LOST_REASONS), **extra}
         return Tracks(ids=ids, reference=positions[0], positions=positions, lost=lost, quality=quality,
                       grid_index=np.stack([ii, jj], axis=1), quality_kind=kind, meta=meta)
+
+
+def _borne_out(motion: CoarseMotion, prior: CoarseMotion, measure, active: np.ndarray):
+    """The frame's map and its measurement ``measure(map)`` -> (positions, quality, reason).
+
+    A supported map the crossings do not bear out (see :func:`_refuted`; e.g. a silhouette
+    translation fixed by something that is not on the material) gives way to the temporal
+    ``prior`` when that measures more crossings; if the crossings bear out neither, none is
+    written: all are lost as slips (a match the data do not support is never a measurement).
+    """
+    positions, quality, reason = measure(motion)
+    if not (motion.supported and _refuted(reason, active)):
+        return motion, (positions, quality, reason)
+    retry = measure(prior)
+    if _measured(retry[2], active) > _measured(reason, active):
+        motion, (positions, quality, reason) = prior, retry
+    if _refuted(reason, active):
+        reason = lost_codes.first_reason(reason, active, lost_codes.SLIP)
+        positions = np.where((reason == lost_codes.MEASURED)[..., None], positions, np.nan)
+    return motion, (positions, quality, reason)
+
+
+def _measured(reason: np.ndarray, active: np.ndarray) -> int:
+    return int(np.count_nonzero(active & (reason == lost_codes.MEASURED)))
+
+
+def _refuted(reason: np.ndarray, active: np.ndarray) -> bool:
+    """True when fewer than half the active crossings still in view (not left the image, not
+    under glare) were measured in a frame: its global map is not borne out by the crossings."""
+    in_view = active & (reason != lost_codes.LEFT_IMAGE) & (reason != lost_codes.SATURATED)
+    return _measured(reason, active) < 0.5 * np.count_nonzero(in_view)
 
 
 def _ink_mask(material: np.ndarray, roi: np.ndarray) -> np.ndarray | None:
