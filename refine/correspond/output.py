@@ -36,13 +36,11 @@ def write_summary(path: str | Path, summary: dict) -> Path:
 def plot_errors(path: str | Path, records, null_level: float, baseline=None) -> Path:
     """Prediction error before and after refinement against the frame, the null level, and
     optionally the errors of a run without refinement (``baseline``: a list of records)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # the object API: no pyplot, no backend switched
 
     frames = [r.frame for r in records]
-    fig, ax = plt.subplots(figsize=(6, 3.6))
+    fig = Figure(figsize=(6, 3.6))
+    ax = fig.subplots()
     ax.plot(frames, [r.error_before for r in records], "o-", label="predicted (before refinement)")
     ax.plot(frames, [r.error_after for r in records], "s--", label="after refinement")
     if baseline is not None:
@@ -58,5 +56,4 @@ def plot_errors(path: str | Path, records, null_level: float, baseline=None) -> 
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return Path(path)
