@@ -72,6 +72,7 @@ def compress(hole, force=2.0, E=1.0, nu=0.45):
     return cup, solver, theta, solver.solve(theta)
 
 
+@pytest.mark.slow  # a 3D tet10 solve, ~40 s on 2 cores (the guide: 3D checks are slow)
 def test_compressed_cup_holder_hole_makes_the_bottom_softer():
     lift = {}
     for seed in (None, 5):

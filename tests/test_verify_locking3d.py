@@ -76,6 +76,7 @@ def error(n, element, nu):
     return cook3d_uy(n, element, nu) / REFERENCE[nu] - 1
 
 
+@pytest.mark.slow  # 3D tet10 solves, ~30 s on 2 cores
 def test_tet10_nearly_incompressible_converges_without_locking():
     e4, e8 = error(4, "tet10", 0.499), error(8, "tet10", 0.499)
     assert abs(e8) < 0.5 * abs(e4) and abs(e8) < 0.07, (e4, e8)
