@@ -154,9 +154,12 @@ def _check(name: str, value) -> None:
     if ok is not None and not ok(value):
         raise SettingsError(f"{name} must be {what}, got {value!r}")
     if name == "linear_solver":
-        from jaxfem.linsolve import available
+        from jaxfem.linsolve import SOLVERS, available
 
+        if value != "auto" and value not in SOLVERS:  # the nearest of every solver jaxfem knows
+            raise SettingsError(f"linear_solver {value!r} is unknown{nearest_key(value, SOLVERS)}; "
+                                f"use 'auto' or one of {', '.join(available())} (installed here)")
         if value != "auto" and value not in available():
-            raise SettingsError(f"linear_solver {value!r} is not installed or unknown"
-                                f"{nearest_key(value, available())}; "
-                                f"use 'auto' or one of {', '.join(available())}")
+            raise SettingsError(f"linear_solver {value!r} is not installed here (pip install "
+                                f"'nonrigid[fast]' brings pypardiso and klujax); use 'auto' or one of "
+                                f"{', '.join(available())}")
