@@ -96,3 +96,14 @@ def test_the_example_bundle_still_reads():
         pytest.skip("../shared/examples is absent (the example bundle from an independent simulator)")
     b = read_bundle(EXAMPLES / "sheet-stiff-inclusion" / "bundle")
     assert b.experiment.noise_std == 0.02 and b.experiment.thickness == 1.0 and b.experiment.extra == {}
+
+
+def test_a_batch_reads_each_bundles_own_diagnose_table(tmp_path):
+    """refine.batch gives each bundle its [diagnose] table under the batch's settings: a misspelt
+    key there is that bundle's error row (named), not silently the defaults."""
+    from refine.batch.runner import diagnose_one
+
+    path = _bundle(tmp_path / "b", {"diagnose": {"max_region": 1}})
+    row = diagnose_one(str(path), str(tmp_path / "out" / "b"), {"workers": 1}, figures=False)
+    assert row["error"]["type"] == "SettingsError"
+    assert "did you mean 'max_regions'?" in row["error"]["message"]

@@ -67,11 +67,14 @@ def diagnose_one(bundle: str, out_dir: str, config=None, figures: bool = True) -
     log: list[str] = []
     try:
         from refine.bundle import read_bundle
-        from refine.diagnosis import diagnose, report
+        from refine.diagnosis import DiagnoseConfig, diagnose, report
+        from refine.diagnosis.config import settings_of
 
         out.mkdir(parents=True, exist_ok=True)
         (out / "error.txt").unlink(missing_ok=True)
-        d = diagnose(read_bundle(bundle), config, log=log.append)
+        b = read_bundle(bundle)
+        cfg = config if isinstance(config, DiagnoseConfig) else settings_of(b, config)  # over its [diagnose]
+        d = diagnose(b, cfg, log=log.append)
         path = report.write(d, out, with_figures=figures)
         row.update(row_from_report(json.loads(Path(path).read_text())))
     except Exception as e:  # noqa: BLE001 - a failed bundle is a row of the table; the batch goes on
@@ -117,8 +120,9 @@ def diagnose_many(bundles: Iterable[str | Path], out: str | Path, config=None, s
     Args:
         bundles: bundle directories or glob patterns (see :func:`bundle_paths`).
         out: output directory (created).
-        config: a ``DiagnoseConfig`` for every bundle; default ``DiagnoseConfig(workers=
-            threads_per_worker)`` (as many hypotheses fitted side by side as the worker has cores).
+        config: a ``DiagnoseConfig`` used as it is for every bundle, or a dict of settings applied
+            over each bundle's own ``[diagnose]`` table; default ``{"workers": threads_per_worker}``
+            (as many hypotheses fitted side by side as the worker has cores, the rest from the table).
         scheduler: address of a running Dask scheduler (``"tcp://host:8786"``), or a
             ``distributed.Client``; then ``workers``, ``threads_per_worker`` and ``gpus`` are those
             of that cluster. Default: a local cluster of spawned worker processes.
@@ -144,9 +148,7 @@ def diagnose_many(bundles: Iterable[str | Path], out: str | Path, config=None, s
     finished = {r["bundle"]: r for r in read_rows(table_path)}
     todo = [p for p in paths if str(p) not in finished or (retry_failed and finished[str(p)].get("error"))]
     if config is None and todo:
-        from refine.diagnosis import DiagnoseConfig
-
-        config = DiagnoseConfig(workers=threads_per_worker or 1)
+        config = {"workers": threads_per_worker or 1}
     if todo:
         run_tasks(diagnose_one, [(str(p), str(out / names[p]), config, figures) for p in todo], table_path,
                   _failed_row, scheduler=scheduler, workers=workers, threads=threads_per_worker, gpus=gpus,

@@ -120,9 +120,8 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
 
 def settings_of(bundle, given: dict | None = None):
     """The :class:`refine.diagnosis.DiagnoseConfig` of a bundle: the defaults, then its
-    experiment.toml's ``[diagnose]`` table, then ``given`` (e.g. command-line options)."""
-    from refine.diagnosis import DiagnoseConfig
+    experiment.toml's ``[diagnose]`` table, then ``given`` (e.g. command-line options); see
+    :func:`refine.diagnosis.config.settings_of` (imported here on call: the parser loads no JAX)."""
+    from refine.diagnosis.config import settings_of as of
 
-    where = f"{bundle.root / 'experiment.toml' if bundle.root else 'experiment.toml'} [diagnose]"
-    cfg = DiagnoseConfig.from_table(bundle.experiment.extra.get("diagnose", {}), where)
-    return DiagnoseConfig.from_table(given or {}, "options", base=cfg)
+    return of(bundle, given)

@@ -163,3 +163,11 @@ def _check(name: str, value) -> None:
             raise SettingsError(f"linear_solver {value!r} is not installed here (pip install "
                                 f"'nonrigid[fast]' brings pypardiso and klujax); use 'auto' or one of "
                                 f"{', '.join(available())}")
+
+
+def settings_of(bundle, given: dict | None = None):
+    """The :class:`refine.diagnosis.DiagnoseConfig` of a bundle: the defaults, then its
+    experiment.toml's ``[diagnose]`` table, then ``given`` (e.g. command-line options)."""
+    where = f"{bundle.root / 'experiment.toml' if bundle.root else 'experiment.toml'} [diagnose]"
+    cfg = DiagnoseConfig.from_table(bundle.experiment.extra.get("diagnose", {}), where)
+    return DiagnoseConfig.from_table(given or {}, "options", base=cfg)
