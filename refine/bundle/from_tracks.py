@@ -17,6 +17,7 @@ from refine.bundle.experiment import Experiment, PolygonDomain, RectangleDomain
 from refine.bundle.io import Bundle
 from refine.bundle.observations import Observations
 from refine.bundle.roles import assign_roles, point_spacing
+from refine.bundle.outline import walk_loops
 from refine.exceptions import ObservationError
 
 if TYPE_CHECKING:  # refine reads tracking's output; nothing here needs the package at run time
@@ -119,21 +120,7 @@ def lattice_outline(grid_index: np.ndarray) -> np.ndarray:
     leaving: dict = {}
     for a, b in edges:
         leaving.setdefault(a, []).append(b)
-    loops = []
-    while leaving:
-        start = min(leaving)
-        loop, here, heading = [start], start, None
-        while True:
-            nexts = leaving[here]
-            step = max(nexts, key=lambda b: _turn(heading, (b[0] - here[0], b[1] - here[1])))
-            nexts.remove(step)
-            if not nexts:
-                del leaving[here]
-            heading, here = (step[0] - here[0], step[1] - here[1]), step
-            if here == start:
-                break
-            loop.append(here)
-        loops.append(loop)
+    loops = walk_loops(leaving, lambda a, b: (b[0] - a[0], b[1] - a[1]), _turn)
     largest = max(loops, key=lambda lp: abs(_signed_area(np.array(lp, float))))
     return np.array([lookup[v] for v in largest])
 

@@ -100,21 +100,8 @@ def _concave(pts: np.ndarray, max_edge: float, ids) -> np.ndarray:
     for p, q in edges:
         if (q, p) not in edges:  # on the outline: the material on its left
             leaving.setdefault(p, []).append(q)
-    loops = []
-    while leaving:
-        start = min(leaving)
-        loop, here, heading = [start], start, None
-        while True:
-            nexts = leaving[here]
-            step = max(nexts, key=lambda q: _turn(heading, pts[q] - pts[here]))  # keep to one piece at a pinch
-            nexts.remove(step)
-            if not nexts:
-                del leaving[here]
-            heading, here = pts[step] - pts[here], step
-            if here == start or here not in leaving:
-                break
-            loop.append(here)
-        loops.append(np.array(loop))
+    # keep to one piece at a pinch: the sharpest left turn
+    loops = [np.array(lp) for lp in walk_loops(leaving, lambda p, q: pts[q] - pts[p], _turn)]
     outer = max(loops, key=lambda lp: _area(pts[lp]))
     covered = np.zeros(len(pts), bool)
     covered[np.unique(keep)] = True
@@ -125,6 +112,28 @@ def _concave(pts: np.ndarray, max_edge: float, ids) -> np.ndarray:
             f"{len(bad)} points lie apart from the others' outline (e.g. {bad[:5].tolist()}): farther than max_edge = "
             f"{max_edge:.3g} from the rest; give a larger domain.max_edge or remove them")
     return outer
+
+
+def walk_loops(leaving: dict, vector, turn) -> list[list]:
+    """Closed loops of directed boundary edges (``leaving``: vertex -> the vertices its edges go to;
+    emptied): from the smallest vertex left, each step takes the edge ``turn(heading, vector(here,
+    next))`` ranks highest (the heading None at a loop's start), until the loop closes."""
+    loops = []
+    while leaving:
+        start = min(leaving)
+        loop, here, heading = [start], start, None
+        while True:
+            nexts = leaving[here]
+            step = max(nexts, key=lambda b: turn(heading, vector(here, b)))
+            nexts.remove(step)
+            if not nexts:
+                del leaving[here]
+            heading, here = vector(here, step), step
+            if here == start or here not in leaving:
+                break
+            loop.append(here)
+        loops.append(loop)
+    return loops
 
 
 def _turn(heading, direction) -> float:
