@@ -36,6 +36,11 @@ class Probe:
     cells: np.ndarray
     nodes: np.ndarray
     weights: np.ndarray
+    #: cells a point may move into under a morph: its own and those sharing a corner with it,
+    #: ``(n_points, m)`` (padded with its own cell); ``None``: the point keeps its cell
+    neighbours: np.ndarray | None = None
+    #: every cell's nodes ``(n_cells, n_per_cell)``, to look the neighbours' nodes up
+    mesh_cells: np.ndarray | None = None
 
     def __call__(self, field):
         """``field (n_nodes, ...)`` -> values at the points ``(n_points, ...)``."""
@@ -43,13 +48,18 @@ class Probe:
 
     def moved(self, X, points):
         """The same probe after the mesh nodes moved to ``X (n_nodes, dim)`` (a geometry morph),
-        for the same physical ``points``: each point keeps its cell, its weights are recomputed
-        (differentiably). Linear simplices: the barycentric coordinates. Quadratic triangles
-        (whose morphed edges may bend): Newton on the isoparametric map from the barycentric
-        coordinates of the corners, a fixed number of steps (quadratic convergence from there)."""
+        for the same physical ``points``, its weights recomputed (differentiably). A point the morph
+        carried out of its cell is found again in the neighbouring cell that now holds it (among the
+        cells two corner-sharing steps from its own; the choice is piecewise constant, the weights smooth,
+        and the interpolated field continuous across it), so it is interpolated, not extrapolated.
+        Linear simplices: the barycentric coordinates. Quadratic triangles (whose morphed edges may
+        bend): Newton on the isoparametric map from the barycentric coordinates of the corners, a
+        fixed number of steps (quadratic convergence from there)."""
         dim, k = X.shape[1], self.nodes.shape[1]
         if k != dim + 1 and not (dim == 2 and k == 6):
             raise MeshError("Probe.moved() supports linear triangles and tetrahedra and quadratic triangles only")
+        if self.neighbours is not None:
+            return self._relocated(X, points)
         Xe = jnp.asarray(X)[self.nodes]  # (p, k, d)
         pts = jnp.asarray(points)
         T = jnp.swapaxes(Xe[:, 1:dim + 1] - Xe[:, :1], 1, 2)  # (p, d, d): the corners' affine map
@@ -66,8 +76,55 @@ class Probe:
             xi = xi - jnp.linalg.solve(J, r[..., None])[..., 0]
         return Probe(self.cells, self.nodes, shape(xi))
 
+    def _relocated(self, X, points):
+        """:meth:`moved` over every candidate cell of each point, keeping the one that holds it."""
+        p, m = self.neighbours.shape
+        cand = self.neighbours.reshape(-1)
+        pts = jnp.repeat(jnp.asarray(points), m, axis=0)
+        trial = Probe(cand, self.mesh_cells[cand], np.zeros((p * m, self.nodes.shape[1]))).moved(X, pts)
+        dim = X.shape[1]
+        corners = trial.weights if self.nodes.shape[1] == dim + 1 else _corner_coordinates(trial.weights, dim)
+        outside = jax.lax.stop_gradient(jnp.maximum(0.0, -corners.min(axis=1))).reshape(p, m)
+        pick = jnp.argmin(outside, axis=1)  # the first candidate (its own cell) wins ties
+        w = trial.weights.reshape(p, m, -1)[jnp.arange(p), pick]
+        cells = jnp.asarray(self.neighbours)[jnp.arange(p), pick]
+        return Probe(cells, jnp.asarray(self.mesh_cells)[cells], w)
+
 
 _TRI6_NEWTON = 4
+
+
+def _corner_coordinates(w6, dim):
+    """Barycentric coordinates of a point in a quadratic triangle from its six shape-function
+    values: the corner coordinates l_i solve N_i = l_i (2 l_i - 1), N_(mid ij) = 4 l_i l_j; from
+    the mid-side values, l_i = sqrt(N_ij N_ik / (4 N_jk)) breaks down at edges, so take
+    l_i = N_i + (N_ij + N_ik) / 2 (exact: l_i (2 l_i - 1) + 2 l_i (l_j + l_k) = l_i)."""
+    del dim
+    return jnp.stack([w6[:, 0] + 0.5 * (w6[:, 3] + w6[:, 5]),
+                      w6[:, 1] + 0.5 * (w6[:, 3] + w6[:, 4]),
+                      w6[:, 2] + 0.5 * (w6[:, 4] + w6[:, 5])], axis=1)
+
+
+def _corner_neighbours(mesh: Mesh, cells: np.ndarray, rings: int = 2) -> np.ndarray:
+    """For each cell in ``cells``, itself then every cell within ``rings`` steps of cells sharing
+    a corner (a morph moves nodes by up to about a cell before the fit remeshes), padded with
+    itself to a common width: ``(len(cells), m)``."""
+    corners = mesh.cells[:, :mesh.dim + 1]
+    incidence = [[] for _ in range(mesh.n_nodes)]
+    for c, row in enumerate(corners):
+        for n in row:
+            incidence[n].append(c)
+
+    def around(c):
+        near = {c}
+        for _ in range(rings):
+            near = {d for e in near for n in corners[e] for d in incidence[n]}
+        return [c] + sorted(near - {c})
+
+    memo = {}
+    rows = [memo.setdefault(c, around(c)) for c in cells]
+    m = max(len(r) for r in rows)
+    return np.array([r + [r[0]] * (m - len(r)) for r in rows], dtype=np.int64)
 
 
 def locate(mesh: Mesh, points, tol: float = 1e-6, names=None) -> Probe:
@@ -103,7 +160,9 @@ def locate(mesh: Mesh, points, tol: float = 1e-6, names=None) -> Probe:
         raise MeshError(f"{bad.size} points lie outside the mesh (e.g. {', '.join(labels)} at "
                         f"{pts[bad[0]].round(4).tolist()}); they cannot be compared with the model")
     N = el.shape(best_xi).reshape(len(pts), el.n_nodes)
-    return Probe(best_cell, mesh.cells[best_cell], N)
+    simplex = el.name.startswith(("tri", "tet")) and el.n_nodes in (mesh.dim + 1, 6)
+    neighbours = _corner_neighbours(mesh, best_cell) if simplex else None
+    return Probe(best_cell, mesh.cells[best_cell], N, neighbours, mesh.cells if simplex else None)
 
 
 def _inverse_map(mesh, c, pts):

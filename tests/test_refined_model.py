@@ -114,11 +114,9 @@ def test_the_refined_bundle_reproduces_the_chosen_model(bundle, cause, seed, tmp
 
 def _assert_reproduces(predicted, chosen: Fitted, mesh) -> None:
     """``predicted`` (by the refined bundle's model, on ``mesh``) is ``chosen``'s displacement
-    field at the points to the solver's tolerance, and so are ``chosen``'s own predictions at the
-    points that stayed in the cell they were located in before the fit moved the mesh: under a
-    geometry morph the chosen model keeps each point's cell (``jaxfem.Probe.moved``) and
-    extrapolates that cell's field where the point left it, while the refined model locates the
-    points in the moved mesh."""
+    field at the points to the solver's tolerance, and so are ``chosen``'s own predictions at
+    every point, also those the fit's geometry morph carried into another cell
+    (``jaxfem.Probe.moved`` finds them there, as the refined model locates them afresh)."""
     from jaxfem.probe import _inverse_map
 
     scale = np.abs(chosen.predicted).max()
@@ -126,9 +124,8 @@ def _assert_reproduces(predicted, chosen: Fitted, mesh) -> None:
     U = np.asarray(chosen.model.solve_frames(chosen.theta))
     assert np.abs(predicted - np.stack([np.asarray(field(u)) for u in U])).max() < 1e-6 * scale
     _, outside = _inverse_map(mesh, chosen.model.probe.cells, chosen.model.obs.reference)
-    kept = outside < 1e-9  # still in (or on) the cell it was located in
-    assert kept.mean() > 0.5
-    assert np.abs(predicted - chosen.predicted)[:, kept].max() < 1e-6 * scale
+    print(f"{(outside > 1e-9).sum()} of {outside.size} points left the cell they were located in")
+    assert np.abs(predicted - chosen.predicted).max() < 1e-6 * scale
 
 
 def test_nothing_found_leaves_the_experiment_as_it_was(bundle, tmp_path):
