@@ -134,6 +134,7 @@ def test_batch_matches_one_by_one_records_the_broken_bundle_and_resumes(bundles,
         d = diagnose(read_bundle(p), config, log=lambda m: None)
         alone = json.loads(json.dumps(d.report(), default=lambda v: v.tolist()))  # numpy values
         batch = json.loads((out / p.name / "report.json").read_text())
+        assert read_bundle(out / p.name / "refined").experiment == read_bundle(p).experiment  # nothing found
         assert batch["findings"] == alone["findings"] == []
         np.testing.assert_allclose(_flat(_comparable(batch)), _flat(_comparable(alone)), rtol=1e-9, atol=1e-12)
         assert _keys(_comparable(batch)) == _keys(_comparable(alone))

@@ -67,7 +67,7 @@ def diagnose_one(bundle: str, out_dir: str, config=None, figures: bool = True) -
     log: list[str] = []
     try:
         from refine.bundle import read_bundle
-        from refine.diagnosis import DiagnoseConfig, diagnose, report
+        from refine.diagnosis import DiagnoseConfig, diagnose, refined, report
         from refine.diagnosis.config import settings_of
 
         out.mkdir(parents=True, exist_ok=True)
@@ -76,6 +76,7 @@ def diagnose_one(bundle: str, out_dir: str, config=None, figures: bool = True) -
         cfg = config if isinstance(config, DiagnoseConfig) else settings_of(b, config)  # over its [diagnose]
         d = diagnose(b, cfg, log=log.append)
         path = report.write(d, out, with_figures=figures)
+        refined.write(d, out)  # OUT/NAME/refined/: the chosen model as a bundle, as `nonrigid diagnose` writes it
         row.update(row_from_report(json.loads(Path(path).read_text())))
     except Exception as e:  # noqa: BLE001 - a failed bundle is a row of the table; the batch goes on
         row["error"] = {"type": type(e).__name__, "message": str(e)}
