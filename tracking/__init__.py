@@ -15,7 +15,10 @@ from ._grid_tracker import REFINERS, GridTracker
 from ._images import image_paths, load_images, natural_key, roi_mask
 from ._lost import LOST_REASONS
 from ._pattern_mask import material_outline, pattern_mask
+from ._camera import Camera, camera_from_table, read_camera
 from ._range import points_3d, range_lookup
+from ._range_cloud import range_cloud, voxel_thin
+from ._range_io import load_range_images, range_paths
 from ._snake import SnakeOptions
 from ._speckle_tracker import SpeckleTracker
 from ._synthetic import (GridPattern, Scene, SpecklePattern, clamped_displacement, creased_displacement,
@@ -32,4 +35,5 @@ __all__ = [
     "TrackingError", "ImageError", "RoiError", "GridNotFoundError", "OptionError",
     "read_dice", "write_dice", "read_displacement_csv", "ExportError", "image_paths", "natural_key",
     "Scene", "clamped_displacement", "LOST_REASONS", "pattern_mask", "material_outline",
+    "Camera", "read_camera", "camera_from_table", "load_range_images", "range_paths", "range_cloud", "voxel_thin",
 ]

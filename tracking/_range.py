@@ -22,13 +22,27 @@ def _keys(t: np.ndarray) -> np.ndarray:
     return np.stack([far(1 + t), near(t), near(1 - t), far(2 - t)], axis=-1)
 
 
-def range_lookup(range_image: np.ndarray, positions: np.ndarray, order: int = 1,
-                 invalid_value: float | None = None, explain: bool = False) -> tuple[np.ndarray, ...]:
-    """Depth z at image positions, interpolated, with points over holes reported as lost.
+def _plane_filled(support: np.ndarray) -> np.ndarray:
+    """2 x 2 supports (m, 2, 2) with one NaN corner filled from the plane through the other three
+    (adjacent + adjacent - opposite); supports with two or more NaN corners keep them."""
+    flip_i, flip_j, opposite = support[:, ::-1, :], support[:, :, ::-1], support[:, ::-1, ::-1]
+    one_missing = (np.isnan(support).sum(axis=(1, 2)) == 1)[:, None, None]
+    return np.where(np.isnan(support) & one_missing, flip_i + flip_j - opposite, support)
 
-    A point is lost when its position is NaN, when its interpolation support (2 x 2 pixels for
-    ``order`` 1 = bilinear, 4 x 4 for ``order`` 3 = Keys bicubic convolution) leaves the image,
-    or when any pixel of the support is NaN, infinite or equal to ``invalid_value``; its z is NaN.
+
+def range_lookup(range_image: np.ndarray, positions: np.ndarray, order: int = 1,
+                 invalid_value: float | None = None, explain: bool = False,
+                 max_step: float | None = None) -> tuple[np.ndarray, ...]:
+    """Depth z at image positions, interpolated from valid pixels only, with points over holes lost.
+
+    ``order`` 1 (bilinear) uses the 2 x 2 pixels around the point; where one of them has no data
+    but the pixel nearest the point has, the missing value is taken on the plane through the other
+    three (so the interpolation uses valid neighbours only and is still exact on a plane). ``order``
+    3 (Keys bicubic convolution, 4 x 4 pixels) needs every pixel of its support. A point is lost
+    when its position is NaN, when its support leaves the image, when its support lacks more data
+    than that (a pixel NaN, infinite or equal to ``invalid_value``), or, with ``max_step``, when the
+    depths of its support spread by more than ``max_step`` (an occluding edge: two surfaces meet
+    in the support, and interpolating between them would invent a point on neither); its z is NaN.
 
     Args:
         range_image: (rows, cols) depth per pixel (any length unit), NaN where unmeasured.
@@ -40,7 +54,8 @@ def range_lookup(range_image: np.ndarray, positions: np.ndarray, order: int = 1,
     Returns:
         z (...) and lost (...) bool; with ``explain`` also reasons (...) int8 codes of
         ``tracking._lost``: ``NO_RANGE`` (a hole or no-data pixel in the support), ``OFF_RANGE``
-        (the support leaves the image), ``NOT_SEEN`` (no position: NaN), 0 where measured.
+        (the support leaves the image), ``RANGE_EDGE`` (depth jump over ``max_step``),
+        ``NOT_SEEN`` (no position: NaN), 0 where measured.
     """
     z_image = np.asarray(range_image, dtype=np.float64)
     if z_image.ndim != 2:
@@ -66,37 +81,50 @@ def range_lookup(range_image: np.ndarray, positions: np.ndarray, order: int = 1,
     inside = ((cx.min(axis=1) >= 0) & (cx.max(axis=1) < cols)
               & (cy.min(axis=1) >= 0) & (cy.max(axis=1) < rows))
     cxc, cyc = np.clip(cx, 0, cols - 1), np.clip(cy, 0, rows - 1)
-    support = z_image[cyc[:, :, None], cxc[:, None, :]]                # (m, taps_y, taps_x)
-    holes = bad[cyc[:, :, None], cxc[:, None, :]].any(axis=(1, 2))
-    value = np.einsum("mi,mij,mj->m", wy, np.where(np.isfinite(support), support, 0.0), wx)
-    good = inside & ~holes
+    support = np.where(bad, np.nan, z_image)[cyc[:, :, None], cxc[:, None, :]]   # (m, taps_y, taps_x)
+    if order == 1:
+        nearest = ~np.isnan(support[np.arange(len(x)), np.rint(y - y0).astype(int), np.rint(x - x0).astype(int)])
+        support = _plane_filled(support)
+        holes = ~nearest | np.isnan(support).any(axis=(1, 2))
+    else:
+        holes = np.isnan(support).any(axis=(1, 2))
+    value = np.einsum("mi,mij,mj->m", wy, np.nan_to_num(support), wx)
+    spread = (np.where(np.isnan(support), -np.inf, support).max(axis=(1, 2))
+              - np.where(np.isnan(support), np.inf, support).min(axis=(1, 2)))
+    edge = ~holes & (spread > max_step) if max_step is not None else np.zeros(len(x), bool)
+    good = inside & ~holes & ~edge
     out = np.full(len(x), np.nan)
     out[good] = value[good]
     z[finite] = out
     codes = np.full(len(flat), lost_codes.NOT_SEEN, np.int8)
-    codes[finite] = np.select([~inside, holes, ~np.isfinite(out)],
-                              [lost_codes.OFF_RANGE, lost_codes.NO_RANGE, lost_codes.NO_RANGE], lost_codes.MEASURED)
+    codes[finite] = np.select([~inside, holes, edge, ~np.isfinite(out)],
+                              [lost_codes.OFF_RANGE, lost_codes.NO_RANGE, lost_codes.RANGE_EDGE, lost_codes.NO_RANGE],
+                              lost_codes.MEASURED)
     shape = positions.shape[:-1]
     z, lost = z.reshape(shape), (codes != lost_codes.MEASURED).reshape(shape)
     return (z, lost, codes.reshape(shape)) if explain else (z, lost)
 
 
-def points_3d(tracks: Tracks, range_images, order: int = 1,
-              invalid_value: float | None = None, explain: bool = False) -> tuple[np.ndarray, ...]:
+def points_3d(tracks: Tracks, range_images, order: int = 1, invalid_value: float | None = None,
+              explain: bool = False, camera=None, max_step: float | None = None) -> tuple[np.ndarray, ...]:
     """3D coordinates (x, y, z) of tracked points per frame from one range image per frame.
+
+    Each point's depth is looked up in its own frame's range image at its tracked (sub-pixel)
+    position (:func:`range_lookup`, with ``order``, ``invalid_value`` and ``max_step``).
 
     Args:
         tracks: tracks in pixels.
         range_images: (n_frames, rows, cols) depth images registered with the intensity images.
-
+        camera: a :class:`tracking.Camera` that turns pixel and depth into 3D points (its length
+            unit, its world axes); None: x, y stay in pixels and z is the depth.
         explain: also return why each point is lost.
 
     Returns:
-        xyz (n_frames, n, 3) with x, y in pixels and z in the range images' unit (NaN where
-        lost), and lost (n_frames, n): lost in tracking or over a hole of the range data; with
-        ``explain`` also reasons (n_frames, n) int8 (``tracking._lost`` codes): the tracker's
-        ``meta["lost_reasons"]`` where tracking lost the point (``NOT_SEEN`` without them), else
-        the range lookup's (``NO_RANGE``, ``OFF_RANGE``).
+        xyz (n_frames, n, 3) (NaN where lost), and lost (n_frames, n): lost in tracking or over a
+        hole of the range data; with ``explain`` also reasons (n_frames, n) int8
+        (``tracking._lost`` codes): the tracker's ``meta["lost_reasons"]`` where tracking lost the
+        point (``NOT_SEEN`` without them), else the range lookup's (``NO_RANGE``, ``OFF_RANGE``,
+        ``RANGE_EDGE``).
     """
     if tracks.units != "px":
         raise TrackingError("points_3d needs tracks in pixels (look the range images up before to_length)")
@@ -107,10 +135,14 @@ def points_3d(tracks: Tracks, range_images, order: int = 1,
     tracked = np.asarray(tracks.meta.get("lost_reasons", np.where(lost, lost_codes.NOT_SEEN, 0)), np.int8)
     reasons = np.where(lost, np.where(tracked == lost_codes.MEASURED, lost_codes.NOT_SEEN, tracked), 0).astype(np.int8)
     for f, range_image in enumerate(range_images):
-        z, hole, why = range_lookup(range_image, tracks.positions[f], order, invalid_value, explain=True)
+        z, hole, why = range_lookup(range_image, tracks.positions[f], order, invalid_value, explain=True,
+                                    max_step=max_step)
         reasons[f] = np.where(reasons[f] == lost_codes.MEASURED, why, reasons[f])  # the first reason
         lost[f] |= hole
-        xyz[f, :, :2] = tracks.positions[f]
-        xyz[f, :, 2] = z
+        if camera is None:
+            xyz[f, :, :2] = tracks.positions[f]
+            xyz[f, :, 2] = z
+        else:
+            xyz[f] = camera.to_world(tracks.positions[f], z)
     xyz[lost] = np.nan
     return (xyz, lost, reasons) if explain else (xyz, lost)
