@@ -17,7 +17,7 @@ from ._lost import LOST_REASONS
 from ._pattern_mask import material_outline, pattern_mask
 from ._camera import Camera, camera_from_table, read_camera
 from ._range import points_3d, range_lookup
-from ._range_cloud import range_cloud, voxel_thin
+from ._range_cloud import cell_pixels, range_cloud
 from ._range_io import load_range_images, range_paths
 from ._snake import SnakeOptions
 from ._speckle_tracker import SpeckleTracker
@@ -35,5 +35,5 @@ __all__ = [
     "TrackingError", "ImageError", "RoiError", "GridNotFoundError", "OptionError",
     "read_dice", "write_dice", "read_displacement_csv", "ExportError", "image_paths", "natural_key",
     "Scene", "clamped_displacement", "LOST_REASONS", "pattern_mask", "material_outline",
-    "Camera", "read_camera", "camera_from_table", "load_range_images", "range_paths", "range_cloud", "voxel_thin",
+    "Camera", "read_camera", "camera_from_table", "load_range_images", "range_paths", "range_cloud", "cell_pixels",
 ]

@@ -112,7 +112,7 @@ def camera_from_table(table: dict, where: str = "camera") -> Camera:
         raise OptionError(f"{where}: model must be one of {list(MODELS)}, got {model!r}")
     unknown = sorted(set(table) - set(_KEYS[model]))
     if unknown:
-        near = difflib.get_close_matches(unknown[0], _KEYS[model], n=1)
+        near = difflib.get_close_matches(unknown[0], _KEYS[model], n=1, cutoff=0.5)
         hint = f" (did you mean {near[0]!r}?)" if near else ""
         raise OptionError(f"{where}: key {unknown[0]!r} is not a key of a {model} camera{hint}; "
                           f"known keys: {list(_KEYS[model])}")

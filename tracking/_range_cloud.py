@@ -1,4 +1,12 @@
-"""Unlabelled 3D point clouds from range images (no painted pattern needed), thinned on a voxel grid."""
+"""Unlabelled 3D point clouds from range images (no painted pattern needed), thinned to a spacing.
+
+The thinning grid is a grid of square cells of pixels (a column of space along each cell's rays),
+not a grid of cubes in space: a range image sees one surface per pixel, and cubes would sort the
+pixels of a tilted surface into cells by their noisy depth, biasing every cell's mean by up to
+the noise. Each cell's point is the mean of its pixels' 3D points: the noise averages down (about
+noise / sqrt(pixels per cell)), and on a surface of radius of curvature R the mean lies inside it
+by at most spacing^2 / (8 R).
+"""
 
 from __future__ import annotations
 
@@ -8,46 +16,32 @@ from ._camera import Camera
 from ._errors import ImageError, OptionError
 
 
-def voxel_thin(points: np.ndarray, spacing: float) -> np.ndarray:
-    """One point per occupied voxel: the mean of the points in each cube of side ``spacing``.
-
-    The cubes are those of the grid with a corner at the origin (the same grid in every frame).
-    Averaging also averages the depth noise (about noise / sqrt(points per voxel)); on a curved
-    surface the mean lies inside the curve by at most spacing^2 / (8 R) (R the radius of curvature).
-
-    Args:
-        points: ``(n, 3)`` length unit, finite.
-        spacing: voxel side, same unit (> 0).
-
-    Returns:
-        ``(m, 3)`` points, m <= n, sorted by voxel.
-    """
+def cell_pixels(camera: Camera, spacing: float, depth: float) -> int:
+    """The side of a thinning cell in pixels: ``spacing`` over the pixel's footprint at ``depth``
+    (rounded, at least 1)."""
     if not (np.isfinite(spacing) and spacing > 0):
         raise OptionError(f"the cloud spacing must be a positive length, got {spacing!r}")
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    if len(points) == 0:
-        return points
-    cells = np.floor(points / spacing).astype(np.int64)
-    _, inverse, counts = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
-    inverse = inverse.ravel()
-    sums = np.stack([np.bincount(inverse, weights=points[:, a], minlength=len(counts)) for a in range(3)], axis=1)
-    return sums / counts[:, None]
+    return max(1, int(round(spacing / camera.footprint(depth))))
 
 
-def range_cloud(range_image: np.ndarray, camera: Camera, spacing: float, mask: np.ndarray | None = None) -> np.ndarray:
-    """The surface a range image sees, as 3D points in the camera's world axes, thinned to ``spacing``.
+def range_cloud(range_image: np.ndarray, camera: Camera, spacing: float, mask: np.ndarray | None = None,
+                depth: float | None = None) -> np.ndarray:
+    """The surface a range image sees, as 3D points in the camera's world axes, one per cell.
 
     Every pixel with data (finite depth) inside ``mask`` is placed in 3D by ``camera``
-    (:meth:`Camera.to_world`), then :func:`voxel_thin` keeps one point (the mean) per voxel.
+    (:meth:`Camera.to_world`); the image is cut into square cells of :func:`cell_pixels` pixels
+    (``spacing`` at ``depth``) from its top-left corner (the same cells in every frame), and each
+    cell holding data gives the mean of its points.
 
     Args:
         range_image: ``(rows, cols)`` depth, NaN where no data (:func:`tracking.load_range_images`).
         camera: the range camera.
-        spacing: voxel side, the camera's length unit.
+        spacing: the points' spacing on the surface (seen square on), the camera's length unit.
         mask: ``(rows, cols)`` bool, the pixels to use (an ROI or a drawn mask); None: all.
+        depth: the depth at which a cell spans ``spacing`` (perspective); None: the median depth.
 
     Returns:
-        ``(m, 3)`` points.
+        ``(m, 3)`` points, in the cells' row-major order.
 
     Raises:
         ImageError: no pixel with data lies in the mask.
@@ -63,4 +57,8 @@ def range_cloud(range_image: np.ndarray, camera: Camera, spacing: float, mask: n
         raise ImageError("no pixel with range data lies in the region of interest / mask")
     rows, cols = np.nonzero(keep)
     points = camera.to_world(np.stack([cols, rows], axis=1).astype(np.float64), z[rows, cols])
-    return voxel_thin(points, spacing)
+    side = cell_pixels(camera, spacing, float(np.median(z[keep])) if depth is None else depth)
+    cell = (rows // side) * (z.shape[1] // side + 1) + cols // side
+    _, inverse, counts = np.unique(cell, return_inverse=True, return_counts=True)
+    sums = np.stack([np.bincount(inverse.ravel(), weights=points[:, a], minlength=len(counts)) for a in range(3)], 1)
+    return sums / counts[:, None]

@@ -87,7 +87,7 @@ def add_range_arguments(p: argparse.ArgumentParser) -> None:
                    help="depth spread within a point's support above which it is lost (an occluding edge)")
     r.add_argument("--clouds", action="store_true", help="also write clouds.csv from the range images")
     r.add_argument("--clouds-only", action="store_true", help="no images: write clouds.csv from the range images only")
-    r.add_argument("--cloud-spacing", type=float, metavar="MM", help="voxel side of the clouds (default 3 pixels)")
+    r.add_argument("--cloud-spacing", type=float, metavar="MM", help="spacing of the clouds' points (default 3 pixels)")
     r.add_argument("--mask", metavar="IMAGE", help="clouds: image whose non-zero pixels are used (with --roi)")
 
 

@@ -7,7 +7,7 @@ cx, cy; an optional pose puts the points in the mesh's axes). A point whose dept
 invalid in a frame is lost there with its reason (``lost.csv``); a point without depth in the
 reference frame has no reference position and is left out of points.csv, listed in ``lost.csv``
 and in the summary. With ``clouds_only`` no pattern is tracked: every frame's valid range pixels,
-thinned on a voxel grid, become ``clouds.csv`` (frame 0 the reference shape).
+thinned on a grid of cells, become ``clouds.csv`` (frame 0 the reference shape).
 """
 
 from __future__ import annotations
@@ -52,7 +52,8 @@ class RangeOptions:
             larger one is an occluding edge and the point is lost there (None: no test).
         clouds: also write ``clouds.csv`` (with tracked points).
         clouds_only: write ``clouds.csv`` only: no images, no pattern tracked.
-        cloud_spacing: voxel side of the clouds (length unit); None: 3 pixel footprints.
+        cloud_spacing: spacing of the clouds' points (length unit; cells of pixels of that side at the
+            reference frame's median depth, :func:`tracking.range_cloud`); None: 3 pixels.
         mask: an image file or ``(rows, cols)`` bool array: the pixels whose range makes the clouds
             (besides the ROI); None: every pixel.
     """
@@ -178,10 +179,11 @@ def _clouds(ranges: np.ndarray, camera: tracking.Camera, options: RangeOptions, 
         if drawn.shape != mask.shape:
             raise RangeCommandError(f"--mask is {drawn.shape} pixels, the range images {mask.shape}")
         mask &= np.asarray(drawn) != 0
-    spacing = options.cloud_spacing
-    if spacing is None:
-        spacing = CLOUD_FOOTPRINTS * camera.footprint(float(np.nanmedian(ranges[0][mask])))
-    return Clouds(tuple(tracking.range_cloud(r, camera, spacing, mask) for r in ranges))
+    depth = float(np.nanmedian(ranges[0][mask])) if np.isfinite(ranges[0][mask]).any() else None
+    if depth is None:
+        raise RangeCommandError("the reference range image has no data inside --roi / --mask")
+    spacing = options.cloud_spacing or CLOUD_FOOTPRINTS * camera.footprint(depth)
+    return Clouds(tuple(tracking.range_cloud(r, camera, spacing, mask, depth) for r in ranges))
 
 
 def _write_lost(out: Path, tracks: tracking.Tracks, why: np.ndarray, kept: np.ndarray) -> None:
