@@ -13,6 +13,7 @@ thinned on a grid of cells, become ``clouds.csv`` (frame 0 the reference shape).
 from __future__ import annotations
 
 import csv
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
@@ -205,6 +206,9 @@ def _write(out: Path, bundle: Bundle, camera: tracking.Camera, quiet: bool, summ
     import tomli_w
 
     write_bundle(out, bundle)
+    mesh = bundle.root / bundle.experiment.domain.path
+    if not (out / mesh.name).is_file():  # write_bundle copies a mesh with observations only
+        shutil.copyfile(mesh, out / mesh.name)
     (out / "camera.toml").write_text("# the range camera `nonrigid track` used (tracking.read_camera reads it)\n"
                                      + tomli_w.dumps(camera.to_toml()), encoding="utf-8")
     path = out / "experiment.toml"

@@ -91,7 +91,7 @@ def surface_triangles(facets: np.ndarray) -> np.ndarray:
 def render_solid(nodes: np.ndarray, facets: np.ndarray, u: np.ndarray | None, camera, shape: tuple[int, int],
                  paint: SurfaceGrid = SurfaceGrid(), *, depth_noise: float = 0.05, supersample: int = 4,
                  blur_sigma: float = 0.8, noise_sigma: float = 2.0, levels: tuple[float, float] = (200.0, 50.0),
-                 background: float = 15.0, ambient: float = 0.3, seed: int = 0) -> SolidView:
+                 background: float = 15.0, ambient: float = 0.3, seed: int = 0, cull: bool = True) -> SolidView:
     """Render a deformed solid's visible surface as intensity and range images, with the truth.
 
     Args:
@@ -108,6 +108,8 @@ def render_solid(nodes: np.ndarray, facets: np.ndarray, u: np.ndarray | None, ca
         background: grey level where no surface is seen.
         ambient: share of the light that does not depend on the surface's slope (Lambertian rest).
         seed: seed of the noises (the range noise uses ``seed + 1``).
+        cull: skip the facets that face away from the camera (needs outward-oriented facets, as
+            ``jaxfem`` meshes' boundary facets are; False for a surface of unknown orientation).
 
     Returns:
         :class:`SolidView`.
@@ -115,14 +117,17 @@ def render_solid(nodes: np.ndarray, facets: np.ndarray, u: np.ndarray | None, ca
     X = np.asarray(nodes, np.float64)
     x = X if u is None else X + np.asarray(u, np.float64)
     tri = surface_triangles(facets)
-    uv, z = camera.project(x[tri])                                       # (m, 3, 2), (m, 3)
     normal = np.cross(x[tri[:, 1]] - x[tri[:, 0]], x[tri[:, 2]] - x[tri[:, 0]])
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
     # light along the viewing direction: the camera's axis (orthographic) or the ray (perspective)
     centre = x[tri].mean(axis=1)
     view = centre - camera.translation if camera.perspective else np.broadcast_to(camera.rotation[:, 2], centre.shape)
     view = view / np.linalg.norm(view, axis=1, keepdims=True)
-    shade = ambient + (1.0 - ambient) * np.abs(np.einsum("ij,ij->i", normal, view))
+    facing = np.einsum("ij,ij->i", normal, view)
+    if cull:                                   # outward facets turned away from the camera are hidden anyway
+        tri, facing = tri[facing < 0], facing[facing < 0]
+    shade = ambient + (1.0 - ambient) * np.abs(facing)
+    uv, z = camera.project(x[tri])                                       # (m, 3, 2), (m, 3)
 
     fine = rasterise(uv, z, shape, supersample, camera.perspective)
     material = fine.interpolate(X[tri])
