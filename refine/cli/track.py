@@ -81,8 +81,9 @@ def add_range_arguments(p: argparse.ArgumentParser) -> None:
     r.add_argument("--camera", metavar="FILE", help="camera file (TOML: model, scale or fx/fy/cx/cy, optional pose)")
     for name in ("fx", "fy", "cx", "cy"):
         r.add_argument(f"--{name}", type=float, metavar="PX", help=f"perspective camera's {name}, px")
-    r.add_argument("--range-order", type=int, choices=(1, 3), default=1,
-                   help="depth interpolation: 1 bilinear from valid pixels (default), 3 bicubic")
+    r.add_argument("--range-order", type=int, choices=(1, 2, 3), default=2,
+                   help="depth lookup: 1 bilinear from valid pixels, 2 least-squares quadratic on the valid "
+                   "pixels of a 5 x 5 window (default: averages the depth noise), 3 bicubic")
     r.add_argument("--range-max-step", type=float, metavar="MM",
                    help="depth spread within a point's support above which it is lost (an occluding edge)")
     r.add_argument("--clouds", action="store_true", help="also write clouds.csv from the range images")

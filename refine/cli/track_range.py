@@ -1,7 +1,8 @@
 """``nonrigid track --range``: intensity images plus range images in, a 3D (solid) bundle out.
 
 Each tracked crossing (grid) or subset centre (speckle) is looked up SUB-PIXEL in its own frame's
-range image (bilinear from valid pixels only, or bicubic; :func:`tracking.range_lookup`) and placed
+range image (a least-squares quadratic on the valid pixels around it, bilinear from valid pixels
+only, or bicubic; :func:`tracking.range_lookup`) and placed
 in 3D by the camera (:class:`tracking.Camera`: orthographic mm per pixel, or perspective fx, fy,
 cx, cy; an optional pose puts the points in the mesh's axes). A point whose depth is missing or
 invalid in a frame is lost there with its reason (``lost.csv``); a point without depth in the
@@ -48,7 +49,8 @@ class RangeOptions:
         camera: the :class:`tracking.Camera` (or a camera file's path).
         mesh: the body's mesh file (any meshio format, in the camera's world axes), copied into the
             bundle as its domain.
-        order: 1 (bilinear on valid pixels) or 3 (bicubic, every pixel of 4 x 4 valid).
+        order: 1 (bilinear on valid pixels), 2 (least-squares quadratic on the valid pixels of a
+            5 x 5 window: averages the depth noise down) or 3 (bicubic, all 4 x 4 pixels valid).
         max_step: largest depth spread within a point's interpolation support (length unit); a
             larger one is an occluding edge and the point is lost there (None: no test).
         clouds: also write ``clouds.csv`` (with tracked points).
@@ -62,7 +64,7 @@ class RangeOptions:
     ranges: object
     camera: object
     mesh: str | Path | None = None
-    order: int = 1
+    order: int = 2
     max_step: float | None = None
     clouds: bool = False
     clouds_only: bool = False

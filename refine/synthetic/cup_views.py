@@ -59,11 +59,12 @@ class CupScene:
 
 
 def cup_camera(model: str = "orthographic", scale: float = 0.1, distance: float = 60.0,
-               centre_px: tuple[float, float] = (100.3, 100.2)) -> tracking.Camera:
+               centre_px: tuple[float, float] = (85.3, 100.2)) -> tracking.Camera:
     """A camera ``distance`` mm below the bottom looking up the axis (camera axes = world axes), the
     axis seen at pixel ``centre_px``; ``scale`` mm per px at the bottom's face (perspective: fx = fy =
-    distance / scale). The default puts the axis 100 px from the left of a 240 px wide image: the
-    bottom's left edge (11 mm = 110 px) is out of view, and so are its top and bottom in 200 rows."""
+    distance / scale). The default puts the axis 85 px from the left of a 240 px wide image: the
+    bottom's left edge (11 mm = 110 px from the axis) is out of view, and so are its top and bottom
+    in 200 rows."""
     cx, cy = centre_px
     if model == "orthographic":
         return tracking.Camera("orthographic", scale=scale, cx=cx, cy=cy, translation=[0.0, 0.0, -distance])
