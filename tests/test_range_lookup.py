@@ -148,3 +148,9 @@ def test_clouds_from_a_range_image_lie_on_the_surface_within_the_noise():
     d = np.sort(np.linalg.norm(cloud[:, None, :2] - cloud[None, :, :2], axis=-1), axis=1)[:, 1]
     assert 0.25 * spacing < np.median(d) <= 1.05 * spacing
     assert cell_pixels(camera, spacing, 50.0) == 4
+    step = noisy.copy()
+    step[:, 50:] += 8.0                                     # an occluding edge through the cells at column 50
+    cells = range_cloud(step, camera, 0.6, mask)            # 6 px cells: the edge cuts cells 48..53 in two
+    uv, depth = camera.project(cells)
+    truth = curved(*uv.T) + np.where(uv[:, 0] >= 50, 8.0, 0.0)
+    assert np.abs(depth - truth).max() < 0.2, np.abs(depth - truth).max()   # no point between the surfaces

@@ -25,13 +25,15 @@ def cell_pixels(camera: Camera, spacing: float, depth: float) -> int:
 
 
 def range_cloud(range_image: np.ndarray, camera: Camera, spacing: float, mask: np.ndarray | None = None,
-                depth: float | None = None) -> np.ndarray:
+                depth: float | None = None, max_step: float | None = None) -> np.ndarray:
     """The surface a range image sees, as 3D points in the camera's world axes, one per cell.
 
     Every pixel with data (finite depth) inside ``mask`` is placed in 3D by ``camera``
     (:meth:`Camera.to_world`); the image is cut into square cells of :func:`cell_pixels` pixels
     (``spacing`` at ``depth``) from its top-left corner (the same cells in every frame), and each
-    cell holding data gives the mean of its points.
+    cell holding data gives the mean of its points whose depth lies within ``max_step`` of the
+    cell's median depth (where a cell straddles an occluding edge, the surface seen by most of its
+    pixels wins, and no point is invented between the two surfaces).
 
     Args:
         range_image: ``(rows, cols)`` depth, NaN where no data (:func:`tracking.load_range_images`).
@@ -39,6 +41,8 @@ def range_cloud(range_image: np.ndarray, camera: Camera, spacing: float, mask: n
         spacing: the points' spacing on the surface (seen square on), the camera's length unit.
         mask: ``(rows, cols)`` bool, the pixels to use (an ROI or a drawn mask); None: all.
         depth: the depth at which a cell spans ``spacing`` (perspective); None: the median depth.
+        max_step: largest depth difference from the cell's median (length unit); None: 2 x spacing
+            (a surface steeper than ~60 degrees to the view keeps only its middle within a cell).
 
     Returns:
         ``(m, 3)`` points, in the cells' row-major order.
@@ -59,6 +63,13 @@ def range_cloud(range_image: np.ndarray, camera: Camera, spacing: float, mask: n
     points = camera.to_world(np.stack([cols, rows], axis=1).astype(np.float64), z[rows, cols])
     side = cell_pixels(camera, spacing, float(np.median(z[keep])) if depth is None else depth)
     cell = (rows // side) * (z.shape[1] // side + 1) + cols // side
+    d = z[rows, cols]
+    order = np.lexsort((d, cell))
+    _, start, counts = np.unique(cell[order], return_index=True, return_counts=True)
+    median = d[order][start + counts // 2]
+    _, inverse = np.unique(cell, return_inverse=True)
+    near = np.abs(d - median[inverse.ravel()]) <= (2.0 * spacing if max_step is None else max_step)
+    points, cell = points[near], cell[near]
     _, inverse, counts = np.unique(cell, return_inverse=True, return_counts=True)
     sums = np.stack([np.bincount(inverse.ravel(), weights=points[:, a], minlength=len(counts)) for a in range(3)], 1)
     return sums / counts[:, None]

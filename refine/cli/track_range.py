@@ -52,7 +52,8 @@ class RangeOptions:
         order: 1 (bilinear on valid pixels), 2 (least-squares quadratic on the valid pixels of a
             5 x 5 window: averages the depth noise down) or 3 (bicubic, all 4 x 4 pixels valid).
         max_step: largest depth spread within a point's interpolation support (length unit); a
-            larger one is an occluding edge and the point is lost there (None: no test).
+            larger one is an occluding edge and the point is lost there (None: no test). Clouds:
+            largest depth difference from a cell's median depth (None: 2 x the spacing).
         clouds: also write ``clouds.csv`` (with tracked points).
         clouds_only: write ``clouds.csv`` only: no images, no pattern tracked.
         cloud_spacing: spacing of the clouds' points (length unit; cells of pixels of that side at the
@@ -186,7 +187,7 @@ def _clouds(ranges: np.ndarray, camera: tracking.Camera, options: RangeOptions, 
     if depth is None:
         raise RangeCommandError("the reference range image has no data inside --roi / --mask")
     spacing = options.cloud_spacing or CLOUD_FOOTPRINTS * camera.footprint(depth)
-    return Clouds(tuple(tracking.range_cloud(r, camera, spacing, mask, depth) for r in ranges))
+    return Clouds(tuple(tracking.range_cloud(r, camera, spacing, mask, depth, options.max_step) for r in ranges))
 
 
 def _write_lost(out: Path, tracks: tracking.Tracks, why: np.ndarray, kept: np.ndarray) -> None:

@@ -111,3 +111,51 @@ def painted_crossings(scene: CupScene, cup: jf.CupHolder, displacements, margin:
 def _area(X, facets) -> float:
     a, b, c = X[facets[:, 0]], X[facets[:, 1]], X[facets[:, 2]]
     return 0.5 * float(np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
+
+
+def write_frames(views, directory) -> tuple[list, list]:
+    """Write rendered frames as ``img_K.png`` (8-bit) and ``range_K.npy`` (float32 mm, NaN: no data)
+    into ``directory`` (created); returns the image paths and the range paths."""
+    import cv2
+    from pathlib import Path
+
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    images, ranges = [], []
+    for k, view in enumerate(views):
+        images.append(directory / f"img_{k}.png")
+        ranges.append(directory / f"range_{k}.npy")
+        cv2.imwrite(str(images[-1]), np.clip(np.rint(view.image), 0, 255).astype(np.uint8))
+        np.save(ranges[-1], view.range.astype(np.float32))
+    return images, ranges
+
+
+def crossing_errors(reference: np.ndarray, displacements: np.ndarray, truth: np.ndarray) -> dict:
+    """How far tracked 3D points lie from the painted crossings they track.
+
+    Args:
+        reference: ``(n, 3)`` tracked reference positions (points.csv), mm.
+        displacements: ``(n_frames, n, 3)`` tracked displacements (NaN where lost), mm.
+        truth: ``(n_frames + 1, m, 3)`` :func:`painted_crossings`.
+
+    Returns:
+        ``{"matched": largest distance to the nearest true crossing in the reference, "rms_xy",
+        "rms_z", "max_z": per frame from 0 (positions), "rms_uz": per deformed frame (displacement
+        along the axis), "lost": per deformed frame}``, mm.
+    """
+    from scipy.spatial import cKDTree
+
+    distance, match = cKDTree(truth[0]).query(reference)
+    positions = np.concatenate([reference[None], reference[None] + displacements])
+    out = {"matched": float(distance.max()), "rms_xy": [], "rms_z": [], "max_z": [], "rms_uz": [], "lost": []}
+    for f, p in enumerate(positions):
+        ok = np.isfinite(p).all(axis=1)
+        e = p[ok] - truth[f][match[ok]]
+        out["rms_xy"].append(float(np.sqrt(np.mean(np.sum(e[:, :2] ** 2, axis=1)))))
+        out["rms_z"].append(float(np.sqrt(np.mean(e[:, 2] ** 2))))
+        out["max_z"].append(float(np.abs(e[:, 2]).max()))
+        if f:
+            du = displacements[f - 1, ok, 2] - (truth[f][match[ok], 2] - truth[0][match[ok], 2])
+            out["rms_uz"].append(float(np.sqrt(np.mean(du ** 2))))
+            out["lost"].append(int((~ok).sum()))
+    return out
