@@ -7,6 +7,8 @@ tracked by ``nonrigid track --range``; and the same range images as clouds.
 Slow (a 3D solve, ~20 s, and rendering): benchmarks/range_front.py measures the figures over
 cameras, lookups and noise levels."""
 
+import csv
+
 import numpy as np
 import pytest
 
@@ -24,7 +26,7 @@ NOISE = 0.05
 @pytest.mark.slow
 def test_solved_cup_holder_through_track_range_and_clouds(tmp_path):
     scene = CupScene(hole=random_hole(7), camera=cup_camera("perspective"), depth_noise=NOISE)
-    cup, U = compressed_cup(scene, forces=(1.0, 2.0), h=2.0)
+    cup, U = compressed_cup(scene, forces=(1.5, 3.0), h=2.0)
     views = render_cup(scene, cup, U, seed=1)
     truth = painted_crossings(scene, cup, U)
     images, ranges = write_frames(views, tmp_path / "frames")
@@ -39,7 +41,11 @@ def test_solved_cup_holder_through_track_range_and_clouds(tmp_path):
     # the quadratic lookup averages ~24 noisy pixels: depth error well under the noise; in-plane error:
     # the tracker's ~0.05 px plus the depth error carried by the perspective rays (|u - cx| / fx x dz)
     assert err["matched"] < 0.2 and max(err["rms_z"]) < 0.6 * NOISE and max(err["max_z"]) < 3 * NOISE, err
-    assert max(err["rms_xy"]) < 0.01 and max(err["rms_uz"]) < 0.8 * NOISE and err["lost"] == [0, 0], err
+    assert max(err["rms_xy"]) < 0.01 and max(err["rms_uz"]) < 0.8 * NOISE and max(err["lost"]) <= 0.05 * obs.n_points
+    listed = {(int(f), int(i)) for f, i, *_ in csv.reader(open(tmp_path / "B" / "lost.csv")) if f != "frame"}
+    for f in range(2):                           # every lost point is in lost.csv with its reason
+        lost_ids = obs.ids[np.isnan(obs.displacements[f]).any(axis=1)]
+        assert {(f + 1, int(i)) for i in lost_ids} <= listed
     for k, cloud in enumerate(bundle.clouds.points):
         uv, depth = scene.camera.project(cloud)
         true, lost = tracking.range_lookup(views[k].position[..., 2] - scene.camera.translation[2], uv)
