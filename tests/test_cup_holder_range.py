@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 
 import jaxfem as jf
-import tracking
 from refine.cli.track import track
 from refine.cli.track_range import RangeOptions
 from refine.synthetic.cup_views import (CupScene, compressed_cup, crossing_errors, cup_camera, painted_crossings,
                                         render_cup, write_frames)
+from refine.synthetic.solid_render import surface_distance
 from tests.test_cup_holder import random_hole
 
 NOISE = 0.05
@@ -46,8 +46,7 @@ def test_solved_cup_holder_through_track_range_and_clouds(tmp_path):
     for f in range(2):                           # every lost point is in lost.csv with its reason
         lost_ids = obs.ids[np.isnan(obs.displacements[f]).any(axis=1)]
         assert {(f + 1, int(i)) for i in lost_ids} <= listed
-    for k, cloud in enumerate(bundle.clouds.points):
-        uv, depth = scene.camera.project(cloud)
-        true, lost = tracking.range_lookup(views[k].position[..., 2] - scene.camera.translation[2], uv)
-        e = (depth - true)[~lost]
-        assert (~lost).mean() > 0.9 and np.sqrt(np.mean(e ** 2)) < 0.5 * NOISE, (k, np.sqrt(np.mean(e ** 2)))
+    for k, (cloud, u) in enumerate(zip(bundle.clouds.points, [None, *U])):
+        distance = surface_distance(cloud, cup.mesh.nodes, cup.mesh.boundary_facets(), u)
+        # 25 pixels per point: ~noise / 5, also at the hole's edge; a silhouette cell may hold one pixel
+        assert np.sqrt(np.mean(distance ** 2)) < 0.4 * NOISE and distance.max() < 3 * NOISE, (k, distance.max())

@@ -41,8 +41,10 @@ def range_cloud(range_image: np.ndarray, camera: Camera, spacing: float, mask: n
         spacing: the points' spacing on the surface (seen square on), the camera's length unit.
         mask: ``(rows, cols)`` bool, the pixels to use (an ROI or a drawn mask); None: all.
         depth: the depth at which a cell spans ``spacing`` (perspective); None: the median depth.
-        max_step: largest depth difference from the cell's median (length unit); None: 2 x spacing
-            (a surface steeper than ~60 degrees to the view keeps only its middle within a cell).
+        max_step: largest depth difference from the cell's median (length unit); None: spacing / 2
+            (a surface tilted more than 45 degrees from the view keeps the middle of each cell, and
+            at a crease the face most of the cell sees wins; give more where the depth noise is
+            not well below spacing / 2).
 
     Returns:
         ``(m, 3)`` points, in the cells' row-major order.
@@ -68,7 +70,7 @@ def range_cloud(range_image: np.ndarray, camera: Camera, spacing: float, mask: n
     _, start, counts = np.unique(cell[order], return_index=True, return_counts=True)
     median = d[order][start + counts // 2]
     _, inverse = np.unique(cell, return_inverse=True)
-    near = np.abs(d - median[inverse.ravel()]) <= (2.0 * spacing if max_step is None else max_step)
+    near = np.abs(d - median[inverse.ravel()]) <= (0.5 * spacing if max_step is None else max_step)
     points, cell = points[near], cell[near]
     _, inverse, counts = np.unique(cell, return_inverse=True, return_counts=True)
     sums = np.stack([np.bincount(inverse.ravel(), weights=points[:, a], minlength=len(counts)) for a in range(3)], 1)

@@ -8,6 +8,11 @@ by ``--origin``). The tracked points' outer ring becomes the boundary (the paper
 domain is the outline through that ring: a rectangle when the ring is one (to 2 % of the point
 spacing), else a polygon through the ring points. The model sections of experiment.toml come from
 the flags and are only a starting point, which the file says in a comment.
+
+With range images (``--range RANGE_IMAGES --mesh BODY`` and a camera: ``--scale``, ``--fx --fy --cx
+--cy`` or ``--camera FILE``) every tracked point is looked up sub-pixel in its frame's range image
+and the bundle is 3D (``kind = "solid"``; see refine.cli.track_range); ``--clouds-only`` writes
+clouds.csv from the range images alone.
 """
 
 from __future__ import annotations

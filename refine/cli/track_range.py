@@ -53,7 +53,7 @@ class RangeOptions:
             5 x 5 window: averages the depth noise down) or 3 (bicubic, all 4 x 4 pixels valid).
         max_step: largest depth spread within a point's interpolation support (length unit); a
             larger one is an occluding edge and the point is lost there (None: no test). Clouds:
-            largest depth difference from a cell's median depth (None: 2 x the spacing).
+            largest depth difference from a cell's median depth (None: half the spacing).
         clouds: also write ``clouds.csv`` (with tracked points).
         clouds_only: write ``clouds.csv`` only: no images, no pattern tracked.
         cloud_spacing: spacing of the clouds' points (length unit; cells of pixels of that side at the

@@ -146,3 +146,52 @@ def render_solid(nodes: np.ndarray, facets: np.ndarray, u: np.ndarray | None, ca
     centres = fine if s == 1 else rasterise(uv, z, shape, 1, camera.perspective)
     depth = centres.depth + (np.random.default_rng(seed + 1).normal(0.0, depth_noise, shape) if depth_noise > 0 else 0)
     return SolidView(np.clip(image, 0.0, 255.0), depth, centres.interpolate(X[tri]), centres.interpolate(x[tri]))
+
+
+def surface_distance(points: np.ndarray, nodes: np.ndarray, facets: np.ndarray, u: np.ndarray | None = None,
+                     samples: int = 6, candidates: int = 8) -> np.ndarray:
+    """Distance from ``points`` ``(p, 3)`` to a deformed body's surface (the truth of a cloud), ``(p,)``.
+
+    The surface's flat triangles (:func:`surface_triangles`, moved by ``u``) are sampled on a
+    barycentric lattice of ``samples`` steps per side; the triangles of a point's ``candidates``
+    nearest samples are its candidates, and its distance is the exact point-to-triangle distance to
+    the nearest of them.
+    """
+    from scipy.spatial import cKDTree
+
+    x = np.asarray(nodes, np.float64) + (0.0 if u is None else np.asarray(u, np.float64))
+    tri = surface_triangles(facets)
+    corners = x[tri]                                                                       # (m, 3, 3)
+    i, j = np.meshgrid(np.arange(samples + 1), np.arange(samples + 1), indexing="ij")
+    keep = i + j <= samples
+    bary = np.stack([i[keep], j[keep], samples - i[keep] - j[keep]], axis=1) / samples     # (s, 3)
+    cloud = np.einsum("sk,mkd->msd", bary, corners).reshape(-1, 3)
+    owner = np.repeat(np.arange(len(tri)), len(bary))
+    _, nearest = cKDTree(cloud).query(np.asarray(points, np.float64), k=candidates)
+    P = np.asarray(points, np.float64)[:, None, :]
+    A, B, C = (corners[owner[nearest]][..., k, :] for k in range(3))                     # (p, k, 3)
+    return _triangle_distance(P, A, B, C).min(axis=1)
+
+
+def _triangle_distance(P, A, B, C) -> np.ndarray:
+    """Exact distance from points P to triangles ABC (broadcast ``(..., 3)``): to the plane where the
+    foot lies inside, else to the nearest edge."""
+    n = np.cross(B - A, C - A)
+    area2 = np.einsum("...d,...d->...", n, n)
+    n_hat = n / np.sqrt(np.maximum(area2, 1e-300))[..., None]
+    h = np.einsum("...d,...d->...", P - A, n_hat)
+    foot = P - h[..., None] * n_hat
+
+    def side(a, b):
+        return np.einsum("...d,...d->...", np.cross(b - a, foot - a), n)
+
+    inside = (side(A, B) >= 0) & (side(B, C) >= 0) & (side(C, A) >= 0) & (area2 > 0)
+
+    def segment(a, b):
+        ab = b - a
+        t = np.clip(np.einsum("...d,...d->...", P - a, ab) / np.maximum(np.einsum("...d,...d->...", ab, ab), 1e-300),
+                    0.0, 1.0)
+        return np.linalg.norm(P - (a + t[..., None] * ab), axis=-1)
+
+    edges = np.minimum(np.minimum(segment(A, B), segment(B, C)), segment(C, A))
+    return np.where(inside, np.abs(h), edges)
