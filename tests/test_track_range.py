@@ -151,6 +151,14 @@ def test_clouds_only_lie_on_the_true_surface_within_the_noise(scene_files, tmp_p
         # 16 pixels per point: ~noise / 4 (measured 0.013 mm RMS); a cell on the bottom's silhouette
         # may hold a single pixel: its full noise (measured at most 0.10 mm, 2 noise)
         assert np.sqrt(np.mean(distance ** 2)) < 0.4 * NOISE and distance.max() < 3 * NOISE, (k, distance.max())
+    mask = np.zeros(scene.shape, np.uint8)
+    mask[:, 120:] = 255                                         # a drawn mask: the right half only
+    cv2.imwrite(str(tmp_path / "mask.png"), mask)
+    assert main(["track", "--clouds-only", "--range", *[str(root / f"range_{k}.npy") for k in range(3)],
+                 "--mesh", str(root / "cup.vtu"), "--scale", "0.1", "--origin", "85.3,100.2", "--out",
+                 str(tmp_path / "M"), "--mask", str(tmp_path / "mask.png")]) == 0
+    half = read_bundle(tmp_path / "M").clouds.points[0]
+    assert half[:, 0].min() > (119.5 - 85.3) * 0.1 and len(half) > 300   # default spacing: 3 px = 0.3 mm
 
 
 def test_speckle_subset_centres_are_looked_up_in_3d(tmp_path):
