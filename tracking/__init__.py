@@ -4,7 +4,9 @@ Images go in, :class:`Tracks` (identities, positions per frame, lost flags, qual
 nothing here knows of finite elements.
 
     tracks = track_images(load_images(paths), pattern="grid", roi=(40, 30, 600, 420))
-    xyz, lost = points_3d(tracks, range_images)            # with range images
+    ranges, _ = load_range_images("scans/*.npy")           # depth in mm, NaN where no data
+    camera = Camera("perspective", fx=2400.0, fy=2400.0, cx=320.0, cy=240.0)
+    xyz, lost = points_3d(tracks, ranges, order=2, camera=camera)   # 3D, sub-pixel, holes lost
     mm = tracks.to_length(scale_from_grid(tracks, pitch_mm=2.0))
 """
 
