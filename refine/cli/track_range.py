@@ -29,7 +29,7 @@ from refine.bundle.experiment import Experiment, MeshDomain
 from refine.bundle.from_tracks import ModelSkeleton
 from refine.bundle.io import Bundle, read_bundle, write_bundle
 from refine.bundle.observations import Observations
-from refine.bundle.roles import ROLES, assign_roles
+from refine.bundle.roles import ROLES, assign_roles, point_spacing
 from refine.exceptions import RefineError
 
 CLOUD_FOOTPRINTS = 3.0  # default cloud spacing, in pixel footprints at the reference frame's median depth
@@ -137,10 +137,13 @@ def track_range(images: Sequence, out: Path, options: RangeOptions, *, pattern: 
 
     written = write_overlays(stack, tracks, bundle, None, None, Path(overlays or out / "overlays"), roi)
     counts = ", ".join(f"{int(np.sum(roles == r))} {r}" for r in ROLES)
+    off = _off_mesh(mesh, obs.reference)
     summary = (f"tracked {tracks.n_points} points through {tracks.n_frames} images and range images: {counts}\n"
                f"  lost per frame (tracking or range): {' '.join(f'{k}:{int(n)}' for k, n in enumerate(lost.sum(1)))}\n"
                f"  left out {int((~kept).sum())} points without range in the reference frame "
                f"({tracking_reasons(why[0])}); every lost point and its reason: lost.csv\n"
+               f"  reference points off {mesh.name}'s surface: median {np.median(off):.3g}, max {off.max():.3g} mm"
+               f"{_pose_hint(off, obs.reference)}\n"
                f"wrote {out} (experiment.toml kind = \"solid\", {mesh.name}, points.csv, displacements.csv"
                f"{', clouds.csv' if clouds else ''}, lost.csv, camera.toml) and {len(written)} overlays")
     return _write(out, bundle, camera, quiet, summary)
@@ -150,6 +153,24 @@ def tracking_reasons(codes: np.ndarray) -> str:
     """``"3 no range data (...), 1 ..."`` for the non-zero ``codes``; ``"none"`` without any."""
     counts = lost_codes.reason_counts(codes)
     return ", ".join(f"{n} {why}" for why, n in counts.items()) or "none"
+
+
+def _off_mesh(mesh: Path, points: np.ndarray) -> np.ndarray:
+    """Each point's distance to the mesh's surface (a wrong camera pose shows here first), ``(n,)``."""
+    import jaxfem as jf
+
+    from refine.synthetic.solid_render import surface_distance
+
+    body = jf.read_mesh(mesh)
+    if body.nodes.shape[1] != 3:
+        raise RangeCommandError(f"--mesh {mesh} is a {body.nodes.shape[1]}D mesh; a solid bundle needs a 3D one")
+    return surface_distance(points, body.nodes, body.boundary_facets())
+
+
+def _pose_hint(off: np.ndarray, points: np.ndarray) -> str:
+    spacing = point_spacing(points)
+    return (f" (more than the point spacing {spacing:.3g}: check the camera's pose, rotation and translation, "
+            "which carry camera axes to the mesh's)") if np.median(off) > spacing else ""
 
 
 def _camera(camera) -> tracking.Camera:
