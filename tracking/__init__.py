@@ -4,7 +4,9 @@ Images go in, :class:`Tracks` (identities, positions per frame, lost flags, qual
 nothing here knows of finite elements.
 
     tracks = track_images(load_images(paths), pattern="grid", roi=(40, 30, 600, 420))
-    xyz, lost = points_3d(tracks, range_images)            # with range images
+    ranges, _ = load_range_images("scans/*.npy")           # depth in mm, NaN where no data
+    camera = Camera("perspective", fx=2400.0, fy=2400.0, cx=320.0, cy=240.0)
+    xyz, lost = points_3d(tracks, ranges, order=2, camera=camera)   # 3D, sub-pixel, holes lost
     mm = tracks.to_length(scale_from_grid(tracks, pitch_mm=2.0))
 """
 
@@ -15,7 +17,10 @@ from ._grid_tracker import REFINERS, GridTracker
 from ._images import image_paths, load_images, natural_key, roi_mask
 from ._lost import LOST_REASONS
 from ._pattern_mask import material_outline, pattern_mask
+from ._camera import Camera, camera_from_table, read_camera
 from ._range import points_3d, range_lookup
+from ._range_cloud import cell_pixels, range_cloud
+from ._range_io import load_range_images, range_paths
 from ._snake import SnakeOptions
 from ._speckle_tracker import SpeckleTracker
 from ._synthetic import (GridPattern, Scene, SpecklePattern, clamped_displacement, creased_displacement,
@@ -32,4 +37,5 @@ __all__ = [
     "TrackingError", "ImageError", "RoiError", "GridNotFoundError", "OptionError",
     "read_dice", "write_dice", "read_displacement_csv", "ExportError", "image_paths", "natural_key",
     "Scene", "clamped_displacement", "LOST_REASONS", "pattern_mask", "material_outline",
+    "Camera", "read_camera", "camera_from_table", "load_range_images", "range_paths", "range_cloud", "cell_pixels",
 ]

@@ -20,6 +20,8 @@ LEFT_IMAGE = 6      # its pattern left the image
 NOT_SEEN = 7        # its neighbourhood gave nothing to measure (no detection, no start)
 NO_RANGE = 8        # no depth: the range image has a hole (NaN, inf, the scanner's no-data code) there
 OFF_RANGE = 9       # its depth interpolation reaches beyond the range image's edge
+RANGE_EDGE = 10     # its depth support straddles an occluding edge (a jump over the allowed step)
+NO_REFERENCE = 11   # not measured in the reference frame (frame 0), so it has no reference position
 
 LOST_REASONS = {
     MEASURED: "measured",
@@ -32,6 +34,8 @@ LOST_REASONS = {
     NOT_SEEN: "nothing to measure",
     NO_RANGE: "no range data (hole in the range image)",
     OFF_RANGE: "outside the range image",
+    RANGE_EDGE: "depth jumps within its range support (occluding edge)",
+    NO_REFERENCE: "not measured in the reference frame",
 }
 
 

@@ -8,6 +8,11 @@ by ``--origin``). The tracked points' outer ring becomes the boundary (the paper
 domain is the outline through that ring: a rectangle when the ring is one (to 2 % of the point
 spacing), else a polygon through the ring points. The model sections of experiment.toml come from
 the flags and are only a starting point, which the file says in a comment.
+
+With range images (``--range RANGE_IMAGES --mesh BODY`` and a camera: ``--scale``, ``--fx --fy --cx
+--cy`` or ``--camera FILE``) every tracked point is looked up sub-pixel in its frame's range image
+and the bundle is 3D (``kind = "solid"``; see refine.cli.track_range); ``--clouds-only`` writes
+clouds.csv from the range images alone.
 """
 
 from __future__ import annotations
@@ -39,8 +44,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     """Add the ``track`` sub-command to ``subparsers`` (from ``ArgumentParser.add_subparsers``)."""
     p = subparsers.add_parser("track", help="track a grid or speckle pattern through images into a bundle",
                               description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("images", nargs="+", help="image files, folders or glob patterns (natural order); the first "
-                   "image is the reference (frame 0) unless --reference says otherwise")
+    p.add_argument("images", nargs="*", help="image files, folders or glob patterns (natural order); the first "
+                   "image is the reference (frame 0) unless --reference says otherwise (none with --clouds-only)")
     p.add_argument("--out", required=True, metavar="BUNDLE", help="bundle directory to write")
     p.add_argument("--pattern", choices=sorted(tracking.TRACKERS), default="grid", help="painted grid or speckle")
     scale = p.add_mutually_exclusive_group()
@@ -51,6 +56,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="tracked region in pixels of the first image (default: all of it)")
     p.add_argument("--origin", default="0,0", metavar="X,Y", help="pixel of the first image that becomes (0, 0) mm")
     add_model_arguments(p)
+    add_range_arguments(p)
     p.add_argument("--overlays", metavar="DIR", help="directory of the overlay images (default: BUNDLE/overlays)")
     p.add_argument("--reference", type=int, default=0, metavar="K",
                    help="which image is the reference (frame 0), counted from 0 (default: the first)")
@@ -69,6 +75,40 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     t.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="any other tracker field")
     p.set_defaults(run=run)
     return p
+
+
+def add_range_arguments(p: argparse.ArgumentParser) -> None:
+    """The flags of 3D tracking with range images (refine.cli.track_range)."""
+    r = p.add_argument_group("range images: 3D points (a solid bundle) or clouds (docs/measurement-bundle.md)")
+    r.add_argument("--range", nargs="+", metavar="RANGE", dest="ranges",
+                   help="range images (.npy or 32-bit float TIFF, depth in mm, NaN or 0 = no data), one per image")
+    r.add_argument("--mesh", metavar="FILE", help="the body's mesh (any meshio format), copied as the bundle's domain")
+    r.add_argument("--camera", metavar="FILE", help="camera file (TOML: model, scale or fx/fy/cx/cy, optional pose)")
+    for name in ("fx", "fy", "cx", "cy"):
+        r.add_argument(f"--{name}", type=float, metavar="PX", help=f"perspective camera's {name}, px")
+    r.add_argument("--range-order", type=int, choices=(1, 2, 3), default=2,
+                   help="depth lookup: 1 bilinear from valid pixels, 2 least-squares quadratic on the valid "
+                   "pixels of a 5 x 5 window (default: averages the depth noise), 3 bicubic")
+    r.add_argument("--range-max-step", type=float, metavar="MM",
+                   help="depth spread within a point's support above which it is lost (an occluding edge)")
+    r.add_argument("--clouds", action="store_true", help="also write clouds.csv from the range images")
+    r.add_argument("--clouds-only", action="store_true", help="no images: write clouds.csv from the range images only")
+    r.add_argument("--cloud-spacing", type=float, metavar="MM", help="spacing of the clouds' points (default 3 pixels)")
+    r.add_argument("--mask", metavar="IMAGE", help="clouds: image whose non-zero pixels are used (with --roi)")
+
+
+def range_from_arguments(args: argparse.Namespace):
+    """The :class:`~refine.cli.track_range.RangeOptions` of the flags, or None without --range."""
+    if not args.ranges:
+        if args.clouds_only or args.clouds or args.mesh:
+            raise TrackCommandError("--clouds, --clouds-only and --mesh go with --range RANGE_IMAGES")
+        return None
+    from refine.cli.track_range import RangeOptions, camera_from_options
+
+    camera = camera_from_options(args.camera, args.scale, _numbers(args.origin, 2, "--origin X,Y"), args.fx, args.fy,
+                                 args.cx, args.cy)
+    return RangeOptions(args.ranges, camera, args.mesh, args.range_order, args.range_max_step, args.clouds,
+                        args.clouds_only, args.cloud_spacing, args.mask)
 
 
 def add_model_arguments(p: argparse.ArgumentParser) -> None:
@@ -98,7 +138,8 @@ def run(args: argparse.Namespace) -> int:
     2 with a message on stderr when the input cannot be used."""
     try:
         model = model_from_arguments(args)
-        track(args.images, args.out, pattern=args.pattern, scale=args.scale, grid_pitch=args.grid_pitch,
+        ranges = range_from_arguments(args)
+        track(args.images, args.out, ranges=ranges, pattern=args.pattern, scale=args.scale, grid_pitch=args.grid_pitch,
               roi=args.roi, origin=args.origin, name=args.name, model=model,
               validate_fraction=args.validate_fraction, seed=args.seed, overlays=args.overlays,
               tracker_options=_tracker_options(args), cut_holes=not args.keep_holes, reference=args.reference)
@@ -112,7 +153,7 @@ def track(images: Sequence[str | Path], out: str | Path, *, pattern: str = "grid
           grid_pitch: float | None = None, roi=None, origin=(0.0, 0.0), name: str | None = None,
           model: ModelSkeleton = ModelSkeleton(), validate_fraction: float = 0.2, seed: int = 0,
           overlays: str | Path | None = None, tracker_options: dict | None = None, cut_holes: bool = True,
-          reference: int = 0, quiet: bool = False) -> Bundle:
+          reference: int = 0, quiet: bool = False, ranges=None) -> Bundle:
     """Track a painted grid or a speckle pattern through image files and write a measurement bundle.
 
     What ``nonrigid track`` does. ``images[0]`` is the reference (frame 0); bundle coordinates are
@@ -139,6 +180,8 @@ def track(images: Sequence[str | Path], out: str | Path, *, pattern: str = "grid
             from the bundle's domain (``model.domain.holes``), so the model follows the material;
             False leaves the domain whole (to let ``nonrigid diagnose`` find a hole).
         quiet: do not print the summary.
+        ranges: :class:`refine.cli.track_range.RangeOptions`: range images, camera and mesh, for a 3D
+            (solid) bundle of the points' 3D positions, or of clouds only; None: a 2D bundle.
 
     Returns:
         The bundle as read back from ``out``.
@@ -148,6 +191,9 @@ def track(images: Sequence[str | Path], out: str | Path, *, pattern: str = "grid
         tracking.TrackingError: the images cannot be tracked as asked (unreadable, ROI outside).
         refine.exceptions.RefineError: the model or the tracked points cannot make a bundle.
     """
+    if ranges is not None:
+        return _track_range(images, out, ranges, pattern, grid_pitch, roi, name, model, validate_fraction, seed,
+                            overlays, tracker_options, reference, quiet)
     if scale is None and grid_pitch is None:
         raise TrackCommandError("give the image scale: --scale MM_PER_PX, or --grid-pitch MM for a grid of known pitch")
     if grid_pitch is not None and pattern != "grid":
@@ -181,6 +227,23 @@ def track(images: Sequence[str | Path], out: str | Path, *, pattern: str = "grid
     if not quiet:
         _summary(tracks, bundle, scale, dropped, out, written)
     return read_bundle(out)
+
+
+def _track_range(images, out, ranges, pattern, grid_pitch, roi, name, model, validate_fraction, seed, overlays,
+                 tracker_options, reference, quiet) -> Bundle:
+    from refine.cli.track_range import track_range
+
+    if grid_pitch is not None:
+        raise TrackCommandError("--grid-pitch does not go with --range: the camera gives the 3D scale")
+    if not ranges.clouds_only and not images:
+        raise TrackCommandError("give the intensity images to track (or --clouds-only for clouds from range alone)")
+    Experiment(name="check", kind="plane-stress", domain=RectangleDomain(0.0, 0.0, 1.0, 1.0), law=model.law,
+               E=model.E, nu=model.nu)
+    out = Path(out)
+    return track_range(images, out, ranges, pattern=pattern, name=name or out.resolve().name, model=model,
+                       roi=None if roi is None else _numbers(roi, 4, "--roi X0,Y0,X1,Y1"),
+                       validate_fraction=validate_fraction, seed=seed, overlays=overlays,
+                       tracker_options=tracker_options or {}, reference=reference, quiet=quiet)
 
 
 def _numbers(text, count: int, what: str) -> tuple[float, ...]:

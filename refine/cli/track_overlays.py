@@ -22,7 +22,8 @@ def write_overlays(stack: np.ndarray, tracks, bundle: Bundle, scale: float, orig
     Args:
         stack: images ``(n_frames, rows, cols)``.
         tracks: the :class:`tracking.Tracks` in pixels; ``bundle`` the bundle made of them, in mm
-            with ``scale`` (mm/px) and ``origin`` (px).
+            with ``scale`` (mm/px) and ``origin`` (px); ``scale`` None: a 3D bundle (range images),
+            whose domain (a mesh) is not drawn.
         directory: where the PNGs go (created if missing).
         roi: the tracked region ``(x0, y0, x1, y1)`` in pixels, drawn on frame 0; None: not drawn.
 
@@ -47,11 +48,12 @@ def write_overlays(stack: np.ndarray, tracks, bundle: Bundle, scale: float, orig
         xy = tracks.positions[k]
         ax.scatter(xy[ok, 0], xy[ok, 1], s=marker ** 2, c=colours[ok], linewidths=0)
         if k == 0:
-            outline_px = _domain_outline(bundle.experiment.domain) / scale + np.asarray(origin)
-            ax.plot(*np.vstack([outline_px, outline_px[:1]]).T, "k-", lw=1)
-            for hole in getattr(bundle.experiment.domain, "holes", ()):
-                hole_px = np.asarray(hole) / scale + np.asarray(origin)
-                ax.plot(*np.vstack([hole_px, hole_px[:1]]).T, "k--", lw=1)
+            if scale is not None:  # a 3D bundle (range images) has a mesh, no outline in pixels
+                outline_px = _domain_outline(bundle.experiment.domain) / scale + np.asarray(origin)
+                ax.plot(*np.vstack([outline_px, outline_px[:1]]).T, "k-", lw=1)
+                for hole in getattr(bundle.experiment.domain, "holes", ()):
+                    hole_px = np.asarray(hole) / scale + np.asarray(origin)
+                    ax.plot(*np.vstack([hole_px, hole_px[:1]]).T, "k--", lw=1)
             if roi is not None:
                 x0, y0, x1, y1 = roi
                 ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], "y--", lw=1)
