@@ -121,8 +121,8 @@ def _corner_neighbours(mesh: Mesh, cells: np.ndarray, rings: int = 2) -> np.ndar
             near = {d for e in near for n in corners[e] for d in incidence[n]}
         return [c] + sorted(near - {c})
 
-    memo = {}
-    rows = [memo.setdefault(c, around(c)) for c in cells]
+    memo: dict[int, list[int]] = {}
+    rows = [memo[c] if c in memo else memo.setdefault(c, around(c)) for c in cells]
     m = max(len(r) for r in rows)
     return np.array([r + [r[0]] * (m - len(r)) for r in rows], dtype=np.int64)
 
@@ -141,19 +141,7 @@ def locate(mesh: Mesh, points, tol: float = 1e-6, names=None) -> Probe:
     """
     pts = np.asarray(points, np.float64)
     el = mesh.el
-    cent = mesh.centroids()
-    tree = cKDTree(cent)
-    k = min(24, mesh.n_cells)
-    _, cand = tree.query(pts, k=k)
-    cand = cand.reshape(len(pts), k)
-    best_cell = np.full(len(pts), -1)
-    best_xi = np.zeros((len(pts), el.dim))
-    best_out = np.full(len(pts), np.inf)
-    for j in range(k):  # a handful of candidates per point, vectorised over points
-        c = cand[:, j]
-        xi, out = _inverse_map(mesh, c, pts)
-        better = out < best_out
-        best_cell[better], best_xi[better], best_out[better] = c[better], xi[better], out[better]
+    best_cell, best_xi, best_out = find_cells(mesh, pts)
     bad = np.flatnonzero(best_out > tol)
     if bad.size:
         labels = [str(names[i]) if names is not None else str(i) for i in bad[:10]]
@@ -163,6 +151,26 @@ def locate(mesh: Mesh, points, tol: float = 1e-6, names=None) -> Probe:
     simplex = el.name.startswith(("tri", "tet")) and el.n_nodes in (mesh.dim + 1, 6)
     neighbours = _corner_neighbours(mesh, best_cell) if simplex else None
     return Probe(best_cell, mesh.cells[best_cell], N, neighbours, mesh.cells if simplex else None)
+
+
+def find_cells(mesh: Mesh, points):
+    """The cell nearest to holding each point, its reference coordinates there, and how far outside
+    it the point lies in reference coordinates (0 inside): ``(cells (n,), xi (n, dim), out (n,))``.
+    :func:`locate` without its check (a caller that places points lying outside first)."""
+    pts = np.asarray(points, np.float64)
+    tree = cKDTree(mesh.centroids())
+    k = min(24, mesh.n_cells)
+    _, cand = tree.query(pts, k=k)
+    cand = cand.reshape(len(pts), k)
+    best_cell = np.full(len(pts), -1)
+    best_xi = np.zeros((len(pts), mesh.el.dim))
+    best_out = np.full(len(pts), np.inf)
+    for j in range(k):  # a handful of candidates per point, vectorised over points
+        c = cand[:, j]
+        xi, out = _inverse_map(mesh, c, pts)
+        better = out < best_out
+        best_cell[better], best_xi[better], best_out[better] = c[better], xi[better], out[better]
+    return best_cell, best_xi, best_out
 
 
 def _inverse_map(mesh, c, pts):

@@ -80,3 +80,65 @@ def surface_interpolation(mesh: Mesh, points, radius: float, nodes=None, k: int 
     W = np.zeros((len(nodes), len(pts)))
     np.add.at(W, (np.repeat(np.arange(len(nodes)), kk), j.ravel()), coef.ravel())
     return nodes, W
+
+
+#: flat triangles of a boundary face, by its type: local node triples (tri6: corners a, b, c, then
+#: the mid-edge nodes of ab, bc, ca; a quadratic face is split at its mid-edge nodes into four)
+FACE_TRIANGLES = {"tri3": [[0, 1, 2]], "tri6": [[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]],
+                  "quad4": [[0, 1, 2], [0, 2, 3]]}
+
+
+def surface_triangles(mesh: Mesh) -> np.ndarray:
+    """A 3D mesh's boundary as flat triangles ``(n, 3)`` of node indices (see :data:`FACE_TRIANGLES`)."""
+    if mesh.dim != 3:
+        raise MeshError("surface_triangles() takes a 3D mesh")
+    local = FACE_TRIANGLES.get(mesh.el.facet)
+    if local is None:
+        raise MeshError(f"no triangles for a boundary face of type {mesh.el.facet!r}")
+    return np.ascontiguousarray(mesh.boundary_facets()[:, np.asarray(local)].reshape(-1, 3))
+
+
+def project_to_surface(mesh: Mesh, points, k: int = 16):
+    """The nearest point of a 3D mesh's surface to each point, and its distance.
+
+    Each point is tested against the ``k`` surface triangles whose centroids are nearest to it
+    (closest point on a triangle: its plane where the projection falls inside, else the nearest
+    edge or corner).
+
+    Args:
+        mesh: a 3D mesh; points: ``(n, 3)``; k: candidate triangles per point.
+    Returns:
+        ``(foot (n, 3), distance (n,))``.
+    """
+    tri = surface_triangles(mesh)
+    P = np.asarray(points, np.float64).reshape(-1, 3)
+    X = mesh.nodes[tri]  # (m, 3, 3)
+    k = min(k, len(tri))
+    _, cand = cKDTree(X.mean(axis=1)).query(P, k=k)
+    cand = cand.reshape(len(P), k)
+    foot = _closest_on_triangles(P[:, None, :], X[cand, 0], X[cand, 1], X[cand, 2])  # (n, k, 3)
+    d = np.linalg.norm(foot - P[:, None, :], axis=2)
+    best = np.argmin(d, axis=1)
+    rows = np.arange(len(P))
+    return foot[rows, best], d[rows, best]
+
+
+def _closest_on_triangles(P, A, B, C):
+    """Closest points of triangles ``(A, B, C)`` to ``P`` (broadcast shapes ``(..., 3)``): the
+    projection onto the plane where it falls inside, else the nearest point of the three edges."""
+    n = np.cross(B - A, C - A)
+    nn = np.maximum(np.sum(n * n, axis=-1, keepdims=True), 1e-300)
+    Q = P - np.sum((P - A) * n, axis=-1, keepdims=True) / nn * n  # projection onto the plane
+    inside = np.ones(Q.shape[:-1], bool)
+    for U, V in ((A, B), (B, C), (C, A)):
+        inside &= np.sum(np.cross(V - U, Q - U) * n, axis=-1) >= 0
+    best, dist = Q, np.where(inside, np.linalg.norm(P - Q, axis=-1), np.inf)
+    for U, V in ((A, B), (B, C), (C, A)):
+        UV = V - U
+        t = np.clip(np.sum((P - U) * UV, axis=-1, keepdims=True) / np.maximum(np.sum(UV * UV, axis=-1, keepdims=True),
+                                                                             1e-300), 0.0, 1.0)
+        E = U + t * UV
+        dE = np.linalg.norm(P - E, axis=-1)
+        closer = ~inside & (dE < dist)
+        best, dist = np.where(closer[..., None], E, best), np.where(closer, dE, dist)
+    return best

@@ -12,6 +12,7 @@ import jaxfem as jf
 from refine.bundle.experiment import Experiment, MeshDomain
 from refine.bundle.io import Bundle, read_bundle, write_bundle
 from refine.bundle.observations import Observations
+from refine.exceptions import ObservationError
 from refine.cli.simulate import simulate
 from tests._verify_util import lame, uniaxial_neo_hookean
 
@@ -77,8 +78,25 @@ def test_3d_points_off_the_surface_are_named(tmp_path):
     X = obs.reference.copy()
     X[0] = [-3.0, 1.0, 1.0]  # a boundary point 3 mm off the block
     bad = Observations(obs.ids, X, obs.roles, obs.displacements)
-    with pytest.raises(jf.MeshError, match="not on the mesh surface.*e.g. 1,"):
+    with pytest.raises(ObservationError, match="1 boundary points are not on the mesh's surface.*point 1, is 3 away"):
         MeasuredModel(exp, bad, root=tmp_path / "b")
+
+
+def test_3d_points_within_the_noise_of_the_surface_are_placed_on_it(tmp_path):
+    """Measured surface points lie off the model's surface by their noise: within the tolerance
+    (3 noise_std or a quarter of the spacing) they are projected onto it, drive and are compared
+    there; the offsets are kept in the placement."""
+    from refine.model.measured import MeasuredModel
+
+    exp, obs = make_bundle(tmp_path / "b")
+    rng = np.random.default_rng(5)
+    X = obs.reference + rng.normal(0.0, 0.03, obs.reference.shape)  # every point jittered off the surface
+    model = MeasuredModel(exp, Observations(obs.ids, X, obs.roles, obs.displacements), root=tmp_path / "b")
+    moved = np.linalg.norm(model.positions - X, axis=1)
+    assert 0 < moved.max() <= model.placement.tolerance
+    on_faces = np.isclose(model.positions, 0.0, atol=1e-9) | np.isclose(model.positions, [L, W, W], atol=1e-9)
+    assert on_faces[obs.roles == "boundary"].any(axis=1).all()
+    assert np.isfinite(np.asarray(model.predict(model.params()))).all()
 
 
 def test_surface_interpolation_is_exact_for_a_linear_field_and_stays_on_the_patch():

@@ -50,3 +50,9 @@ def test_solved_cup_holder_through_track_range_and_clouds(tmp_path):
         distance = surface_distance(cloud, cup.mesh.nodes, cup.mesh.boundary_facets(), u)
         # 25 pixels per point: ~noise / 5, also at the hole's edge; a silhouette cell may hold one pixel
         assert np.sqrt(np.mean(distance ** 2)) < 0.4 * NOISE and distance.max() < 3 * NOISE, (k, distance.max())
+    # the tracked bundle simulates: its points lie off the faceted model surface by the depth noise
+    # and are placed on it (refine.model.boundary.place_surface_points)
+    from refine.cli.simulate import simulate
+
+    simulate(tmp_path / "B", tmp_path / "sim", quiet=True)
+    assert (tmp_path / "sim" / "displacements.csv").is_file()

@@ -80,6 +80,35 @@ def place_points(mesh: jf.Mesh, reference, boundary, ids, tolerance: float) -> P
     return Placement(positions, np.where(boundary, pr.distance, 0.0), tolerance)
 
 
+def place_surface_points(mesh: jf.Mesh, reference, boundary, ids, tolerance: float) -> Placement:
+    """Place 3D points on a solid ``mesh``: the 3D counterpart of :func:`place_points`. Measured
+    surface points (range images, stereo) lie off the faceted model surface by their noise and by
+    the facets' chords: a boundary point is compared and drives the model at its projection onto
+    the surface; another point inside the mesh stays where it is, one outside is projected.
+
+    Raises:
+        ObservationError: a boundary point farther than ``tolerance`` from the surface, or another
+            point farther than that outside it (the worst point named, with its distance).
+    """
+    from jaxfem.probe import find_cells
+    from jaxfem.surface import project_to_surface
+
+    pts = np.asarray(reference, np.float64)
+    foot, dist = project_to_surface(mesh, pts)
+    outside = find_cells(mesh, pts)[2] > 1e-9
+    for bad, what in ((boundary & (dist > tolerance), "boundary points are not on the mesh's surface"),
+                      (~boundary & outside & (dist > tolerance), "points lie outside the mesh")):
+        if bad.any():
+            worst = np.flatnonzero(bad)[np.argmax(dist[bad])]
+            raise ObservationError(
+                f"{int(bad.sum())} {what}: the farthest, point {ids[worst]}, is {dist[worst]:.3g} away (allowed: "
+                f"{tolerance:.3g}, the larger of {NOISE_MULTIPLE:g} noise_std and {SPACING_FRACTION:g} x the point "
+                "spacing). Check that the mesh and the points share their axes and units (the camera's pose), "
+                "or give such points another role")
+    move = boundary | outside
+    return Placement(np.where(move[:, None], foot, pts), np.where(boundary, dist, 0.0), tolerance)
+
+
 def side_nodes(mesh: jf.Mesh, domain, name: str) -> np.ndarray:
     """The nodes of the side ``name`` of ``domain`` on ``mesh`` (whose reactions sum to the force
     across it), ``(k,)``: a rectangle's ``left``/``right``/``bottom``/``top``, a mesh domain's

@@ -20,7 +20,7 @@ import jaxfem as jf
 from refine.exceptions import ObservationError
 from refine.bundle.experiment import Experiment, FromPointsDomain, MeshDomain, RectangleDomain
 from refine.bundle.outline import resolve_domain
-from refine.model.boundary import outline_tolerance, place_points, side_nodes
+from refine.model.boundary import outline_tolerance, place_points, place_surface_points, side_nodes
 from refine.bundle.roles import point_spacing
 from refine.bundle.observations import Observations
 from refine.model.known import cell_parameters, hole_geometry, known_inclusions, model_material
@@ -106,21 +106,21 @@ class MeasuredModel:
         if len(self.boundary) < 3:
             raise ObservationError(f"only {len(self.boundary)} boundary points: at least 3 are needed to "
                                    "drive the model")
-        positions = observations.reference
-        if self.mesh.dim == 2:
-            self.placement = place_points(self.mesh, positions, observations.roles == "boundary", observations.ids,
-                                          outline_tolerance(self.spacing, experiment.noise_std))
-            positions = self.placement.positions
-        self.positions = positions  # where each point is compared with the model
-        self._tol = np.inf if self.mesh.dim == 2 else 0.05 * self.spacing  # placement checked the offsets
-        loop, _ = self._interpolation(observations.reference[self.boundary], names=observations.ids[self.boundary])
+        place = place_points if self.mesh.dim == 2 else place_surface_points
+        self.placement = place(self.mesh, observations.reference, observations.roles == "boundary", observations.ids,
+                               outline_tolerance(self.spacing, experiment.noise_std))
+        self.positions = self.placement.positions  # where each point is compared with the model
+        self._tol = np.inf  # the placement checked the offsets
+        loop, _ = self._interpolation(self._driving_points(), names=observations.ids[self.boundary])
         self.loop = loop
         dim = self.mesh.dim
         self.problem = jf.Problem(self.mesh, model_material(experiment), experiment.kind,
                                   fixed=jf.dofs(self.mesh, loop))
         self.linear_solver = linear_solver  # as asked ("auto" included): models derived from this one ask the same
         self.solver = jf.Solver(self.problem, linear_solver)
-        self.probe = jf.locate(self.mesh, positions, names=observations.ids)
+        # 3D: a point projected onto a flat piece of a curved quadratic face may lie a chord's
+        # sagitta outside its cell (the placement checked its distance)
+        self.probe = jf.locate(self.mesh, self.positions, tol=1e-6 if dim == 2 else 1e-2, names=observations.ids)
         forces = observations.forces
         self.sides = {e: side_nodes(self.mesh, experiment.domain, e) for e in (forces.edges if forces else ())}
         self.drives = [self._drive(f) for f in range(observations.n_frames)]
@@ -138,6 +138,12 @@ class MeasuredModel:
 
         return surface_interpolation(self.mesh, points, 0.75 * self.spacing, nodes=nodes, names=names)
 
+    def _driving_points(self) -> np.ndarray:
+        """Where the boundary points drive the model: their reference positions in 2D (the outline
+        interpolation projects them itself), their projections onto the surface in 3D."""
+        src = self.obs.reference if self.mesh.dim == 2 else self.positions
+        return src[self.boundary]
+
     def _drive(self, frame: int) -> FrameDrive:
         obs, dim = self.obs, self.mesh.dim
         valid = obs.valid[frame, self.boundary]
@@ -145,7 +151,7 @@ class MeasuredModel:
             raise ObservationError(f"frame {frame + 1}: only {int(valid.sum())} boundary points were tracked; "
                                    "at least 3 are needed to drive the model")
         idx = np.flatnonzero(valid)
-        _, W = self._interpolation(obs.reference[self.boundary[idx]], nodes=getattr(self, "loop", None))
+        _, W = self._interpolation(self._driving_points()[idx], nodes=getattr(self, "loop", None))
         # node values (n_loop, dim) = W @ U[idx]; flatten to the fixed-dof order (node-major)
         n_b = len(self.boundary)
         M = np.zeros((len(self.loop) * dim, n_b * dim))
