@@ -112,6 +112,19 @@ def skin_strain_function(model: HandModel):
     return strains
 
 
+def reachable(fraction, max_strain, limit: float) -> float:
+    """The share of the motion reached before ``max_strain`` first passes ``limit`` (linear between
+    frames; the last frame's share if it never does). ``fraction``, ``max_strain``: ``(K + 1,)``."""
+    over = np.flatnonzero(np.asarray(max_strain) > limit)
+    if over.size == 0:
+        return float(fraction[-1])
+    k = int(over[0])
+    if k == 0:
+        return 0.0
+    s0, s1, e0, e1 = fraction[k - 1], fraction[k], max_strain[k - 1], max_strain[k]
+    return float(s0 + (limit - e0) / (e1 - e0) * (s1 - s0))
+
+
 def run_motion(model: HandModel, motion: Motion, scar: Scar | None = None, strain_limit: float | None = None,
                detector=None, strains=None) -> MotionResult:
     """Move the hand through ``motion`` (with ``scar``, if given) and measure its skin.
@@ -150,11 +163,8 @@ def run_motion(model: HandModel, motion: Motion, scar: Scar | None = None, strai
         rows.append((s, np.asarray(sol.u), *map(np.asarray, strains(sol.u, theta))))
     frac, U, skin, eq = (np.array([r[i] for r in rows]) for i in range(4))
     peak = skin.max(axis=1)
-    if strain_limit is not None and np.any(peak > strain_limit):
-        k = int(np.argmax(peak > strain_limit))
-        at = frac[k - 1] + (strain_limit - peak[k - 1]) / (peak[k] - peak[k - 1]) * (frac[k] - frac[k - 1])
-        if at < reached:
-            reached, why = float(at), "strain limit"
+    if strain_limit is not None and reachable(frac, peak, strain_limit) < reached:
+        reached, why = reachable(frac, peak, strain_limit), "strain limit"
     disp = np.linalg.norm(U[:, mark], axis=1)
     return MotionResult(motion, scar, frac, disp, peak, skin, eq, U, np.array(seconds), np.array(iterations),
                         float(reached), why, strain_limit, None if detector is None else detector(disp, peak))
