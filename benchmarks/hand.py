@@ -59,8 +59,10 @@ def build(dims: HandDimensions, h: float, snap: float):
                          "skin_facets": len(hand.skin_facets), "build_s": time.perf_counter() - t}
 
 
-def row(r) -> dict:
-    return {"max_strain": float(r.max_strain[-1]), "reached": r.reached, "restricted": r.restricted,
+def row(r, hand) -> dict:
+    at = hand.mesh.nodes[hand.skin_facets[np.argmax(r.skin_strain[-1]), :3]].mean(0)
+    return {"max_strain": float(r.max_strain[-1]), "max_at_mm": at.round(1).tolist(), "reached": r.reached,
+            "restricted": r.restricted,
             "limited_by": r.limited_by, "strain_limit": r.strain_limit,
             "s_per_frame": float(np.median(r.seconds)) if len(r.seconds) else None,  # median: frame 1 may compile
             "iterations_per_frame": float(np.mean(r.iterations)) if len(r.iterations) else None,
@@ -72,29 +74,46 @@ def analyse(model, frames, series):
     motions = standard_motions(model.hand.body, frames)
     strains = skin_strain_function(model)
     strains(np.zeros(model.problem.n_dofs), model.params({}))  # compile the strain map outside the timings
-    out, results = {}, []
+    out, results, labels = {}, [], []
     for name, motion in motions.items():
         normal = run_motion(model, motion, strains=strains)
         if not out:  # the first frame solved compiles the solver
             out["compile_s"] = float(normal.seconds[0] - np.median(normal.seconds[1:]))
         limit = LIMIT * normal.max_strain[-1]
-        rows = {"none": row(normal)}
+        rows = {"none": row(normal, model.hand)}
         results.append(normal)
+        labels.append(name)
         for scar_name, scar in SCARS.items():
             r = run_motion(model, motion, scar=scar, strain_limit=limit, strains=strains)
-            rows[scar_name] = row(r) | {"change_pct": 100 * (r.max_strain[-1] / normal.max_strain[-1] - 1),
+            rows[scar_name] = row(r, model.hand) | {"change_pct": 100 * (r.max_strain[-1] / normal.max_strain[-1] - 1),
                                         "scar_cells": int(scar_cells(model.hand, scar).sum()),
                                         "reached_at_limit": {f"{f:g}x": reachable(r.fraction, r.max_strain,
                                                                                    f * normal.max_strain[-1])
                                                              for f in OTHER_LIMITS + (LIMIT,)}}
             results.append(r)
+            labels.append(f"{name}, {scar_name} scar")
             if series:
                 write_motion_series(r, model.hand, Path(series) / scar_name, E=model.moduli(scar)[0])
         if series:
             write_motion_series(normal, model.hand, Path(series) / "none")
         out[name] = rows
         print(name, {k: (round(v["max_strain"], 4), round(v["reached"], 3)) for k, v in rows.items()}, flush=True)
-    return out, results
+    return out, results, labels
+
+
+def fine(h, frames=3) -> dict:
+    """The wrist motions of the paper-size hand on a finer mesh (``h`` mm): how the maximum strain
+    and the scars' effects move with the mesh (re-entrant box edges concentrate strain)."""
+    hand, model, size = build(PAPER, h, 2.5)
+    out = {"size": size, "frames": frames}
+    for name, motion in standard_motions(hand.body, frames).items():
+        if name.startswith("wrist"):
+            normal = run_motion(model, motion)
+            out[name] = {"none": row(normal, hand)["max_strain"]} | {
+                f"{k}_change_pct": 100 * (run_motion(model, motion, scar=s).max_strain[-1] / normal.max_strain[-1] - 1)
+                for k, s in SCARS.items()}
+            print("finer", name, out[name], flush=True)
+    return out
 
 
 def targets(res) -> dict:
@@ -122,6 +141,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--large-h", type=float, default=16.0)
+    ap.add_argument("--fine-h", type=float, default=12.0, help="the paper-size hand again, finer, for the wrist motions")
     ap.add_argument("--series", default=None, help="folder for the ParaView series (not written by default)")
     args = ap.parse_args(argv)
     frames = 3 if args.quick else 10
@@ -132,19 +152,20 @@ def main(argv=None):
            "sizes": {}}
     hand, model, res["sizes"]["paper"] = build(PAPER, 24.0, 4.5)
     print("paper-size hand", res["sizes"]["paper"], flush=True)
-    res["paper"], results = analyse(model, frames, args.series)
+    res["paper"], results, labels = analyse(model, frames, args.series)
     if not args.quick:
         big, bmodel, res["sizes"]["large"] = build(HandDimensions(), args.large_h, 2.5)
         print("larger hand", res["sizes"]["large"], flush=True)
         motion = standard_motions(big.body, 5)["wrist up-down"]
         t0 = time.perf_counter()
         r = run_motion(bmodel, motion)
-        res["large_motion"] = row(r) | {"first_call_s": time.perf_counter() - t0, "frames": 5}
+        res["large_motion"] = row(r, big) | {"first_call_s": time.perf_counter() - t0, "frames": 5}
+        res["mesh_dependence"] = fine(args.fine_h)
     res["load"] = load()
     res["targets"] = targets(res)
     OUT.mkdir(exist_ok=True)
     (OUT / "hand.json").write_text(json.dumps(res, indent=1, default=float))
-    plot_curves(results, OUT / "hand.png")
+    plot_curves(results, OUT / "hand.png", labels)
     print(json.dumps(res["targets"], indent=1, default=float))
 
 

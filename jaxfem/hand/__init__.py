@@ -21,5 +21,5 @@ from .voxels import Hand, hand_mesh
 
 __all__ = ["PAPER", "Body", "Bone", "Box", "HandDimensions", "Joint", "default_body", "bone_displacements",
            "bone_transforms", "rotation", "HandModel", "Scar", "Tissues", "scar_cells", "Motion", "MotionResult",
-           "reachable", "run_motion", "skin_strain_function", "standard_motions", "plot_curves", "write_motion_series", "Hand",
-           "hand_mesh"]
+           "reachable", "run_motion", "skin_strain_function", "standard_motions", "plot_curves",
+           "write_motion_series", "Hand", "hand_mesh"]

@@ -36,22 +36,28 @@ def write_motion_series(result: MotionResult, hand, folder, E=None) -> tuple[Pat
             write_pvd(folder / f"{stem}_skin.pvd", skin, result.fraction))
 
 
-def plot_curves(results, path) -> Path:
-    """Plot max skin strain vs the marked point's displacement for each result (a scar dashed, a
-    restricted motion's reachable end marked x) into the PNG ``path``."""
+def plot_curves(results, path, labels=None) -> Path:
+    """Plot max skin strain vs the marked point's displacement for each result into the PNG ``path``:
+    one colour per motion, scars dashed (then dash-dotted, dotted), a strain limit as a thin line.
+    ``labels``: one per result (default: the motion's name, "with scar"); a restricted motion's
+    reachable share is added to its label."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    colours = {}
-    for r in results:
+    colours, scarred = {}, {}
+    for i, r in enumerate(results):
         c = colours.setdefault(r.motion.name, f"C{len(colours)}")
-        label = r.motion.name + (" with scar" if r.scar is not None else "")
+        style = "-"
+        if r.scar is not None:
+            scarred[r.motion.name] = scarred.get(r.motion.name, -1) + 1
+            style = ("--", "-.", ":")[scarred[r.motion.name] % 3]
+        label = labels[i] if labels is not None else r.motion.name + (" with scar" if r.scar is not None else "")
         if r.restricted:
             label += f" (restricted at {100 * r.reached:.0f} %: {r.limited_by})"
-        ax.plot(r.displacement, r.max_strain, "--" if r.scar is not None else "-", color=c, marker=".", label=label)
+        ax.plot(r.displacement, r.max_strain, style, color=c, marker=".", label=label)
         if r.strain_limit is not None:
             ax.axhline(r.strain_limit, color=c, lw=0.6, ls=":")
     ax.set_xlabel("displacement of the marked point (mm)")
