@@ -155,8 +155,8 @@ class HandDimensions:
     gap: float = 5.0
 
 
-#: a hand of about the paper's 1,947 elements at h = 20 mm: one finger block (the four fingers as a
-#: mitten with one bone), a shorter forearm, equal widths of forearm and wrist
+#: a hand of about the paper's 1,947 elements (2,412 tet10 at h = 24 mm, snap = 4.5 mm): one finger
+#: block (the four fingers as a mitten with one bone), a shorter forearm, forearm and wrist equally wide
 PAPER = HandDimensions(forearm=(48.0, 40.0, 28.0), wrist=(48.0, 16.0, 28.0), palm=(80.0, 70.0, 26.0), fingers=1,
                        finger=(80.0, 22.0), phalanges=(80.0,), thumb=(20.0, 22.0), thumb_at=10.0)
 
