@@ -106,7 +106,10 @@ def matched(q_fit: np.ndarray, q_true: np.ndarray) -> np.ndarray:
 
 def run_case(case: dict) -> dict:
     """Generate one case's bundle, fit the true kind, score every quantity against its error."""
-    from refine.diagnosis.uncertainty import shape_errors, shape_quantities
+    from dataclasses import replace
+
+    from refine.diagnosis.fitted import covariance
+    from refine.diagnosis.uncertainty import discretisation_bias, shape_errors, shape_quantities
     from refine.synthetic.sheet import synthetic_bundle
 
     t0 = time.perf_counter()
@@ -120,20 +123,34 @@ def run_case(case: dict) -> dict:
         f = fit_true_kind(bundle, kind, start, sigma=noise if noise > 0 else 1e-3)
     except Exception as e:  # noqa: BLE001 - a failed fit is recorded as such
         return {**row, "error": f"{type(e).__name__}: {e}", "seconds": time.perf_counter() - t0}
-    q_fit = matched(shape_quantities(f.shapes)[0], q_true)
-    err = shape_errors(f)[0]
-    std = np.array([*err.centroid, *err.axes, err.angle, err.area,
-                    np.nan if err.relative_elasticity is None else err.relative_elasticity])
+    q_raw = shape_quantities(f.shapes)[0]
+    q_fit = matched(q_raw, q_true)
+    order = [0, 1, 3, 2, 4, 5, 6] if q_fit[2] != q_raw[2] else list(range(7))  # errors follow matched axes
+    guide = bundle.observations.mask("guide")
+    std = _std(shape_errors(f)[0])
+    std_gn = _std(shape_errors(replace(f, z_cov=covariance(f, guide, f.sigma)))[0])  # before: the fit's points only
+    t1 = time.perf_counter()
+    bias = discretisation_bias(f, guide, bundle.observations.mask("validate"), f.sigma)
+    bias = np.full(len(QUANTITIES), np.nan) if bias is None else bias[0]
+    std, std_gn, bias = std[order], std_gn[order], bias[order]
+    row.update(bias=bias.tolist(), bias_seconds=time.perf_counter() - t1)
     use = np.ones(len(QUANTITIES), bool)
     use[4] = abs(q_true[2] - q_true[3]) > 0.05 * max(q_true[2:4])  # a circle's angle is not a quantity
     use[6] = kind != "hole"
-    z = (q_fit - q_true) / std
+    z, z_gn = (q_fit - q_true) / std, (q_fit - q_true) / std_gn
     row.update(estimate=q_fit.tolist(), std=std.tolist(), z=[float(v) if u else None for v, u in zip(z, use)],
+               std_gauss_newton=std_gn.tolist(), z_gauss_newton=[float(v) if u else None for v, u in zip(z_gn, use)],
                ratio_error=None if kind == "hole" else float(q_fit[6] / q_true[6] - 1),
                area_error=float(q_fit[5] / q_true[5] - 1), chi2=f.chi2_fit, k=f.k,
                seconds=time.perf_counter() - t0, load_average=[round(x, 2) for x in os.getloadavg()],
                fitted=f.describe(), code=_code_version())
     return row
+
+
+def _std(err) -> np.ndarray:
+    """A shape's standard errors in the order of :data:`QUANTITIES` (NaN: not fitted)."""
+    return np.array([*err.centroid, *err.axes, err.angle, err.area,
+                     np.nan if err.relative_elasticity is None else err.relative_elasticity], float)
 
 
 def _code_version() -> str:
