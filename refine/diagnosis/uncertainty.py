@@ -96,30 +96,41 @@ def shape_errors(fitted) -> list[ShapeErrors] | None:
             for s, shape in zip(std, fitted.shapes)]
 
 
+def drive_sensitivity(fitted, points: Bool[np.ndarray, "n_points"], sigma: float
+                      ) -> Float[np.ndarray, "k frames_x_boundary"]:
+    """``M = (J^T J)^-1 J^T dr/dB`` ``(k, n_frames * n_boundary * dim)``: the fitted unknowns z
+    move by ``-M dB`` when the driving boundary displacements (:meth:`MeasuredModel.measured_boundary`,
+    flattened frame by frame) move by ``dB``, to first order, for a fit on ``points`` weighted
+    by ``sigma`` (length unit). ``dr/dB`` by forward-mode derivatives of the prediction; NaN
+    where ``J^T J`` is singular."""
+    import jax
+
+    model = fitted.compiled.model
+    res = Residuals.at(model.obs.displacements, points, sigma)
+    J = res.jacobian(np.asarray(fitted.compiled.jacobian(fitted.z)))
+    theta = fitted.theta
+    dB = np.asarray(jax.jit(jax.jacfwd(lambda b: model.predict(theta, boundary=b)))(model.measured_boundary()))
+    JB = res.jacobian(dB.reshape(dB.shape[:3] + (-1,)))  # (n, frames * n_boundary * dim)
+    try:
+        return np.linalg.solve(J.T @ J, J.T @ JB)
+    except np.linalg.LinAlgError:
+        return np.full((J.shape[1], JB.shape[1]), np.nan)
+
+
 def drive_covariance(fitted, points: Bool[np.ndarray, "n_points"], sigma: float,
                      sigma_drive: float | None = None) -> Float[np.ndarray, "k k"]:
     """Covariance ``(k, k)`` of the fitted unknowns z due to noise on the boundary points that
-    drive the model (see the module's docstring), for a fit on ``points`` weighted by ``sigma``
-    (length unit). ``sigma_drive``: the boundary points' noise std (length unit; default the
-    bundle's ``noise_std``, else ``sigma``); 0 gives zeros. NaN where ``J^T J`` is singular."""
-    import jax
-
-    model, k = fitted.compiled.model, len(fitted.z)
+    drive the model, ``sigma_drive^2 M M^T`` (:func:`drive_sensitivity`; see the module's
+    docstring), for a fit on ``points`` weighted by ``sigma`` (length unit). ``sigma_drive``: the
+    boundary points' noise std (length unit; default the bundle's ``noise_std``, else
+    ``sigma``); 0 gives zeros."""
+    k = len(fitted.z)
     if sigma_drive is None:
-        given = model.experiment.noise_std
+        given = fitted.compiled.model.experiment.noise_std
         sigma_drive = sigma if given is None else given
     if not sigma_drive > 0:
         return np.zeros((k, k))
-    res = Residuals.at(model.obs.displacements, points, sigma)
-    J = res.jacobian(np.asarray(fitted.compiled.jacobian(fitted.z)))
-    B = model.measured_boundary()
-    theta = fitted.theta
-    dB = np.asarray(jax.jit(jax.jacfwd(lambda b: model.predict(theta, boundary=b)))(B))  # (f, p, d, f, nB)
-    JB = res.jacobian(dB.reshape(dB.shape[:3] + (-1,)))  # (n, frames * nB)
-    try:
-        M = np.linalg.solve(J.T @ J, J.T @ JB)
-    except np.linalg.LinAlgError:
-        return np.full((k, k), np.nan)
+    M = drive_sensitivity(fitted, points, sigma)
     return sigma_drive**2 * (M @ M.T)
 
 
