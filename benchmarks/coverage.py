@@ -18,6 +18,15 @@ half sides, angle where the truth is not a circle, area, ratio), which should ho
 of them. Noise-free cases (``--noise 0``) measure the accuracy where data allow it: the ratio
 within 1 % of the truth.
 
+Three errors are scored per quantity (:data:`VARIANTS`): ``gauss_newton``, the fit's points
+alone (the errors before the drive's noise was counted), ``reported``, what the diagnosis
+reports (that plus the noise of the boundary points driving the model,
+:func:`refine.diagnosis.uncertainty.drive_covariance`), and ``with_discretisation``, that plus
+the change on a sqrt(2) coarser mesh (:func:`refine.diagnosis.uncertainty.discretisation_bias`)
+in quadrature. Coverage comes with exact binomial 95 % intervals (quantities as independent
+trials) and intervals from resampling whole cases (a case's quantities are correlated), per
+quantity and per kind; the errors' median sizes per variant show how much each widens them.
+
 Rows go to a JSONL file (resumable); the summary to benchmarks/results/coverage.json (with
 ``targets``) and coverage.png. Seconds are wall seconds per case, with the load average.
 """
