@@ -18,6 +18,15 @@ half sides, angle where the truth is not a circle, area, ratio), which should ho
 of them. Noise-free cases (``--noise 0``) measure the accuracy where data allow it: the ratio
 within 1 % of the truth.
 
+Three errors are scored per quantity (:data:`VARIANTS`): ``gauss_newton``, the fit's points
+alone (the errors before the drive's noise was counted), ``reported``, what the diagnosis
+reports (that plus the noise of the boundary points driving the model,
+:func:`refine.diagnosis.uncertainty.drive_covariance`), and ``with_discretisation``, that plus
+the change on a sqrt(2) coarser mesh (:func:`refine.diagnosis.uncertainty.discretisation_bias`)
+in quadrature. Coverage comes with exact binomial 95 % intervals (quantities as independent
+trials) and intervals from resampling whole cases (a case's quantities are correlated), per
+quantity and per kind; the errors' median sizes per variant show how much each widens them.
+
 Rows go to a JSONL file (resumable); the summary to benchmarks/results/coverage.json (with
 ``targets``) and coverage.png. Seconds are wall seconds per case, with the load average.
 """
@@ -106,7 +115,10 @@ def matched(q_fit: np.ndarray, q_true: np.ndarray) -> np.ndarray:
 
 def run_case(case: dict) -> dict:
     """Generate one case's bundle, fit the true kind, score every quantity against its error."""
-    from refine.diagnosis.uncertainty import shape_errors, shape_quantities
+    from dataclasses import replace
+
+    from refine.diagnosis.fitted import covariance
+    from refine.diagnosis.uncertainty import discretisation_bias, shape_errors, shape_quantities
     from refine.synthetic.sheet import synthetic_bundle
 
     t0 = time.perf_counter()
@@ -120,20 +132,34 @@ def run_case(case: dict) -> dict:
         f = fit_true_kind(bundle, kind, start, sigma=noise if noise > 0 else 1e-3)
     except Exception as e:  # noqa: BLE001 - a failed fit is recorded as such
         return {**row, "error": f"{type(e).__name__}: {e}", "seconds": time.perf_counter() - t0}
-    q_fit = matched(shape_quantities(f.shapes)[0], q_true)
-    err = shape_errors(f)[0]
-    std = np.array([*err.centroid, *err.axes, err.angle, err.area,
-                    np.nan if err.relative_elasticity is None else err.relative_elasticity])
+    q_raw = shape_quantities(f.shapes)[0]
+    q_fit = matched(q_raw, q_true)
+    order = [0, 1, 3, 2, 4, 5, 6] if q_fit[2] != q_raw[2] else list(range(7))  # errors follow matched axes
+    guide = bundle.observations.mask("guide")
+    std = _std(shape_errors(f)[0])
+    std_gn = _std(shape_errors(replace(f, z_cov=covariance(f, guide, f.sigma)))[0])  # before: the fit's points only
+    t1 = time.perf_counter()
+    bias = discretisation_bias(f, guide, bundle.observations.mask("validate"), f.sigma)
+    bias = np.full(len(QUANTITIES), np.nan) if bias is None else bias[0]
+    std, std_gn, bias = std[order], std_gn[order], bias[order]
+    row.update(bias=bias.tolist(), bias_seconds=time.perf_counter() - t1)
     use = np.ones(len(QUANTITIES), bool)
     use[4] = abs(q_true[2] - q_true[3]) > 0.05 * max(q_true[2:4])  # a circle's angle is not a quantity
     use[6] = kind != "hole"
-    z = (q_fit - q_true) / std
+    z, z_gn = (q_fit - q_true) / std, (q_fit - q_true) / std_gn
     row.update(estimate=q_fit.tolist(), std=std.tolist(), z=[float(v) if u else None for v, u in zip(z, use)],
+               std_gauss_newton=std_gn.tolist(), z_gauss_newton=[float(v) if u else None for v, u in zip(z_gn, use)],
                ratio_error=None if kind == "hole" else float(q_fit[6] / q_true[6] - 1),
                area_error=float(q_fit[5] / q_true[5] - 1), chi2=f.chi2_fit, k=f.k,
                seconds=time.perf_counter() - t0, load_average=[round(x, 2) for x in os.getloadavg()],
                fitted=f.describe(), code=_code_version())
     return row
+
+
+def _std(err) -> np.ndarray:
+    """A shape's standard errors in the order of :data:`QUANTITIES` (NaN: not fitted)."""
+    return np.array([*err.centroid, *err.axes, err.angle, err.area,
+                     np.nan if err.relative_elasticity is None else err.relative_elasticity], float)
 
 
 def _code_version() -> str:
@@ -145,29 +171,83 @@ def _code_version() -> str:
     return git("rev-parse", "--short", "HEAD") + ("+dirty" if git("status", "--porcelain", "refine") else "")
 
 
+VARIANTS = ("gauss_newton", "reported", "with_discretisation")
+"""The errors compared: the fit's points alone (before), what the diagnosis reports (Gauss-Newton
+plus the drive's noise), and that plus the discretisation-bias estimate (in quadrature)."""
+
+
+def scores(row: dict, variant: str) -> list:
+    """``(estimate - truth) / error`` per quantity of a row under ``variant`` (None: not scored)."""
+    if variant == "gauss_newton":
+        return row.get("z_gauss_newton") or [None] * len(QUANTITIES)
+    if variant == "reported":
+        return row["z"]
+    err = np.hypot(row["std"], np.nan_to_num(np.asarray(row.get("bias", [np.nan] * 7), float)))
+    d = np.asarray(row["estimate"]) - np.asarray(row["truth"])
+    return [None if z is None else float(v) for z, v in zip(row["z"], d / err)]
+
+
+def _coverage(zs, cases=None) -> dict:
+    """Share of ``|z| <= 2`` with its exact binomial 95 % interval (quantities as independent
+    trials) and a 95 % interval from resampling whole cases (``cases``: the case of each z; the
+    quantities of one case are correlated)."""
+    from scipy.stats import binomtest
+
+    zs = np.asarray(zs, float)
+    if not zs.size:
+        return {"n": 0, "within_2_std": None}
+    k = int(np.sum(np.abs(zs) <= 2))
+    ci = binomtest(k, zs.size).proportion_ci(0.95, method="exact")
+    out = {"n": int(zs.size), "within_2_std": k / zs.size, "binomial_95": [round(ci.low, 4), round(ci.high, 4)],
+           "median_abs_z": float(np.median(np.abs(zs)))}
+    if cases is not None:
+        cases = np.asarray(cases)
+        ids = np.unique(cases)
+        rng = np.random.default_rng(0)
+        hits = [np.abs(zs[np.isin(cases, rng.choice(ids, ids.size))]) <= 2 for _ in range(2000)]
+        out["case_bootstrap_95"] = [round(float(v), 4) for v in np.quantile([h.mean() for h in hits], [0.025, 0.975])]
+    return out
+
+
+def _per(noisy: list[dict], variant: str, pick) -> dict:
+    zs, cases = [], []
+    for r in noisy:
+        for i, v in enumerate(scores(r, variant)):
+            if v is not None and pick(r, i):
+                zs.append(v)
+                cases.append(r["seed"])
+    return _coverage(zs, cases)
+
+
 def summarise(rows: list[dict]) -> dict:
-    """Coverage per quantity and kind, and the noise-free ratio accuracy, with targets."""
+    """Coverage per variant of the errors, overall, per quantity and per kind (with binomial and
+    case-bootstrap intervals), the errors' median sizes, and the noise-free ratio accuracy."""
     ok = [r for r in rows if "z" in r]
-    noisy, clean = [r for r in ok if r["noise"] > 0], [r for r in ok if r["noise"] == 0]
-    per = {}
-    for name, i in zip(QUANTITIES, range(len(QUANTITIES))):
-        zs = np.array([r["z"][i] for r in noisy if r["z"][i] is not None], float)
-        per[name] = {"n": int(zs.size), "within_2_std": float(np.mean(np.abs(zs) <= 2)) if zs.size else None,
-                     "median_abs_z": float(np.median(np.abs(zs))) if zs.size else None}
-    allz = np.array([v for r in noisy for v in r["z"] if v is not None], float)
-    kinds = {}
-    for kind in KINDS:
-        zs = np.array([v for r in noisy if r["kind"] == kind for v in r["z"] if v is not None], float)
-        if zs.size:
-            kinds[kind] = {"cases": sum(r["kind"] == kind for r in noisy),
-                           "within_2_std": float(np.mean(np.abs(zs) <= 2))}
+    noisy = [r for r in ok if r["noise"] > 0 and "z_gauss_newton" in r]
+    clean = [r for r in ok if r["noise"] == 0]
+    variants = {}
+    for v in VARIANTS:
+        variants[v] = {"overall": _per(noisy, v, lambda r, i: True),
+                       "per_quantity": {q: _per(noisy, v, lambda r, i, j=j: i == j) for j, q in enumerate(QUANTITIES)},
+                       "per_kind": {kind: _per(noisy, v, lambda r, i, k=kind: r["kind"] == k) for kind in KINDS}}
+    sizes = {}
+    for j, q in enumerate(QUANTITIES):
+        use = [r for r in noisy if r["z"][j] is not None]
+        if use:
+            gn, rep = (np.array([r[key][j] for r in use]) for key in ("std_gauss_newton", "std"))
+            both = np.hypot(rep, np.nan_to_num([r.get("bias", [np.nan] * 7)[j] for r in use]))
+            sizes[q] = {"median_std_before": float(np.median(gn)), "median_std_reported": float(np.median(rep)),
+                        "median_std_with_discretisation": float(np.median(both)),
+                        "median_reported_over_before": float(np.median(rep / gn)),
+                        "median_with_discretisation_over_before": float(np.median(both / gn))}
     ratio_ok = [abs(r["ratio_error"]) <= 0.10 or abs(r["z"][6]) <= 2 for r in noisy if r["ratio_error"] is not None]
     clean_err = [abs(r["ratio_error"]) for r in clean if r["ratio_error"] is not None]
-    overall = float(np.mean(np.abs(allz) <= 2)) if allz.size else None
+    overall = variants["reported"]["overall"]
     targets = {
         "coverage_about_95_percent": {
-            "value": overall, "range": list(COVERAGE_TARGET), "quantities": int(allz.size),
-            "pass": overall is not None and bool(COVERAGE_TARGET[0] <= overall <= COVERAGE_TARGET[1])},
+            "value": overall["within_2_std"], "range": list(COVERAGE_TARGET), "quantities": overall["n"],
+            "binomial_95": overall.get("binomial_95"), "errors": "reported (Gauss-Newton and the drive's noise)",
+            "pass": overall["n"] > 0 and bool(COVERAGE_TARGET[0] <= overall["within_2_std"] <= COVERAGE_TARGET[1])},
         "ratio_within_10_percent_or_2_std": {"value": float(np.mean(ratio_ok)) if ratio_ok else None,
                                              "target": 0.95, "pass": bool(ratio_ok) and bool(np.mean(ratio_ok) >= 0.95)},
         "noise_free_ratio_within_1_percent": {"value": max(clean_err) if clean_err else None,
@@ -175,8 +255,8 @@ def summarise(rows: list[dict]) -> dict:
                                               "pass": bool(clean_err) and bool(max(clean_err) <= NOISE_FREE_RATIO_TOL)},
     }
     return {"cases": len(rows), "failed": len(rows) - len(ok), "noisy_cases": len(noisy),
-            "noise_free_cases": len(clean),
-            "coverage_within_2_std": overall, "per_quantity": per, "per_kind": kinds,
+            "noise_free_cases": len(clean), "coverage_within_2_std": overall["within_2_std"],
+            "variants": variants, "error_sizes": sizes,
             "noise_free_ratio_errors": clean_err, "targets": targets,
             "median_seconds": float(np.median([r["seconds"] for r in ok])) if ok else None}
 
@@ -187,22 +267,29 @@ def _plot(rows: list[dict], summary: dict, path: Path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    noisy = [r for r in rows if "z" in r and r["noise"] > 0]
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
+    noisy = [r for r in rows if "z" in r and r["noise"] > 0 and "z_gauss_newton" in r]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4))
     for i, name in enumerate(QUANTITIES):
-        zs = [r["z"][i] for r in noisy if r["z"][i] is not None]
+        zs = [v for r in noisy if (v := scores(r, "reported")[i]) is not None]
         jitter = np.random.default_rng(i).uniform(-0.2, 0.2, len(zs))
         a.plot(np.full(len(zs), i) + jitter, np.clip(zs, -8, 8), ".", ms=4)
     a.axhline(2, color="r", lw=0.6)
     a.axhline(-2, color="r", lw=0.6)
     a.set_xticks(range(len(QUANTITIES)), QUANTITIES)
+    cov = summary["variants"]["reported"]["overall"]
     a.set(ylabel="(estimate - truth) / reported std (clipped at 8)",
-          title=f"{len(noisy)} noisy cases: {100 * (summary['coverage_within_2_std'] or 0):.0f} % within 2 std")
-    names = [q for q in QUANTITIES if summary["per_quantity"][q]["n"]]
-    b.bar(names, [summary["per_quantity"][q]["within_2_std"] for q in names])
-    b.axhline(0.95, color="k", lw=0.6, label="95 %")
-    b.set(ylim=(0, 1.05), ylabel="share within 2 std", title="coverage per quantity")
-    b.legend()
+          title=f"{len(noisy)} noisy cases: {100 * (cov['within_2_std'] or 0):.0f} % within 2 std")
+    names = [q for q in QUANTITIES if summary["variants"]["reported"]["per_quantity"][q]["n"]]
+    x = np.arange(len(names))
+    for k, v in enumerate(VARIANTS):
+        per = summary["variants"][v]["per_quantity"]
+        val = np.array([per[q]["within_2_std"] for q in names])
+        lo, hi = (np.array([per[q]["binomial_95"][e] for q in names]) for e in (0, 1))
+        b.bar(x + (k - 1) * 0.27, val, 0.27, yerr=[val - lo, hi - val], capsize=2, label=v.replace("_", " "))
+    b.axhline(0.95, color="k", lw=0.6)
+    b.set_xticks(x, names)
+    b.set(ylim=(0, 1.05), ylabel="share within 2 std (binomial 95 %)", title="coverage per quantity")
+    b.legend(fontsize=8, loc="lower left")
     fig.tight_layout()
     fig.savefig(path, dpi=110, bbox_inches="tight")
 

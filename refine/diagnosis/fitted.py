@@ -17,7 +17,7 @@ import numpy as np
 from jaxtyping import Bool, Float
 
 from refine.diagnosis.shapes import Hole, RegionShape
-from refine.diagnosis.uncertainty import shape_errors
+from refine.diagnosis.uncertainty import drive_covariance, shape_errors
 from refine.exceptions import RefineError
 from refine.measures import Residuals
 from refine.model.measured import MeasuredModel
@@ -173,7 +173,7 @@ def refit(f: Fitted, points: Mask, hold_mask: Mask, sigma: float, max_remesh: in
             start = h
     if g is None:  # no shapes, or no remesh could be fitted: refit the compiled model as it is
         g = fit_compiled(f.hypothesis, f.compiled, points, hold_mask, sigma, z0=f.z)
-    cov = covariance(g, points, sigma)
+    cov = covariance(g, points, sigma) + drive_covariance(g, points, sigma)  # noise of the drive too
     return replace(g, z_std=np.sqrt(np.clip(np.diag(cov), 0, None)), z_cov=cov)
 
 

@@ -7,6 +7,15 @@ sides and a scaled angle; :class:`~refine.model.parametrize.ShapeGeometry`). The
 (Gauss-Newton, :func:`~refine.diagnosis.fitted.covariance`) is carried to the reported
 quantities by the delta method, ``C_q = G C_z G^T`` with ``G = dq/dz`` by central differences of
 the hypothesis' own map from z to shapes (``shapes_at``, cheap: no solve).
+
+The model is driven by the measured boundary points, which carry the same noise as the points it
+is fitted to: errors in the variables, which the Gauss-Newton covariance ``(J^T J)^-1`` of the
+fitting points alone leaves out (it covered 89 % of the truths within 2 errors where about 95 %
+were due). :func:`drive_covariance` adds what the drive's noise does to the fitted unknowns, to
+first order: ``dz = -(J^T J)^-1 J^T (dr/dB) dB`` with ``Cov(dB) = sigma_B^2 I``, so
+``C_drive = sigma_B^2 M M^T``, ``M = (J^T J)^-1 J^T dr/dB``; ``dr/dB`` exactly, by forward-mode
+derivatives of the prediction with respect to the boundary motion (one back-substitution per
+boundary value and frame at the converged state).
 """
 
 from __future__ import annotations
@@ -14,7 +23,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from jaxtyping import Float
+from jaxtyping import Bool, Float
+
+from refine.measures import Residuals
 
 QUANTITIES = ("cx", "cy", "a", "b", "angle", "area", "ratio")
 """What :func:`shape_quantities` gives per shape, in this order (lengths in the bundle's unit,
@@ -83,3 +94,66 @@ def shape_errors(fitted) -> list[ShapeErrors] | None:
     std[~np.isfinite(var)] = np.nan
     return [ShapeErrors((s[0], s[1]), (s[2], s[3]), s[4], s[5], None if shape.kind == "hole" else s[6])
             for s, shape in zip(std, fitted.shapes)]
+
+
+def drive_sensitivity(fitted, points: Bool[np.ndarray, "n_points"], sigma: float
+                      ) -> Float[np.ndarray, "k frames_x_boundary"]:
+    """``M = (J^T J)^-1 J^T dr/dB`` ``(k, n_frames * n_boundary * dim)``: the fitted unknowns z
+    move by ``-M dB`` when the driving boundary displacements (:meth:`MeasuredModel.measured_boundary`,
+    flattened frame by frame) move by ``dB``, to first order, for a fit on ``points`` weighted
+    by ``sigma`` (length unit). ``dr/dB`` by forward-mode derivatives of the prediction; NaN
+    where ``J^T J`` is singular."""
+    import jax
+
+    model = fitted.compiled.model
+    res = Residuals.at(model.obs.displacements, points, sigma)
+    J = res.jacobian(np.asarray(fitted.compiled.jacobian(fitted.z)))
+    theta = fitted.theta
+    dB = np.asarray(jax.jit(jax.jacfwd(lambda b: model.predict(theta, boundary=b)))(model.measured_boundary()))
+    JB = res.jacobian(dB.reshape(dB.shape[:3] + (-1,)))  # (n, frames * n_boundary * dim)
+    try:
+        return np.linalg.solve(J.T @ J, J.T @ JB)
+    except np.linalg.LinAlgError:
+        return np.full((J.shape[1], JB.shape[1]), np.nan)
+
+
+def drive_covariance(fitted, points: Bool[np.ndarray, "n_points"], sigma: float,
+                     sigma_drive: float | None = None) -> Float[np.ndarray, "k k"]:
+    """Covariance ``(k, k)`` of the fitted unknowns z due to noise on the boundary points that
+    drive the model, ``sigma_drive^2 M M^T`` (:func:`drive_sensitivity`; see the module's
+    docstring), for a fit on ``points`` weighted by ``sigma`` (length unit). ``sigma_drive``: the
+    boundary points' noise std (length unit; default the bundle's ``noise_std``, else
+    ``sigma``); 0 gives zeros."""
+    k = len(fitted.z)
+    if sigma_drive is None:
+        given = fitted.compiled.model.experiment.noise_std
+        sigma_drive = sigma if given is None else given
+    if not sigma_drive > 0:
+        return np.zeros((k, k))
+    M = drive_sensitivity(fitted, points, sigma)
+    return sigma_drive**2 * (M @ M.T)
+
+
+def discretisation_bias(fitted, points: Bool[np.ndarray, "n_points"], hold: Bool[np.ndarray, "n_points"],
+                        sigma: float, factor: float = np.sqrt(2.0)) -> Float[np.ndarray, "shapes 7"] | None:
+    """An estimate of the discretisation error of every reported quantity (:data:`QUANTITIES`,
+    one row per shape): the change of the quantity when the same hypothesis is refitted from its
+    fitted shapes on a mesh ``factor`` times coarser. Richardson's estimate of the fine mesh's
+    error is that change over ``factor^p - 1``: with ``factor = sqrt(2)`` and the rate ``p = 2`` of
+    the energy norm of quadratic triangles, the change itself. None where the hypothesis has no
+    shapes to remesh at, or the coarse refit fails. Costs one more fit."""
+    from dataclasses import replace
+
+    from refine.diagnosis.fitted import fit
+
+    if not getattr(fitted, "shapes", ()) or not fitted.hypothesis.remeshable:
+        return None
+    try:
+        coarse = replace(fitted.hypothesis.at(fitted.shapes, fitted.model.mesh.element), h=factor * fitted.model.h)
+        g = fit(coarse, points, hold, sigma)
+    except Exception:  # noqa: BLE001 - a coarse mesh that cannot hold the shapes gives no estimate
+        return None
+    q, qc = shape_quantities(fitted.shapes), shape_quantities(g.shapes)
+    d = qc - q
+    d[:, 4] = np.angle(np.exp(2j * d[:, 4])) / 2  # an orientation is defined modulo pi
+    return np.abs(d)
