@@ -69,3 +69,39 @@ def test_an_isotropic_region_is_still_named_a_region():
     assert [f.cause for f in d.findings] == ["stiffer-region"], d.chosen.describe()
     found = d.findings[0].region.centroid
     assert np.hypot(found[0] - truth.inclusions[0].shape.cx, found[1] - truth.inclusions[0].shape.cy) < 5.0
+
+
+def test_law_parts_fit_the_angle_unbounded_and_hold_the_modelling_choices():
+    from refine.diagnosis.laws import AngleParameter, law_parts
+
+    parts = law_parts("fibre-reinforced", 0.3, {"fibre_angle": 2.0})
+    assert [p.key for p in parts] == ["nu", "fibre_angle", "fibre_stiffness"]  # compression, mirror: not fitted
+    angle = parts[1]
+    assert isinstance(angle, AngleParameter) and float(angle.z0[0]) == 2.0
+    assert abs(angle.values(np.array([2.0 + 3 * np.pi]))["fibre_angle"] - (2.0 - np.pi)) < 1e-12  # modulo pi
+    assert [p.key for p in law_parts("mooney-rivlin", 0.3)] == ["nu", "c01_fraction"]
+
+
+@pytest.mark.slow
+def test_a_hole_in_a_fibre_reinforced_sheet_is_fitted_with_the_law():
+    from refine.diagnosis.hole_law import fit_hole_with_law
+    from refine.diagnosis.holes import fit_hole
+    from refine.diagnosis.shapes import Hole
+
+    rng = np.random.default_rng(24)
+    truth = with_fibres(rng, random_truth(rng, "hole"))
+    bundle = synthetic_bundle(truth, seed=24)
+    obs = bundle.observations
+    guide = obs.mask("guide")
+    hold = np.zeros_like(guide)
+    hold[np.flatnonzero(guide)[::4]] = True
+    model = MeasuredModel(bundle.experiment, obs, h=2.5)
+    e = truth.holes[0]
+    start = Hole((e.cx + 1.0, e.cy - 1.0), (0.8 * e.rx, 0.8 * e.ry), e.angle + 0.2)
+    both = fit_hole_with_law(model, start, "fibre-reinforced", guide & ~hold, hold, 0.02)
+    alone = fit_hole(model, start, guide & ~hold, hold, 0.02)
+    assert both.chi2_fit < 0.5 * alone.chi2_fit
+    area = both.shapes[0].outline()[0]
+    assert abs(area / (np.pi * e.rx * e.ry) - 1) < 0.1, (area, e)
+    error, std = _recovered(law_parameters(refit(both, guide, hold, 0.02)), truth)
+    assert error < max(FEW_DEGREES, 2 * std), (np.rad2deg(error), np.rad2deg(std), truth.parameters)
