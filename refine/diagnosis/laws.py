@@ -112,8 +112,8 @@ def law_parameters(f: Fitted) -> dict:
     fitted extras) as ``{name: {"value": v, "std": s}}``: ``s`` the standard error (delta method
     on ``f.z_cov``; None before :func:`~refine.diagnosis.fitted.refit`), an angle in radians
     wrapped into one period. Empty for a fit without law unknowns."""
-    param = getattr(f.compiled, "param", None)
-    if param is None or f.z is None:
+    param = getattr(getattr(f, "compiled", None), "param", None)
+    if param is None or getattr(f, "z", None) is None:
         return {}
     parts = getattr(param, "parts", (param,))
     out, i = {}, 0
