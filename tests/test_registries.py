@@ -52,7 +52,9 @@ def test_law_is_stress_free_at_identity_with_the_linear_elastic_tangent(law):
     assert np.abs(np.asarray(jax.grad(m.energy)(eye, p))).max() <= 1e-14 * E
     A = np.asarray(jax.hessian(m.energy)(eye, p))
     # sym(A) on symmetric strains: at a stress-free state A_iJkL = C_iJkL for a finite-strain law
-    np.testing.assert_allclose(A, _linear_elasticity(E, NU), rtol=0, atol=1e-12 * E)
+    # (an anisotropic law's C is its own, declared as Material.stiffness)
+    C = _linear_elasticity(E, NU) if m.stiffness is None else np.asarray(m.stiffness(p))
+    np.testing.assert_allclose(A, C, rtol=0, atol=1e-12 * E)
 
 
 @pytest.mark.parametrize("law", list(LAWS))
@@ -64,10 +66,11 @@ def test_law_extras_start_inside_their_bounds(law):
 def test_alternative_laws_are_the_diagnosis_table():
     # the order matters: a diagnosis tries them in this order
     assert {law: alternatives(law) for law in LAWS} == {
-        "neo-hookean": ("mooney-rivlin", "saint-venant-kirchhoff"),
-        "mooney-rivlin": ("neo-hookean", "saint-venant-kirchhoff"),
-        "saint-venant-kirchhoff": ("neo-hookean", "mooney-rivlin"),
-        "linear-elastic": ("neo-hookean",)}
+        "neo-hookean": ("mooney-rivlin", "saint-venant-kirchhoff", "fibre-reinforced"),
+        "mooney-rivlin": ("neo-hookean", "saint-venant-kirchhoff", "fibre-reinforced"),
+        "saint-venant-kirchhoff": ("neo-hookean", "mooney-rivlin", "fibre-reinforced"),
+        "linear-elastic": ("neo-hookean",),
+        "fibre-reinforced": ("neo-hookean", "mooney-rivlin", "saint-venant-kirchhoff")}
 
 
 def test_every_alternative_is_registered_and_finite():

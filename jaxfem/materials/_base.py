@@ -23,12 +23,19 @@ class Parameter:
         name: its key in the parameter pytree (a per-cell scalar, like ``E``).
         default: its value when the caller gives none; also the start of a fit.
         lower, upper: the bounds a fit keeps it in.
+        period: where the parameter is an angle defined modulo ``period`` (a fibre direction:
+            pi), a fit starts from the best of a few values over one period (the misfit has a
+            stationary point wherever the angle meets a symmetry of the loading); None otherwise.
+        fit: False for a modelling choice (e.g. whether fibres carry compression): a law
+            hypothesis holds it at its default instead of fitting it.
     """
 
     name: str
     default: float
     lower: float
     upper: float
+    period: float | None = None
+    fit: bool = True
 
 
 @dataclass(frozen=True)
@@ -45,6 +52,8 @@ class Material:
             diagnosis tries (:func:`~jaxfem.materials.alternatives`); lower comes first.
         counterpart: for a small-strain law, the finite-strain law whose limit it is (the one
             alternative a diagnosis tries for it); None for a finite-strain law.
+        stiffness: ``C(p) -> (3, 3, 3, 3)``, the law's small-strain stiffness where it is not
+            isotropic linear elasticity with (E, nu) (an anisotropic law's); None: it is.
     """
 
     name: str
@@ -53,3 +62,4 @@ class Material:
     finite: bool = True
     rank: int = 100
     counterpart: str | None = None
+    stiffness: Callable | None = field(default=None, repr=False)

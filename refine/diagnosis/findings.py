@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from refine.diagnosis.laws import law_parameters
 from refine.diagnosis.uncertainty import ShapeErrors, shape_errors
 
 
@@ -40,7 +41,10 @@ class Finding:
         relative_elasticity: E x thickness over the background's (0 for a hole; None for a law).
         modulus: the absolute modulus where measured forces fixed it, else None.
         relative_elasticity_std: its standard error, where known.
-        law: the material law found (a material-law finding only).
+        law: the material law found (a material-law finding, or a hole or region fitted in a
+            material of another law than the initial model's).
+        parameters: the law's fitted parameters with their standard errors, ``{name: {"value":
+            v, "std": s}}`` (:func:`~refine.diagnosis.laws.law_parameters`; an angle in radians).
         std: standard errors of every fitted quantity of the region (centroid, axes, angle,
             area, relative elasticity; :mod:`refine.diagnosis.uncertainty`), where known.
         evidence: a sentence: the null test and what the hypothesis gains.
@@ -56,17 +60,22 @@ class Finding:
     relative_elasticity_std: float | None = None
     law: str | None = None
     std: ShapeErrors | None = None
+    parameters: dict | None = None
 
     def to_json(self) -> dict:
         """The report.json entry (keys in the order of the bundle spec's example)."""
         if self.cause == "material-law":
             return {"cause": self.cause, "region": None, "relative_elasticity": None, "modulus": None,
-                    "law": self.law, "evidence": self.evidence}
+                    "law": self.law, **self._law_parameters(), "evidence": self.evidence}
         std = {} if self.relative_elasticity_std is None else {"relative_elasticity_std": self.relative_elasticity_std}
         if self.std is not None:
             std["std"] = self.std.to_json()
+        law = {"law": self.law, **self._law_parameters()} if self.law else {}
         return {"cause": self.cause, "region": self.region.to_json(), "relative_elasticity": self.relative_elasticity,
-                "modulus": self.modulus, **std, "evidence": self.evidence}
+                "modulus": self.modulus, **std, **law, "evidence": self.evidence}
+
+    def _law_parameters(self) -> dict:
+        return {"parameters": self.parameters} if self.parameters else {}
 
     def __getitem__(self, key: str):
         return self.to_json()[key]
@@ -80,8 +89,9 @@ def findings(chosen, evidence: str, background_modulus: float | None) -> list[Fi
     absolute where ``background_modulus`` is known."""
     if chosen.cause == "none":
         return []
+    parameters = law_parameters(chosen) or None
     if chosen.cause == "material-law":
-        return [Finding("material-law", evidence, law=chosen.law)]
+        return [Finding("material-law", evidence, law=chosen.law, parameters=parameters)]
     out = []
     errors = shape_errors(chosen) or [None] * len(chosen.shapes)
     for i, shape in enumerate(chosen.shapes):
@@ -95,5 +105,7 @@ def findings(chosen, evidence: str, background_modulus: float | None) -> list[Fi
                              (round(float(shape.axes[0]), 4), round(float(shape.axes[1]), 4)),
                              round(float(shape.angle), 4))
         modulus = None if background_modulus is None else round(float(shape.ratio) * background_modulus, 4)
-        out.append(Finding(shape.cause, evidence, region, round(float(shape.ratio), 4), modulus, std, std=errors[i]))
+        law = chosen.law if parameters else None  # a hole in a material of another law (refine.diagnosis.hole_law)
+        out.append(Finding(shape.cause, evidence, region, round(float(shape.ratio), 4), modulus, std, std=errors[i],
+                           law=law, parameters=parameters))
     return out

@@ -8,7 +8,7 @@ interest, their displacements are interpolated from that fine solution and Gauss
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import jax
 import numpy as np
@@ -37,7 +37,9 @@ class Inclusion:
 
 @dataclass(frozen=True)
 class Truth:
-    """What a synthetic bundle hides."""
+    """What a synthetic bundle hides: inclusions, holes, and the sheet's material law ``law``
+    with its extra parameters ``parameters`` (e.g. a fibre-reinforced sheet's ``fibre_angle``;
+    the bundle's initial model stays neo-Hookean, as a modeller who assumed isotropy would write)."""
 
     inclusions: tuple = ()
     holes: tuple = ()
@@ -45,6 +47,8 @@ class Truth:
     nu: float = 0.3
     thickness: float = 1.0
     notes: dict = field(default_factory=dict)
+    law: str = "neo-hookean"
+    parameters: dict = field(default_factory=dict)
 
     @property
     def causes(self) -> list[str]:
@@ -92,6 +96,16 @@ def random_truth(rng: np.random.Generator, cause: str, roi=(20.0, 10.0, 120.0, 7
     raise ExperimentError(f"unknown cause {cause!r}; use one of {', '.join(CAUSES)}")
 
 
+def with_fibres(rng: np.random.Generator, truth: Truth, stiffness=(2.0, 6.0)) -> Truth:
+    """``truth`` in a fibre-reinforced sheet (``jaxfem`` law ``fibre-reinforced``, one family):
+    the fibre angle drawn in 20-70 degrees from the pull on either side (radians in
+    ``parameters``; fibres along or across the pull change little more than the contraction), the
+    fibres' stiffness over the matrix's uniform in ``stiffness``."""
+    angle = float(rng.choice([-1.0, 1.0]) * np.deg2rad(rng.uniform(20.0, 70.0)))
+    return replace(truth, law="fibre-reinforced",
+                   parameters={"fibre_angle": angle, "fibre_stiffness": float(rng.uniform(*stiffness))})
+
+
 def _fine_solution(truth: Truth, sheet, pull: float, fractions, h: float, force_roi=None):
     """Solve the pulled sheet at each load fraction on a conforming quadratic mesh; with
     ``force_roi``, also return the force crossing its right side in each frame, ``(n_frames, 2)``."""
@@ -100,7 +114,7 @@ def _fine_solution(truth: Truth, sheet, pull: float, fractions, h: float, force_
                     element="tri6")
     left, right = mesh.side("left"), mesh.side("right")
     fixed = np.concatenate([jf.dofs(mesh, left), jf.dofs(mesh, right)])
-    problem = jf.Problem(mesh, "neo-hookean", "plane-stress", fixed=fixed)
+    problem = jf.Problem(mesh, truth.law, "plane-stress", fixed=fixed)
     solver = jf.Solver(problem)
     section = None if force_roi is None else _section_force(solver, mesh, force_roi, truth.thickness)
     E = np.full(mesh.n_cells, truth.E)
@@ -110,7 +124,7 @@ def _fine_solution(truth: Truth, sheet, pull: float, fractions, h: float, force_
     for s in fractions:
         target = problem.prescribe(lambda X: np.stack([np.where(X[:, 0] > X0 + 0.5 * (X1 - X0),
                                                                 s * pull * (X1 - X0), 0.0), 0 * X[:, 1]], 1))
-        theta = problem.params(E=E, nu=truth.nu, thickness=truth.thickness, u_D=target)
+        theta = problem.params(E=E, nu=truth.nu, thickness=truth.thickness, u_D=target, **truth.parameters)
         sol = solver.solve(theta, start=start)
         U.append(np.asarray(sol.u))
         forces.append(section(sol.u, theta) if section else np.full(2, np.nan))
