@@ -3,7 +3,9 @@ name the cause, extend the model, and measure the gain on held-out points.
 
 0. Scale: the models' mesh size follows the domain (at most ``max_cells`` cells), and the search
    (steps 2 and 3) runs on the frames of most motion (:mod:`refine.diagnosis.scale`), so that a
-   diagnosis costs about the same for 300 or 3,000 points, 2 or 20 frames.
+   diagnosis costs about the same for 300 or 3,000 points, 2 or 20 frames; the initial model on
+   every frame reuses the search's compiled solve (no program of its own: compiling is most of a
+   diagnosis's cost).
 1. Show: drive the initial (uniform) model with the boundary points; residuals at guide points
    and the strain map.
 2. Decide: compare the misfit with its null level (noise, its propagation from the driving
