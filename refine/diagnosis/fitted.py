@@ -205,10 +205,11 @@ def standard_errors(f: Fitted, points: Mask, sigma: float) -> Float[np.ndarray, 
     return np.sqrt(np.clip(np.diag(covariance(f, points, sigma)), 0, None))
 
 
-def baseline(model: MeasuredModel, fit_mask: Mask, hold_mask: Mask, sigma: float) -> Fitted:
+def baseline(model: MeasuredModel, fit_mask: Mask, hold_mask: Mask, sigma: float, predicted=None) -> Fitted:
     """The initial model, nothing fitted (under pure displacement driving a uniform modulus
-    cancels out, so there is nothing to fit without measured forces)."""
-    pred = np.asarray(model.predict(model.params()))
+    cancels out, so there is nothing to fit without measured forces); ``predicted`` its
+    predictions ``(frames, n_points, dim)`` where the caller has them (default: solved here)."""
+    pred = np.asarray(model.predict(model.params()) if predicted is None else predicted)
     fit, hold = (Residuals.at(model.obs.displacements, m, sigma) for m in (fit_mask, hold_mask))
     chi2 = fit.chi2(pred)
     return Fitted(Unchanged(model.experiment.law), 0, chi2, hold.chi2(pred), chi2, pred, model, model.params(), sigma)

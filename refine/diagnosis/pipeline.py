@@ -3,7 +3,9 @@ name the cause, extend the model, and measure the gain on held-out points.
 
 0. Scale: the models' mesh size follows the domain (at most ``max_cells`` cells), and the search
    (steps 2 and 3) runs on the frames of most motion (:mod:`refine.diagnosis.scale`), so that a
-   diagnosis costs about the same for 300 or 3,000 points, 2 or 20 frames.
+   diagnosis costs about the same for 300 or 3,000 points, 2 or 20 frames; the initial model on
+   every frame reuses the search's compiled solve (no program of its own: compiling is most of a
+   diagnosis's cost).
 1. Show: drive the initial (uniform) model with the boundary points; residuals at guide points
    and the strain map.
 2. Decide: compare the misfit with its null level (noise, its propagation from the driving
@@ -42,7 +44,7 @@ from refine.diagnosis.laws import ALTERNATIVE_LAWS, fit_law
 from refine.diagnosis.regions import fit_rectangle, fit_regions, refit_ellipse
 from refine.diagnosis.shapes import RegionShape, report_row
 from refine.diagnosis.localize import Candidate, fit_field
-from refine.diagnosis.scale import at_frames, mesh_size, on_frames, search_frames
+from refine.diagnosis.scale import at_frames, drives_alike, every_frame, mesh_size, on_frames, search_frames
 from refine.model.measured import MeasuredModel, grid_spacing
 from refine.diagnosis.noise import NullTest, estimate_noise, null_test, propagated_noise
 from refine.diagnosis.provenance import provenance
@@ -170,7 +172,10 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
 
     pool = ThreadPoolExecutor(max(1, cfg.workers))
     floor = pool.submit(_discretisation_floor, model, guide)  # a finer model, compiled beside the initial one
-    full_compiled = pool.submit(full.predict, full.params()) if model is not full else None
+    # the initial model on every frame: from the search model's compiled solve where every frame
+    # is driven alike (no program of its own), else compiled beside the search's set-up
+    alike = drives_alike(model, full)
+    full_compiled = pool.submit(full.predict, full.params()) if model is not full and not alike else None
     if not np.isfinite(np.asarray(model.predict(model.params()))).all():
         pool.shutdown(cancel_futures=True)
         model.raise_solve_failure(model.params())  # e.g. boundary motion that folds the sheet: no fit can help
@@ -204,9 +209,9 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
             if chosen.cause == "softer-region" and chosen.shapes[0].ratio < cfg.hole_refit_below:
                 chosen = _hole_if_as_likely(replace(trials, model=full), chosen, guide)
             chosen = named_hole(chosen, obs.reference, cfg.hole_refit_below)
-    if full_compiled is not None:
-        full_compiled.result()
-        base = baseline(full, fit, hold, sigma_eff)
+    if model is not full:
+        pred = full_compiled.result() if full_compiled is not None else every_frame(model, full, model.params())
+        base = baseline(full, fit, hold, sigma_eff, predicted=pred)
     chosen = base if chosen is tried[0] else chosen
     pool.shutdown()
     log(f"chosen: {chosen.describe()}")

@@ -77,6 +77,33 @@ def at_frames(obs: Observations, frames) -> Observations:
     return Observations(obs.ids, obs.reference, obs.roles, obs.displacements[frames], forces)
 
 
+def drives_alike(search: MeasuredModel, full: MeasuredModel) -> bool:
+    """Whether ``search`` is ``full`` on fewer frames of the same mesh with every frame driven
+    alike (the same boundary points tracked in all: a lost point changes its frame's drive), so
+    that :func:`every_frame` can predict ``full``'s frames with ``search``'s compiled solve."""
+    if search is full or search.mesh is not full.mesh or not np.array_equal(search.obs.ids, full.obs.ids):
+        return False
+    drive = search.drives[0].matrix
+    return all(np.array_equal(d.matrix, drive) for d in (*search.drives, *full.drives))
+
+
+def every_frame(search: MeasuredModel, full: MeasuredModel, theta) -> np.ndarray:
+    """Predictions of ``full`` on every frame, ``(n_frames, n_points, dim)``, at ``theta`` from
+    the search model's compiled solve (:func:`drives_alike` must hold), run on the frames in
+    chunks of its own length (the last chunk padded with its last frame): the initial model on
+    every frame then costs no compilation of its own (several CPU seconds; its solves cost a
+    fraction of one). Each chunk is solved from the undeformed state, so every prediction is
+    the equilibrium of its frame's boundary motion, as ``full.predict`` gives it (a hyperelastic
+    model has no history)."""
+    n, B = search.obs.n_frames, full.measured_boundary()
+    out = []
+    for start in range(0, len(B), n):
+        chunk = B[start:start + n]
+        padded = np.concatenate([chunk, np.repeat(chunk[-1:], n - len(chunk), axis=0)])
+        out.append(np.asarray(search.predict(theta, boundary=padded))[:len(chunk)])
+    return np.concatenate(out)
+
+
 def on_frames(f: Fitted, full: MeasuredModel) -> Fitted:
     """A hypothesis fitted on the search's frames moved onto ``full`` (every frame): its
     hypothesis rebuilt on ``full`` (for remeshing), its compiled model the same mesh and

@@ -125,8 +125,11 @@ class Compiled:
     def __init__(self, model: MeasuredModel, param, theta=None):
         self.model, self.param = model, param
         self.theta = model.params() if theta is None else theta
-        f = lambda z: model.predict(param.apply(self.theta, z))  # noqa: E731
-        self._evaluate = jax.jit(jax.jacfwd(lambda z: (f(z), f(z)), has_aux=True))
+        def f(z):  # the prediction twice, traced once: (f(z), f(z)) put two forward solves in the program
+            y = model.predict(param.apply(self.theta, z))
+            return y, y
+
+        self._evaluate = jax.jit(jax.jacfwd(f, has_aux=True))
         self._last = None
 
     def evaluate(self, z) -> tuple[Float[np.ndarray, "frames n_points dim"],
