@@ -2,9 +2,9 @@
 
 Frame by frame: the model refined on frames <= k predicts frame k+1 (its grips fitted to the
 frame's training points, its parameters kept); the prediction error is the RMS distance of the
-frame's held-out outline points to the predicted outline. Where it exceeds its null level (the
-same error at frame 0, where the model is the reference shape and only noise and sampling remain,
-times ``null_factor``), the model is refined: a modulus field (total variation) is fitted jointly
+frame's held-out boundary points to the predicted boundary (outline in 2D, surface in 3D).
+Where it exceeds its null level (the same error at frame 0, where the model is the reference
+shape and only noise and sampling remain, times ``null_factor``), the model is refined: a modulus field (total variation) is fitted jointly
 with the grips of the last ``window`` frames, and the error is measured again. Every node's
 position in every frame (the dense correspondences) comes from the fit of its frame.
 """
@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from refine.correspond.fit import FitConfig, Fitter, held_error, split_frames
-from refine.correspond.model import GRIP_DOF, CloudModel, Grips
+from refine.correspond.model import CloudModel, Grips
 from refine.exceptions import CorrespondenceError
 from refine.model.parametrize import ModulusField
 
@@ -36,7 +36,7 @@ class FollowConfig:
         field_weight: total-variation weight of the modulus field, times residuals per cell.
         track_iterations, refine_iterations: L-BFGS-B iterations of a frame's grips fit and of a
             refinement.
-        reference_tol: how far (length) the reference cloud may lie from the model's outline.
+        reference_tol: how far (length) the reference cloud may lie from the model's boundary.
     """
 
     fit: FitConfig = field(default_factory=FitConfig)
@@ -71,9 +71,9 @@ class FollowResult:
     Attributes:
         records: one :class:`FrameRecord` per deformed frame.
         null_level: the refinement threshold (length); noise_level the frame-0 error it came from.
-        nodes: ``(n_nodes, 2)`` the model's reference nodes.
-        positions: ``(n_frames + 1, n_nodes, 2)`` every node in every frame (dense correspondences).
-        grips: ``(n_frames, n_grips, 3)`` the fitted grip motions.
+        nodes: ``(n_nodes, dim)`` the model's reference nodes.
+        positions: ``(n_frames + 1, n_nodes, dim)`` every node in every frame (dense correspondences).
+        grips: ``(n_frames, n_grips, grip_dof)`` the fitted grip motions.
         log_modulus: ``(n_cells,)`` the final field, log(E / E initial) per cell.
         findings: the abnormal regions of the final field (cause, centroid, area, and as
             ``relative_elasticity`` the field's peak ratio: smeared by the total variation, well
@@ -99,14 +99,15 @@ class FollowResult:
 
 def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), model: CloudModel | None = None,
                   progress=None) -> FollowResult:
-    """Follow a sequence of unlabelled clouds ``[frame 0, frame 1, ...]`` (``(n_k, 2)`` each).
+    """Follow a sequence of unlabelled clouds ``[frame 0, frame 1, ...]`` (``(n_k, dim)`` each).
 
     Args:
         experiment: the bundle's experiment (domain, law, E, nu; ``noise_std`` if ``config.fit``
             leaves the noise at its default).
         clouds: the clouds, frame 0 the reference shape.
         config: :class:`FollowConfig`.
-        model: a :class:`CloudModel` to reuse (its compilation); default one from the config.
+        model: a :class:`CloudModel` to reuse (its compilation); default one from the config (2D;
+            a 3D model is built from its mesh, ``CloudModel(..., mesh=...)``).
         progress: optional callable ``(FrameRecord) -> None`` after every frame.
     """
     t0 = time.perf_counter()
@@ -117,15 +118,17 @@ def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), mod
     cfg = config.fit
     train, held = split_frames(clouds, cfg)
     model.check_reference(clouds[0], cfg.noise, config.reference_tol or max(10 * cfg.noise, 0.02 * model.size))
+    if model.dim == 3:  # a range camera sees part of the surface: only the nodes it saw are pulled to the cloud
+        train = train.seen_by(model, clouds[0], 2.0 * train.spacing + 3.0 * cfg.noise)
     cap = 20.0 * cfg.noise
     noise_level = float(held_error(model, model.mesh.nodes[None], held.frames([0]), cap)[0])
     level = config.null_factor * max(noise_level, cfg.noise)
-    n_res = float(train.w_outline[1:].sum(axis=1).mean())
+    n_res = float(train.w_boundary[1:].sum(axis=1).mean())
     weight = config.field_weight * n_res / model.mesh.n_cells
     fitter = field_fitter(model, cfg)
     param = fitter.param
     n = len(clouds) - 1
-    Q = np.zeros((n + 1, model.n_grips, GRIP_DOF))  # Q[k]: frame k's grips (frame 0: none)
+    Q = np.zeros((n + 1, model.n_grips, model.grip_dof))  # Q[k]: frame k's grips (frame 0: none)
     zp = np.zeros(param.size)
     positions = [model.mesh.nodes.copy()] + [None] * n
     states = [None] + [None] * n  # (u, q) of each frame's equilibrium, where the next solve starts
