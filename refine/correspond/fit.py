@@ -5,6 +5,8 @@ For each frame, the misfit of the deformed model to the cloud sums robust (Cauch
   segment of the outline in 2D, point to triangle of the surface in 3D, where every point of a
   range cloud is a boundary point);
 - (2D) every surface sample's distance outside the model (zero inside);
+- (optional) every tracked point's distance to its model position (points with identities, e.g.
+  a bundle's points.csv beside its clouds: extra data, :func:`with_labelled`);
 - every seen boundary node's distance to the nearest boundary point (soft minimum; a small weight:
   it keeps parts of the model's boundary from wandering where no point was seen; in 3D only the
   nodes a camera saw in the reference frame, :func:`refine.correspond.geometry.seen_nodes`).
@@ -62,6 +64,10 @@ class FrameData:
         node_weights: ``(n_boundary_nodes,)`` which of the model's boundary nodes (in
             ``CloudModel.boundary_nodes`` order) the nodes-to-cloud term pulls (1) or leaves (0);
             None: all of them.
+        labelled: ``(n_frames, n_l, dim)`` positions of tracked points (with identities) or None;
+            w_labelled ``(n_frames, n_l)`` (0 where a point was lost); probe: ``(nodes (n_l, k),
+            weights (n_l, k))`` where each tracked point lies in the model (its cell's nodes and
+            shape-function values at its reference position).
     """
 
     boundary: np.ndarray
@@ -70,21 +76,50 @@ class FrameData:
     w_interior: np.ndarray
     spacing: float
     node_weights: np.ndarray | None = None
+    labelled: np.ndarray | None = None
+    w_labelled: np.ndarray | None = None
+    probe: tuple | None = None
 
     def frames(self, idx) -> FrameData:
         """The data of the frames ``idx`` (indices into this record)."""
         idx = np.atleast_1d(idx)
-        return FrameData(self.boundary[idx], self.w_boundary[idx], self.interior[idx], self.w_interior[idx],
-                         self.spacing, self.node_weights)
+        lab = None if self.labelled is None else (self.labelled[idx], self.w_labelled[idx])
+        return replace(self, boundary=self.boundary[idx], w_boundary=self.w_boundary[idx],
+                       interior=self.interior[idx], w_interior=self.w_interior[idx],
+                       **({} if lab is None else {"labelled": lab[0], "w_labelled": lab[1]}))
 
     def arrays(self):
-        return tuple(jnp.asarray(a) for a in (self.boundary, self.w_boundary, self.interior, self.w_interior))
+        """The per-frame arrays the compiled misfit maps over (the tracked points' last, if any)."""
+        extra = () if self.labelled is None else (self.labelled, self.w_labelled)
+        return tuple(jnp.asarray(a) for a in (self.boundary, self.w_boundary, self.interior, self.w_interior, *extra))
 
     def seen_by(self, model: CloudModel, reference: np.ndarray, tol: float) -> FrameData:
         """The same data whose nodes-to-cloud term pulls only the boundary nodes within ``tol``
         (length) of the ``reference`` cloud (frame 0): those a camera saw."""
         w = seen_nodes(model.mesh.nodes[model.boundary_nodes], reference, tol).astype(float)
         return replace(self, node_weights=w)
+
+
+def with_labelled(data: FrameData, model: CloudModel, reference, displacements) -> FrameData:
+    """``data`` with tracked points as extra data: ``reference (n_l, dim)`` their positions in frame
+    0, ``displacements (n_frames, n_l, dim)`` in frames 1.. (NaN where lost), for the frames of
+    ``data`` (frame 0 first). Raises :class:`CorrespondenceError` for points outside the model or a
+    frame count that differs from the clouds'."""
+    import jaxfem as jf
+
+    X = np.asarray(reference, float)
+    U = np.asarray(displacements, float)
+    if len(U) + 1 != len(data.boundary):
+        raise CorrespondenceError(f"the tracked points have {len(U)} deformed frames but the clouds {len(data.boundary) - 1}; "
+                                  "both must cover the same frames")
+    try:
+        probe = jf.locate(model.mesh, X, tol=1e-3)
+    except jf.MeshError as e:
+        raise CorrespondenceError(f"tracked points outside the model: {e}") from None
+    pos = np.concatenate([X[None], X[None] + U])
+    seen = np.isfinite(pos).all(axis=2)
+    return replace(data, labelled=np.where(seen[..., None], pos, 0.0), w_labelled=seen.astype(float),
+                   probe=(probe.nodes, probe.weights))
 
 
 def split_frames(clouds, config: FitConfig) -> tuple[FrameData, FrameData]:
@@ -134,10 +169,12 @@ def cauchy(r, c: float):
     return c * c * jnp.log1p((r / c) ** 2)
 
 
-def frame_misfit(x, facets, bnodes, w_nodes, boundary, w_b, interior, w_i, config: FitConfig, spacing: float):
+def frame_misfit(x, facets, bnodes, w_nodes, boundary, w_b, interior, w_i, labelled=None, w_l=None, *,
+                 config: FitConfig, spacing: float, probe=None):
     """The misfit of one frame's deformed node positions ``x (n_nodes, dim)`` to its cloud
     (scalar); ``facets`` the model's boundary facets, ``bnodes`` its boundary nodes and
-    ``w_nodes`` their weights in the nodes-to-cloud term."""
+    ``w_nodes`` their weights in the nodes-to-cloud term; ``labelled``, ``w_l`` and ``probe`` the
+    tracked points (:class:`FrameData`), if any."""
     s = config.noise
     d_o = softmin(facet_distances(boundary, x, facets), 0.25 * s)
     total = jnp.sum(w_b * cauchy(d_o / s, config.robust))
@@ -150,7 +187,12 @@ def frame_misfit(x, facets, bnodes, w_nodes, boundary, w_b, interior, w_i, confi
     D = jnp.sqrt(jnp.sum((x[bnodes][:, None] - boundary[None]) ** 2, axis=-1) + 1e-18) + 1e6 * (1.0 - w_b)[None]
     d_n = softmin(D, 0.25 * scale)
     n_ratio = jnp.sum(w_b) / jnp.sum(w_nodes)  # the nodes' term counts as much as the points', times its weight
-    return total + config.node_weight * n_ratio * jnp.sum(w_nodes * cauchy(d_n / scale, config.robust))
+    total = total + config.node_weight * n_ratio * jnp.sum(w_nodes * cauchy(d_n / scale, config.robust))
+    if labelled is not None:
+        model_at = jnp.einsum("pk,pkd->pd", probe[1], x[probe[0]])
+        d_l = jnp.sqrt(jnp.sum((model_at - labelled) ** 2, axis=1) + 1e-18)
+        total = total + jnp.sum(w_l * cauchy(d_l / s, config.robust))
+    return total
 
 
 def held_error(model: CloudModel, positions: np.ndarray, held: FrameData, cap: float) -> np.ndarray:
@@ -190,16 +232,17 @@ class Fitter:
         """Node positions ``(n_frames, n_nodes, dim)`` for grips ``Q`` and parameters ``zp``."""
         return jnp.asarray(self.model.mesh.nodes)[None] + self.model._solve_frames(self.theta(zp), Q, start)
 
-    def value(self, Q, zp, arrays, start, spacing, reg_weight=1.0, w_nodes=None):
+    def value(self, Q, zp, arrays, start, spacing, reg_weight=1.0, w_nodes=None, probe=None):
         """Misfit of the frames in ``arrays`` (:meth:`FrameData.arrays`) plus ``reg_weight`` times
         the parametrisation's regulariser (an argument: a new weight compiles nothing);
-        ``w_nodes`` the boundary nodes' weights (:attr:`FrameData.node_weights`; None: all 1)."""
+        ``w_nodes`` the boundary nodes' weights (:attr:`FrameData.node_weights`; None: all 1),
+        ``probe`` the tracked points' (:attr:`FrameData.probe`; with their arrays in ``arrays``)."""
         m, cfg = self.model, self.config
         x = self.positions(Q, zp, start)
         facets, bn = jnp.asarray(m.facets), jnp.asarray(m.boundary_nodes)
         w_n = jnp.ones(len(m.boundary_nodes)) if w_nodes is None else w_nodes
-        per = jax.vmap(lambda xf, of, wof, sf, wsf: frame_misfit(xf, facets, bn, w_n, of, wof, sf, wsf, cfg,
-                                                                 spacing))(x, *arrays)
+        per = jax.vmap(lambda xf, *a: frame_misfit(xf, facets, bn, w_n, *a, config=cfg, spacing=spacing,
+                                                   probe=probe))(x, *arrays)
         return jnp.sum(per) + (0.0 if self.param is None else reg_weight * self.param.regularization(zp))
 
     def fit(self, data: FrameData, Q0, zp=None, start=None, joint: bool = False, maxiter: int = 100,
@@ -255,6 +298,7 @@ class _Objective:
     def __init__(self, fitter: Fitter, data: FrameData, Q0, zp, start, joint: bool, reg_weight: float):
         self.fitter, self.arrays, self.start, self.spacing = fitter, data.arrays(), start, data.spacing
         self.w_nodes = None if data.node_weights is None else jnp.asarray(data.node_weights)
+        self.probe = None if data.probe is None else tuple(jnp.asarray(a) for a in data.probe)
         self.reg_weight = reg_weight
         self.param = _Joint(Q0, zp, joint, fitter.param)
         self.n_forward = self.n_gradient = 0
@@ -264,8 +308,8 @@ class _Objective:
         Q = jnp.reshape(z[: p.n_q], p.Q0.shape)
         if not p.joint:
             v, gQ = f._grips_grad(Q, jnp.asarray(p.zp), self.arrays, self.start, self.spacing, self.reg_weight,
-                                  self.w_nodes)
+                                  self.w_nodes, self.probe)
             return v, jnp.ravel(gQ)
         v, (gQ, gp) = f._joint_grad(Q, z[p.n_q:], self.arrays, self.start, self.spacing, self.reg_weight,
-                                    self.w_nodes)
+                                    self.w_nodes, self.probe)
         return v, jnp.concatenate([jnp.ravel(gQ), gp])

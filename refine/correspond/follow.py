@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from refine.correspond.fit import FitConfig, Fitter, held_error, split_frames
+from refine.correspond.fit import FitConfig, Fitter, held_error, split_frames, with_labelled
 from refine.correspond.model import CloudModel, Grips
 from refine.exceptions import CorrespondenceError
 from refine.model.parametrize import ModulusField
@@ -98,7 +98,7 @@ class FollowResult:
 
 
 def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), model: CloudModel | None = None,
-                  progress=None) -> FollowResult:
+                  progress=None, observations=None) -> FollowResult:
     """Follow a sequence of unlabelled clouds ``[frame 0, frame 1, ...]`` (``(n_k, dim)`` each).
 
     Args:
@@ -109,6 +109,9 @@ def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), mod
         model: a :class:`CloudModel` to reuse (its compilation); default one from the config (2D;
             a 3D model is built from its mesh, ``CloudModel(..., mesh=...)``).
         progress: optional callable ``(FrameRecord) -> None`` after every frame.
+        observations: tracked points of the same frames (:class:`refine.bundle.Observations`,
+            e.g. a bundle's points.csv beside its clouds), fitted as extra data; the prediction
+            error stays that of the clouds' held-out points.
     """
     t0 = time.perf_counter()
     clouds = [np.asarray(c, float) for c in clouds]
@@ -120,6 +123,8 @@ def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), mod
     model.check_reference(clouds[0], cfg.noise, config.reference_tol or max(10 * cfg.noise, 0.02 * model.size))
     if model.dim == 3:  # a range camera sees part of the surface: only the nodes it saw are pulled to the cloud
         train = train.seen_by(model, clouds[0], 2.0 * train.spacing + 3.0 * cfg.noise)
+    if observations is not None:
+        train = with_labelled(train, model, observations.reference, observations.displacements)
     cap = 20.0 * cfg.noise
     noise_level = float(held_error(model, model.mesh.nodes[None], held.frames([0]), cap)[0])
     level = config.null_factor * max(noise_level, cfg.noise)
