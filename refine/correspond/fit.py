@@ -110,8 +110,8 @@ def with_labelled(data: FrameData, model: CloudModel, reference, displacements) 
     X = np.asarray(reference, float)
     U = np.asarray(displacements, float)
     if len(U) + 1 != len(data.boundary):
-        raise CorrespondenceError(f"the tracked points have {len(U)} deformed frames but the clouds {len(data.boundary) - 1}; "
-                                  "both must cover the same frames")
+        raise CorrespondenceError(f"the tracked points have {len(U)} deformed frames but the clouds "
+                                  f"{len(data.boundary) - 1}; both must cover the same frames")
     try:
         probe = jf.locate(model.mesh, X, tol=1e-3)
     except jf.MeshError as e:

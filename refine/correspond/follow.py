@@ -4,9 +4,10 @@ Frame by frame: the model refined on frames <= k predicts frame k+1 (its grips f
 frame's training points, its parameters kept); the prediction error is the RMS distance of the
 frame's held-out boundary points to the predicted boundary (outline in 2D, surface in 3D).
 Where it exceeds its null level (the same error at frame 0, where the model is the reference
-shape and only noise and sampling remain, times ``null_factor``), the model is refined: a modulus field (total variation) is fitted jointly
-with the grips of the last ``window`` frames, and the error is measured again. Every node's
-position in every frame (the dense correspondences) comes from the fit of its frame.
+shape and only noise and sampling remain, times ``null_factor``), the model is refined: a modulus
+field (total variation) is fitted jointly with the grips of the last ``window`` frames, and the
+error is measured again. Every node's position in every frame (the dense correspondences) comes
+from the fit of its frame.
 """
 
 from __future__ import annotations

@@ -1,8 +1,9 @@
 """The model of an object seen without correspondences: a mesh of the bundle's domain (a sheet in
 2D, a solid body in 3D), held at its clamped sides and moved at its gripped sides by an unknown
-rigid motion per frame (3 unknowns per grip in 2D, 6 in 3D); every other boundary point is free. The grips' motion is found from the clouds together with the model's
-parameters (:mod:`refine.correspond.fit`); the free outline and the interior follow from the
-equilibrium, so every node has a position in every frame: the dense correspondences.
+rigid motion per frame (3 unknowns per grip in 2D, 6 in 3D); every other boundary point is free.
+The grips' motion is found from the clouds together with the model's parameters
+(:mod:`refine.correspond.fit`); the free boundary and the interior follow from the equilibrium,
+so every node has a position in every frame: the dense correspondences.
 """
 
 from __future__ import annotations
