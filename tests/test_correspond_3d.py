@@ -117,6 +117,9 @@ def test_follow_a_3d_sequence_without_an_effect(model):
     assert not any(x.refined for x in r.records) and r.findings == []
     err = np.linalg.norm(r.positions - hidden.positions(model.mesh.nodes), axis=-1)
     assert r.positions.shape == (3, model.mesh.n_nodes, 3) and np.sqrt((err ** 2).mean()) < 0.01 * SIZE
+    far = [bundle.clouds.points[0], bundle.clouds.points[1] + [0.0, 0.0, 30.0], bundle.clouds.points[2]]
+    with pytest.raises(CorrespondenceError, match="frame 1's cloud lies"):  # a later frame far from the model
+        follow_clouds(bundle.experiment, far, FollowConfig(fit=FitConfig(noise=NOISE)), model=model)
 
 
 def test_bad_3d_clouds_give_clear_errors(model):

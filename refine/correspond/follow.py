@@ -145,6 +145,7 @@ def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), mod
         Qk, _, _ = fitter.fit(train.frames([k]), guess[None], zp, states[k - 1], maxiter=config.track_iterations,
                               reg_weight=weight)
         x = np.asarray(fitter._positions(Qk, zp, model.start(states[k - 1])))
+        _check_frame(model, x[0], train.frames([k]), k, config.reference_tol or 0.05 * model.size)
         before = float(held_error(model, x, held.frames([k]), cap)[0])
         after, change = before, None
         if config.refine and before > level:
@@ -166,6 +167,18 @@ def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), mod
             progress(records[-1])
     return FollowResult(records, level, noise_level, model.mesh.nodes.copy(), np.stack(positions), Q[1:], zp,
                         _findings(model, zp), time.perf_counter() - t0)
+
+
+def _check_frame(model: CloudModel, x, data, k: int, tol: float) -> None:
+    """Raise :class:`CorrespondenceError` when most of frame k's boundary points lie farther than
+    ``tol`` from the model fitted to them: the cloud is not of this object, or the object jumped
+    farther between frames than its grips can follow."""
+    w = data.w_boundary[0] > 0
+    far = float(np.median(model.boundary_distances(data.boundary[0][w], x)))
+    if far > tol:
+        raise CorrespondenceError(f"frame {k}'s cloud lies {far:.3g} from the model fitted to it (median; allowed "
+                                  f"{tol:.3g}): it does not show this object, or the object moved too far since "
+                                  f"frame {k - 1}; check the frame's coordinates or add the frames between")
 
 
 def field_fitter(model: CloudModel, config: FitConfig) -> Fitter:
