@@ -45,7 +45,7 @@ def test_outline_split_from_the_data_alone(seed):
 
 def test_model_outline_is_oriented_and_encloses_the_domain(model):
     X = model.mesh.nodes
-    A, B = X[model.segments[:, 0]], X[model.segments[:, 1]]
+    A, B = X[model.facets[:, 0]], X[model.facets[:, 1]]
     mid, d = 0.5 * (A + B), B - A
     outward = np.stack([d[:, 1], -d[:, 0]], 1)
     centre = np.array([50.0, 25.0])

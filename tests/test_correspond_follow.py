@@ -84,3 +84,47 @@ def test_diagnose_says_a_clouds_only_bundle_is_followed(tmp_path, capsys):
     write_bundle(tmp_path / "b", Bundle(ex, None, clouds=Clouds((np.ones((3, 2)), np.ones((4, 2))))))
     assert main(["diagnose", str(tmp_path / "b"), "--out", str(tmp_path / "o")]) == 2
     assert "nonrigid follow" in capsys.readouterr().err
+
+
+def _with_points(bundle, hidden, rng, n=12):
+    """The bundle with ``n`` tracked points too (random material points seen with noise)."""
+    from refine.bundle import Observations
+
+    X = np.stack([rng.uniform(5, 95, n), rng.uniform(5, 45, n)], 1)
+    x = hidden.positions(X)
+    U = x[1:] - X[None] + rng.normal(0, NOISE, x[1:].shape)
+    return Bundle(bundle.experiment, Observations(np.arange(1, n + 1), X, ["guide"] * n, U), clouds=bundle.clouds)
+
+
+def test_clouds_and_points_must_cover_the_same_frames(tmp_path):
+    from refine.bundle import Clouds, read_bundle
+    from refine.bundle.experiment import Experiment, RectangleDomain
+    from refine.bundle import Observations
+    from refine.exceptions import BundleError, ObservationError
+
+    ex = Experiment(name="c", kind="plane-stress", domain=RectangleDomain(0.0, 0.0, 10.0, 5.0), law="neo-hookean",
+                    E=1.0, nu=0.3, thickness=1.0)
+    ref = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 5.0]])
+    obs = Observations(np.arange(1, 4), ref, ["boundary"] * 3, np.zeros((2, 3, 2)))
+    clouds = Clouds((np.ones((3, 2)), np.ones((4, 2))))  # one deformed frame, the points have two
+    with pytest.raises(ObservationError, match="same frames"):
+        write_bundle(tmp_path / "w", Bundle(ex, obs, clouds=clouds))
+    write_bundle(tmp_path / "b", Bundle(ex, obs))
+    (tmp_path / "b" / "clouds.csv").write_text("frame,x,y\n0,1,1\n1,1,2\n", encoding="utf-8")
+    with pytest.raises(BundleError, match="clouds.csv.*same frames"):
+        read_bundle(tmp_path / "b")
+
+
+@pytest.mark.slow
+def test_follow_fits_tracked_points_beside_the_clouds(model, tmp_path, capsys):
+    _, bundle, hidden = _sequence("none", 23)
+    both = _with_points(bundle, hidden, np.random.default_rng(23))
+    write_bundle(tmp_path / "b", both)
+    assert main(["follow", str(tmp_path / "b"), "--out", str(tmp_path / "out"), "--noise", str(NOISE),
+                 "--no-refine"]) == 0
+    assert "12 tracked points" in capsys.readouterr().out
+    rows = np.loadtxt(tmp_path / "out" / "correspondences.csv", delimiter=",", skiprows=1)
+    n = model.mesh.n_nodes
+    pos = rows[:, 4:6].reshape(-1, n, 2)
+    err = np.linalg.norm(pos - hidden.positions(rows[:n, 2:4]), axis=-1)
+    assert np.sqrt((err ** 2).mean()) < 0.1  # as good as clouds alone (0.01 mm) to within the noise's scale

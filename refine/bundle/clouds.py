@@ -18,7 +18,7 @@ import numpy as np
 
 from refine.exceptions import BundleError, ObservationError
 
-__all__ = ["Clouds", "read_clouds", "write_clouds"]
+__all__ = ["Clouds", "check_frames", "read_clouds", "write_clouds"]
 
 _AXES = ("x", "y", "z")
 
@@ -72,6 +72,16 @@ class Clouds:
         if not 0 <= k < len(self.points):
             raise ObservationError(f"no cloud for frame {k}; frames are 0..{len(self.points) - 1}")
         return self.points[k]
+
+
+def check_frames(clouds: Clouds | None, n_frames: int) -> None:
+    """Raise :class:`ObservationError` when the clouds and the tracked points (``n_frames``
+    deformed frames in displacements.csv) do not cover the same frames: frame k of both is one
+    moment of the experiment, so a frame missing from one of them would pair the wrong moments."""
+    if clouds is not None and clouds.n_frames != n_frames:
+        raise ObservationError(f"clouds.csv has frames 0..{clouds.n_frames} but displacements.csv has frames "
+                               f"1..{n_frames}: both must cover the same frames (frame k of both is the same moment); "
+                               "add the missing frames or cut the longer file to the shorter")
 
 
 def read_clouds(path: str | Path, dim: int | None = None) -> Clouds | None:

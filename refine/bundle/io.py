@@ -19,7 +19,7 @@ import tomli_w
 
 from refine.exceptions import BundleError, ExperimentError, ObservationError
 from refine.bundle.experiment import Experiment, MeshDomain
-from refine.bundle.clouds import Clouds, read_clouds, write_clouds
+from refine.bundle.clouds import Clouds, check_frames, read_clouds, write_clouds
 from refine.bundle.sides import undefined_side
 from refine.bundle.observations import Forces, Observations
 from refine.bundle.roles import ROLES
@@ -65,6 +65,10 @@ def read_bundle(path: str | Path) -> Bundle:
         return Bundle(experiment, None, root=root, clouds=clouds)
     ids, reference, roles = _read_points(root / "points.csv", experiment.dim)
     displacements = _read_displacements(root / "displacements.csv", ids, experiment.dim)
+    try:
+        check_frames(clouds, len(displacements))
+    except ObservationError as e:
+        raise BundleError(root / "clouds.csv", str(e)) from None
     forces = None
     if (root / "forces.csv").exists():
         forces = _read_forces(root / "forces.csv", len(displacements), experiment.dim, experiment.domain.side_names)
@@ -88,6 +92,8 @@ def write_bundle(path: str | Path, bundle: Bundle) -> Path:
         unknown = sorted(set(obs.forces.edges) - set(exp.domain.side_names))
         if unknown:
             raise ObservationError(undefined_side(unknown[0], exp.domain.side_names))
+    if obs is not None:
+        check_frames(bundle.clouds, len(obs.displacements))
     (root / "experiment.toml").write_text(tomli_w.dumps(exp.to_toml()), encoding="utf-8")
     if bundle.clouds is not None:
         write_clouds(root / "clouds.csv", bundle.clouds)

@@ -1,10 +1,15 @@
-"""The differentiable correspondence-free fit: the model's outline against the clouds.
+"""The differentiable correspondence-free fit: the model's boundary against the clouds.
 
 For each frame, the misfit of the deformed model to the cloud sums robust (Cauchy) penalties of
-- every outline point's distance to the model's outline (point-to-segment, soft minimum);
-- every surface sample's distance outside the model (zero inside);
-- every outline node's distance to the nearest outline point (soft minimum; a small weight: it
-  keeps parts of the model's outline from wandering where no point was seen).
+- every boundary point's distance to the model's boundary (soft minimum over its facets: point to
+  segment of the outline in 2D, point to triangle of the surface in 3D, where every point of a
+  range cloud is a boundary point);
+- (2D) every surface sample's distance outside the model (zero inside);
+- (optional) every tracked point's distance to its model position (points with identities, e.g.
+  a bundle's points.csv beside its clouds: extra data, :func:`with_labelled`);
+- every seen boundary node's distance to the nearest boundary point (soft minimum; a small weight:
+  it keeps parts of the model's boundary from wandering where no point was seen; in 3D only the
+  nodes a camera saw in the reference frame, :func:`refine.correspond.geometry.seen_nodes`).
 The penalties are in units of squared noise-weighted residuals, so a modulus field's smoothing
 weight means what it means in the labelled diagnosis. The misfit is minimised over the grips'
 motion of every frame AND the model's parameters (any parametrisation of :mod:`refine.model`)
@@ -16,14 +21,14 @@ a transport plan would match the densities (ott-jax solves that problem), not th
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from refine.correspond.geometry import inside, point_spacing, segment_distances, softmin, split_outline
-from refine.correspond.model import GRIP_DOF, CloudModel
+from refine.correspond.geometry import facet_distances, inside, on_boundary, point_spacing, seen_nodes, softmin
+from refine.correspond.model import CloudModel
 from refine.exceptions import CorrespondenceError
 
 
@@ -48,65 +53,114 @@ class FitConfig:
 
 @dataclass(frozen=True, eq=False)
 class FrameData:
-    """Clouds of several frames, split into outline and surface points and padded to common sizes
-    (weight 0 marks padding), so that one compiled misfit serves every frame.
+    """Clouds of several frames, split into boundary points (the outline in 2D, every point of a
+    range cloud in 3D) and interior points (2D: samples of the sheet's surface; none in 3D), padded
+    to common sizes (weight 0 marks padding), so that one compiled misfit serves every frame.
 
     Attributes:
-        outline: ``(n_frames, n_o, 2)``; w_outline ``(n_frames, n_o)``.
-        surface: ``(n_frames, n_s, 2)``; w_surface ``(n_frames, n_s)``.
-        spacing: median spacing of the outline points (length).
+        boundary: ``(n_frames, n_b, dim)``; w_boundary ``(n_frames, n_b)``.
+        interior: ``(n_frames, n_i, dim)``; w_interior ``(n_frames, n_i)``.
+        spacing: median spacing of the boundary points (length).
+        node_weights: ``(n_boundary_nodes,)`` which of the model's boundary nodes (in
+            ``CloudModel.boundary_nodes`` order) the nodes-to-cloud term pulls (1) or leaves (0);
+            None: all of them.
+        labelled: ``(n_frames, n_l, dim)`` positions of tracked points (with identities) or None;
+            w_labelled ``(n_frames, n_l)`` (0 where a point was lost); probe: ``(nodes (n_l, k),
+            weights (n_l, k))`` where each tracked point lies in the model (its cell's nodes and
+            shape-function values at its reference position).
     """
 
-    outline: np.ndarray
-    w_outline: np.ndarray
-    surface: np.ndarray
-    w_surface: np.ndarray
+    boundary: np.ndarray
+    w_boundary: np.ndarray
+    interior: np.ndarray
+    w_interior: np.ndarray
     spacing: float
+    node_weights: np.ndarray | None = None
+    labelled: np.ndarray | None = None
+    w_labelled: np.ndarray | None = None
+    probe: tuple | None = None
 
     def frames(self, idx) -> FrameData:
         """The data of the frames ``idx`` (indices into this record)."""
         idx = np.atleast_1d(idx)
-        return FrameData(self.outline[idx], self.w_outline[idx], self.surface[idx], self.w_surface[idx], self.spacing)
+        lab = None if self.labelled is None else (self.labelled[idx], self.w_labelled[idx])
+        return replace(self, boundary=self.boundary[idx], w_boundary=self.w_boundary[idx],
+                       interior=self.interior[idx], w_interior=self.w_interior[idx],
+                       **({} if lab is None else {"labelled": lab[0], "w_labelled": lab[1]}))
 
     def arrays(self):
-        return tuple(jnp.asarray(a) for a in (self.outline, self.w_outline, self.surface, self.w_surface))
+        """The per-frame arrays the compiled misfit maps over (the tracked points' last, if any)."""
+        extra = () if self.labelled is None else (self.labelled, self.w_labelled)
+        return tuple(jnp.asarray(a) for a in (self.boundary, self.w_boundary, self.interior, self.w_interior, *extra))
+
+    def seen_by(self, model: CloudModel, reference: np.ndarray, tol: float) -> FrameData:
+        """The same data whose nodes-to-cloud term pulls only the boundary nodes within ``tol``
+        (length) of the ``reference`` cloud (frame 0): those a camera saw."""
+        w = seen_nodes(model.mesh.nodes[model.boundary_nodes], reference, tol).astype(float)
+        return replace(self, node_weights=w)
+
+
+def with_labelled(data: FrameData, model: CloudModel, reference, displacements) -> FrameData:
+    """``data`` with tracked points as extra data: ``reference (n_l, dim)`` their positions in frame
+    0, ``displacements (n_frames, n_l, dim)`` in frames 1.. (NaN where lost), for the frames of
+    ``data`` (frame 0 first). Raises :class:`CorrespondenceError` for points outside the model or a
+    frame count that differs from the clouds'."""
+    import jaxfem as jf
+
+    X = np.asarray(reference, float)
+    U = np.asarray(displacements, float)
+    if len(U) + 1 != len(data.boundary):
+        raise CorrespondenceError(f"the tracked points have {len(U)} deformed frames but the clouds "
+                                  f"{len(data.boundary) - 1}; both must cover the same frames")
+    try:
+        probe = jf.locate(model.mesh, X, tol=1e-3)
+    except jf.MeshError as e:
+        raise CorrespondenceError(f"tracked points outside the model: {e}") from None
+    pos = np.concatenate([X[None], X[None] + U])
+    seen = np.isfinite(pos).all(axis=2)
+    return replace(data, labelled=np.where(seen[..., None], pos, 0.0), w_labelled=seen.astype(float),
+                   probe=(probe.nodes, probe.weights))
 
 
 def split_frames(clouds, config: FitConfig) -> tuple[FrameData, FrameData]:
-    """Split every frame's cloud into outline and surface points and hold a random share of the
-    outline points out: returns ``(train, held)``, both over all frames (frame 0 included)."""
+    """Split every frame's cloud into boundary and interior points and hold a random share of the
+    boundary points out: returns ``(train, held)``, both over all frames (frame 0 included)."""
     rng = np.random.default_rng(config.seed)
     train_o, held_o, surf = [], [], []
+    dims = {np.shape(c)[-1] for c in clouds}
+    if len(dims) != 1 or not dims <= {2, 3}:
+        raise CorrespondenceError(f"every frame's cloud must hold points of one dimension, 2 or 3; got {sorted(dims)}")
     for k, cloud in enumerate(clouds):
         cloud = np.asarray(cloud, float)
         if len(cloud) == 0:
             raise CorrespondenceError(f"frame {k} has an empty cloud; leave the frame out or give its points")
         if not np.all(np.isfinite(cloud)):
             raise CorrespondenceError(f"frame {k}'s cloud has NaN or inf coordinates; leave unseen points out")
-        on = split_outline(cloud, 4 * config.noise)
+        on = on_boundary(cloud, 4 * config.noise)
         if on.sum() < 8:
-            raise CorrespondenceError(f"frame {k}: only {int(on.sum())} points lie on an outline; the fit needs the "
-                                      "object's outline sampled densely (a point every few noise levels)")
+            where = "lie on an outline" if cloud.shape[1] == 2 else "are in the range cloud"
+            raise CorrespondenceError(f"frame {k}: only {int(on.sum())} points {where}; the fit needs the object's "
+                                      "boundary sampled densely (a point every few noise levels)")
         o = cloud[on][rng.permutation(int(on.sum()))]
         n_held = int(round(config.holdout * len(o)))
         held_o.append(o[:n_held])
         train_o.append(o[n_held:])
         surf.append(cloud[~on])
     spacing = float(np.median([point_spacing(o) for o in train_o]))
-    empty = np.zeros((0, 2))
+    empty = np.zeros((0, dims.pop()))
     return (_padded(train_o, surf, spacing), _padded(held_o, [empty] * len(held_o), spacing))
 
 
-def _padded(outline, surface, spacing) -> FrameData:
+def _padded(boundary, interior, spacing) -> FrameData:
     def pad(parts):
         n = max(1, max(len(p) for p in parts))
-        a, w = np.zeros((len(parts), n, 2)), np.zeros((len(parts), n))
+        a, w = np.zeros((len(parts), n, parts[0].shape[1])), np.zeros((len(parts), n))
         for k, p in enumerate(parts):
             a[k, : len(p)], w[k, : len(p)] = p, 1.0
             a[k, len(p):] = p[0] if len(p) else 0.0  # padding sits on a real point: finite distances
         return a, w
 
-    (o, wo), (s, ws) = pad(outline), pad(surface)
+    (o, wo), (s, ws) = pad(boundary), pad(interior)
     return FrameData(o, wo, s, ws, spacing)
 
 
@@ -115,30 +169,39 @@ def cauchy(r, c: float):
     return c * c * jnp.log1p((r / c) ** 2)
 
 
-def frame_misfit(x, segments, bnodes, outline, w_o, surface, w_s, config: FitConfig, spacing: float):
-    """The misfit of one frame's deformed node positions ``x (n_nodes, 2)`` to its cloud (scalar)."""
+def frame_misfit(x, facets, bnodes, w_nodes, boundary, w_b, interior, w_i, labelled=None, w_l=None, *,
+                 config: FitConfig, spacing: float, probe=None):
+    """The misfit of one frame's deformed node positions ``x (n_nodes, dim)`` to its cloud
+    (scalar); ``facets`` the model's boundary facets, ``bnodes`` its boundary nodes and
+    ``w_nodes`` their weights in the nodes-to-cloud term; ``labelled``, ``w_l`` and ``probe`` the
+    tracked points (:class:`FrameData`), if any."""
     s = config.noise
-    A, B = x[segments[:, 0]], x[segments[:, 1]]
-    d_o = softmin(segment_distances(outline, A, B), 0.25 * s)
-    total = jnp.sum(w_o * cauchy(d_o / s, config.robust))
-    d_s = jnp.min(segment_distances(surface, A, B), axis=1)
-    d_s = jnp.where(inside(surface, A, B), 0.0, d_s)
-    total = total + jnp.sum(w_s * cauchy(d_s / s, config.robust))
+    d_o = softmin(facet_distances(boundary, x, facets), 0.25 * s)
+    total = jnp.sum(w_b * cauchy(d_o / s, config.robust))
+    if facets.shape[1] == 2:  # a sheet's surface samples lie inside its outline
+        A, B = x[facets[:, 0]], x[facets[:, 1]]
+        d_s = jnp.min(facet_distances(interior, x, facets), axis=1)
+        d_s = jnp.where(inside(interior, A, B), 0.0, d_s)
+        total = total + jnp.sum(w_i * cauchy(d_s / s, config.robust))
     scale = jnp.maximum(s, spacing)
-    D = jnp.sqrt(jnp.sum((x[bnodes][:, None] - outline[None]) ** 2, axis=-1) + 1e-18) + 1e6 * (1.0 - w_o)[None]
+    D = jnp.sqrt(jnp.sum((x[bnodes][:, None] - boundary[None]) ** 2, axis=-1) + 1e-18) + 1e6 * (1.0 - w_b)[None]
     d_n = softmin(D, 0.25 * scale)
-    n_ratio = jnp.sum(w_o) / len(bnodes)  # the nodes' term counts as much as the points' term, times its weight
-    return total + config.node_weight * n_ratio * jnp.sum(cauchy(d_n / scale, config.robust))
+    n_ratio = jnp.sum(w_b) / jnp.sum(w_nodes)  # the nodes' term counts as much as the points', times its weight
+    total = total + config.node_weight * n_ratio * jnp.sum(w_nodes * cauchy(d_n / scale, config.robust))
+    if labelled is not None:
+        model_at = jnp.einsum("pk,pkd->pd", probe[1], x[probe[0]])
+        d_l = jnp.sqrt(jnp.sum((model_at - labelled) ** 2, axis=1) + 1e-18)
+        total = total + jnp.sum(w_l * cauchy(d_l / s, config.robust))
+    return total
 
 
 def held_error(model: CloudModel, positions: np.ndarray, held: FrameData, cap: float) -> np.ndarray:
-    """Prediction error per frame: the RMS distance of the held-out outline points to the model's
-    outline at ``positions (n_frames, n_nodes, 2)`` (length), ``(n_frames,)``; each distance capped
-    at ``cap`` (a surface sample taken for an outline point must not dominate)."""
+    """Prediction error per frame: the RMS distance of the held-out boundary points to the model's
+    boundary at ``positions (n_frames, n_nodes, dim)`` (length), ``(n_frames,)``; each distance
+    capped at ``cap`` (a surface sample taken for an outline point must not dominate)."""
     out = []
-    for x, o, w in zip(positions, held.outline, held.w_outline):
-        A, B = x[model.segments[:, 0]], x[model.segments[:, 1]]
-        d = np.minimum(np.asarray(segment_distances(jnp.asarray(o), jnp.asarray(A), jnp.asarray(B))).min(axis=1), cap)
+    for x, o, w in zip(positions, held.boundary, held.w_boundary):
+        d = np.minimum(model.boundary_distances(o, x), cap)
         out.append(float(np.sqrt(np.sum(w * d * d) / max(w.sum(), 1))))
     return np.array(out)
 
@@ -166,17 +229,20 @@ class Fitter:
         return self.base if self.param is None else self.param.apply(self.base, zp)
 
     def positions(self, Q, zp, start):
-        """Node positions ``(n_frames, n_nodes, 2)`` for grips ``Q`` and parameters ``zp``."""
+        """Node positions ``(n_frames, n_nodes, dim)`` for grips ``Q`` and parameters ``zp``."""
         return jnp.asarray(self.model.mesh.nodes)[None] + self.model._solve_frames(self.theta(zp), Q, start)
 
-    def value(self, Q, zp, arrays, start, spacing, reg_weight=1.0):
+    def value(self, Q, zp, arrays, start, spacing, reg_weight=1.0, w_nodes=None, probe=None):
         """Misfit of the frames in ``arrays`` (:meth:`FrameData.arrays`) plus ``reg_weight`` times
-        the parametrisation's regulariser (an argument: a new weight compiles nothing)."""
+        the parametrisation's regulariser (an argument: a new weight compiles nothing);
+        ``w_nodes`` the boundary nodes' weights (:attr:`FrameData.node_weights`; None: all 1),
+        ``probe`` the tracked points' (:attr:`FrameData.probe`; with their arrays in ``arrays``)."""
         m, cfg = self.model, self.config
         x = self.positions(Q, zp, start)
-        segs, bn = jnp.asarray(m.segments), jnp.asarray(m.boundary_nodes)
-        per = jax.vmap(lambda xf, of, wof, sf, wsf: frame_misfit(xf, segs, bn, of, wof, sf, wsf, cfg, spacing))(
-            x, *arrays)
+        facets, bn = jnp.asarray(m.facets), jnp.asarray(m.boundary_nodes)
+        w_n = jnp.ones(len(m.boundary_nodes)) if w_nodes is None else w_nodes
+        per = jax.vmap(lambda xf, *a: frame_misfit(xf, facets, bn, w_n, *a, config=cfg, spacing=spacing,
+                                                   probe=probe))(x, *arrays)
         return jnp.sum(per) + (0.0 if self.param is None else reg_weight * self.param.regularization(zp))
 
     def fit(self, data: FrameData, Q0, zp=None, start=None, joint: bool = False, maxiter: int = 100,
@@ -185,7 +251,7 @@ class Fitter:
         parameters too) by L-BFGS-B with adjoint gradients (:func:`refine.optimize.lbfgsb`).
 
         Args:
-            data: the frames to fit; Q0 ``(n_frames, n_grips, 3)`` their initial grips; zp the
+            data: the frames to fit; Q0 ``(n_frames, n_grips, grip_dof)`` their initial grips; zp the
                 parameters (default: the parametrisation's start); start the equilibrium
                 ``(u, q)`` before the first frame (default: the reference); reg_weight multiplies
                 the regulariser.
@@ -194,9 +260,9 @@ class Fitter:
         from refine.optimize.lbfgsb import lbfgsb
 
         Q0 = np.asarray(Q0, float)
-        if Q0.shape != (len(data.outline), self.model.n_grips, GRIP_DOF):
-            raise CorrespondenceError(f"Q0 must have shape ({len(data.outline)}, {self.model.n_grips}, {GRIP_DOF}), "
-                                      f"got {Q0.shape}")
+        shape = (len(data.boundary), self.model.n_grips, self.model.grip_dof)
+        if Q0.shape != shape:
+            raise CorrespondenceError(f"Q0 must have shape {shape}, got {Q0.shape}")
         zp = self.zp0 if zp is None else np.asarray(zp, float)
         objective = _Objective(self, data, Q0, zp, self.model.start(start), joint, reg_weight)
         res = lbfgsb(objective, maxiter=maxiter)
@@ -231,6 +297,8 @@ class _Objective:
 
     def __init__(self, fitter: Fitter, data: FrameData, Q0, zp, start, joint: bool, reg_weight: float):
         self.fitter, self.arrays, self.start, self.spacing = fitter, data.arrays(), start, data.spacing
+        self.w_nodes = None if data.node_weights is None else jnp.asarray(data.node_weights)
+        self.probe = None if data.probe is None else tuple(jnp.asarray(a) for a in data.probe)
         self.reg_weight = reg_weight
         self.param = _Joint(Q0, zp, joint, fitter.param)
         self.n_forward = self.n_gradient = 0
@@ -239,7 +307,9 @@ class _Objective:
         p, f = self.param, self.fitter
         Q = jnp.reshape(z[: p.n_q], p.Q0.shape)
         if not p.joint:
-            v, gQ = f._grips_grad(Q, jnp.asarray(p.zp), self.arrays, self.start, self.spacing, self.reg_weight)
+            v, gQ = f._grips_grad(Q, jnp.asarray(p.zp), self.arrays, self.start, self.spacing, self.reg_weight,
+                                  self.w_nodes, self.probe)
             return v, jnp.ravel(gQ)
-        v, (gQ, gp) = f._joint_grad(Q, z[p.n_q:], self.arrays, self.start, self.spacing, self.reg_weight)
+        v, (gQ, gp) = f._joint_grad(Q, z[p.n_q:], self.arrays, self.start, self.spacing, self.reg_weight,
+                                    self.w_nodes, self.probe)
         return v, jnp.concatenate([jnp.ravel(gQ), gp])

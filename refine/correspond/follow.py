@@ -2,11 +2,12 @@
 
 Frame by frame: the model refined on frames <= k predicts frame k+1 (its grips fitted to the
 frame's training points, its parameters kept); the prediction error is the RMS distance of the
-frame's held-out outline points to the predicted outline. Where it exceeds its null level (the
-same error at frame 0, where the model is the reference shape and only noise and sampling remain,
-times ``null_factor``), the model is refined: a modulus field (total variation) is fitted jointly
-with the grips of the last ``window`` frames, and the error is measured again. Every node's
-position in every frame (the dense correspondences) comes from the fit of its frame.
+frame's held-out boundary points to the predicted boundary (outline in 2D, surface in 3D).
+Where it exceeds its null level (the same error at frame 0, where the model is the reference
+shape and only noise and sampling remain, times ``null_factor``), the model is refined: a modulus
+field (total variation) is fitted jointly with the grips of the last ``window`` frames, and the
+error is measured again. Every node's position in every frame (the dense correspondences) comes
+from the fit of its frame.
 """
 
 from __future__ import annotations
@@ -16,8 +17,8 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from refine.correspond.fit import FitConfig, Fitter, held_error, split_frames
-from refine.correspond.model import GRIP_DOF, CloudModel, Grips
+from refine.correspond.fit import FitConfig, Fitter, held_error, split_frames, with_labelled
+from refine.correspond.model import CloudModel, Grips
 from refine.exceptions import CorrespondenceError
 from refine.model.parametrize import ModulusField
 
@@ -36,7 +37,7 @@ class FollowConfig:
         field_weight: total-variation weight of the modulus field, times residuals per cell.
         track_iterations, refine_iterations: L-BFGS-B iterations of a frame's grips fit and of a
             refinement.
-        reference_tol: how far (length) the reference cloud may lie from the model's outline.
+        reference_tol: how far (length) the reference cloud may lie from the model's boundary.
     """
 
     fit: FitConfig = field(default_factory=FitConfig)
@@ -71,9 +72,9 @@ class FollowResult:
     Attributes:
         records: one :class:`FrameRecord` per deformed frame.
         null_level: the refinement threshold (length); noise_level the frame-0 error it came from.
-        nodes: ``(n_nodes, 2)`` the model's reference nodes.
-        positions: ``(n_frames + 1, n_nodes, 2)`` every node in every frame (dense correspondences).
-        grips: ``(n_frames, n_grips, 3)`` the fitted grip motions.
+        nodes: ``(n_nodes, dim)`` the model's reference nodes.
+        positions: ``(n_frames + 1, n_nodes, dim)`` every node in every frame (dense correspondences).
+        grips: ``(n_frames, n_grips, grip_dof)`` the fitted grip motions.
         log_modulus: ``(n_cells,)`` the final field, log(E / E initial) per cell.
         findings: the abnormal regions of the final field (cause, centroid, area, and as
             ``relative_elasticity`` the field's peak ratio: smeared by the total variation, well
@@ -98,16 +99,20 @@ class FollowResult:
 
 
 def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), model: CloudModel | None = None,
-                  progress=None) -> FollowResult:
-    """Follow a sequence of unlabelled clouds ``[frame 0, frame 1, ...]`` (``(n_k, 2)`` each).
+                  progress=None, observations=None) -> FollowResult:
+    """Follow a sequence of unlabelled clouds ``[frame 0, frame 1, ...]`` (``(n_k, dim)`` each).
 
     Args:
         experiment: the bundle's experiment (domain, law, E, nu; ``noise_std`` if ``config.fit``
             leaves the noise at its default).
         clouds: the clouds, frame 0 the reference shape.
         config: :class:`FollowConfig`.
-        model: a :class:`CloudModel` to reuse (its compilation); default one from the config.
+        model: a :class:`CloudModel` to reuse (its compilation); default one from the config (2D;
+            a 3D model is built from its mesh, ``CloudModel(..., mesh=...)``).
         progress: optional callable ``(FrameRecord) -> None`` after every frame.
+        observations: tracked points of the same frames (:class:`refine.bundle.Observations`,
+            e.g. a bundle's points.csv beside its clouds), fitted as extra data; the prediction
+            error stays that of the clouds' held-out points.
     """
     t0 = time.perf_counter()
     clouds = [np.asarray(c, float) for c in clouds]
@@ -117,15 +122,19 @@ def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), mod
     cfg = config.fit
     train, held = split_frames(clouds, cfg)
     model.check_reference(clouds[0], cfg.noise, config.reference_tol or max(10 * cfg.noise, 0.02 * model.size))
+    if model.dim == 3:  # a range camera sees part of the surface: only the nodes it saw are pulled to the cloud
+        train = train.seen_by(model, clouds[0], 2.0 * train.spacing + 3.0 * cfg.noise)
+    if observations is not None:
+        train = with_labelled(train, model, observations.reference, observations.displacements)
     cap = 20.0 * cfg.noise
     noise_level = float(held_error(model, model.mesh.nodes[None], held.frames([0]), cap)[0])
     level = config.null_factor * max(noise_level, cfg.noise)
-    n_res = float(train.w_outline[1:].sum(axis=1).mean())
+    n_res = float(train.w_boundary[1:].sum(axis=1).mean())
     weight = config.field_weight * n_res / model.mesh.n_cells
     fitter = field_fitter(model, cfg)
     param = fitter.param
     n = len(clouds) - 1
-    Q = np.zeros((n + 1, model.n_grips, GRIP_DOF))  # Q[k]: frame k's grips (frame 0: none)
+    Q = np.zeros((n + 1, model.n_grips, model.grip_dof))  # Q[k]: frame k's grips (frame 0: none)
     zp = np.zeros(param.size)
     positions = [model.mesh.nodes.copy()] + [None] * n
     states = [None] + [None] * n  # (u, q) of each frame's equilibrium, where the next solve starts
@@ -136,6 +145,7 @@ def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), mod
         Qk, _, _ = fitter.fit(train.frames([k]), guess[None], zp, states[k - 1], maxiter=config.track_iterations,
                               reg_weight=weight)
         x = np.asarray(fitter._positions(Qk, zp, model.start(states[k - 1])))
+        _check_frame(model, x[0], train.frames([k]), k, config.reference_tol or 0.05 * model.size)
         before = float(held_error(model, x, held.frames([k]), cap)[0])
         after, change = before, None
         if config.refine and before > level:
@@ -157,6 +167,18 @@ def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), mod
             progress(records[-1])
     return FollowResult(records, level, noise_level, model.mesh.nodes.copy(), np.stack(positions), Q[1:], zp,
                         _findings(model, zp), time.perf_counter() - t0)
+
+
+def _check_frame(model: CloudModel, x, data, k: int, tol: float) -> None:
+    """Raise :class:`CorrespondenceError` when most of frame k's boundary points lie farther than
+    ``tol`` from the model fitted to them: the cloud is not of this object, or the object jumped
+    farther between frames than its grips can follow."""
+    w = data.w_boundary[0] > 0
+    far = float(np.median(model.boundary_distances(data.boundary[0][w], x)))
+    if far > tol:
+        raise CorrespondenceError(f"frame {k}'s cloud lies {far:.3g} from the model fitted to it (median; allowed "
+                                  f"{tol:.3g}): it does not show this object, or the object moved too far since "
+                                  f"frame {k - 1}; check the frame's coordinates or add the frames between")
 
 
 def field_fitter(model: CloudModel, config: FitConfig) -> Fitter:

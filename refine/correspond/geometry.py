@@ -1,9 +1,10 @@
-"""Distances between a deformed model and an unlabelled cloud: point-to-outline distances (JAX,
+"""Distances between a deformed model and an unlabelled cloud: point-to-boundary distances (JAX,
 differentiable in the model's node positions), inside tests, a soft minimum, and the split of a
 cloud into outline points and surface samples (SciPy's KD-tree, from the data alone).
 
-2D: the model's outline is the chain of its boundary edges. The distance functions take
-segments ``(A, B)`` of any dimension; a 3D body's surface (triangles) comes with the 3D issue.
+The model's boundary is a set of facets: in 2D the chain of its boundary edges (segments, node
+pairs), in 3D its boundary faces as flat triangles (node triples; a quadratic face is split at
+its mid-edge nodes into four, so the triangles follow the deformed quadratic surface).
 """
 
 from __future__ import annotations
@@ -17,14 +18,25 @@ import jaxfem as jf
 from refine.exceptions import CorrespondenceError
 
 
-def boundary_segments(mesh: jf.Mesh) -> np.ndarray:
-    """The boundary edges of a 2D mesh (outer outline and holes) as corner-node pairs ``(n_seg, 2)``,
-    each oriented with the material on its left (counter-clockwise cells), so that the outward
-    normal of ``a -> b`` is ``(dy, -dx)``."""
-    if mesh.dim != 2:
-        raise CorrespondenceError("the correspondence-free fit handles 2D models for now (outline + surface "
-                                  "samples); range clouds of 3D bodies come with the 3D issue")
-    return np.ascontiguousarray(mesh.boundary_facets()[:, :2])
+#: flat triangles of a boundary face, by its element: local node triples (tri6: corners a, b, c,
+#: then the mid-edge nodes of ab, bc, ca)
+_FACE_TRIANGLES = {"tri3": [[0, 1, 2]], "tri6": [[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]],
+                   "quad4": [[0, 1, 2], [0, 2, 3]]}
+
+
+def boundary_facets(mesh: jf.Mesh) -> np.ndarray:
+    """The model's boundary as flat facets: ``(n, 2)`` node pairs in 2D (outer outline and holes,
+    corner nodes, each oriented with the material on its left, so that the outward normal of
+    ``a -> b`` is ``(dy, -dx)``), ``(n, 3)`` node triples in 3D (boundary faces split into flat
+    triangles at their mid-edge nodes, in the face's own order)."""
+    faces = mesh.boundary_facets()
+    if mesh.dim == 2:
+        return np.ascontiguousarray(faces[:, :2])
+    local = _FACE_TRIANGLES.get(mesh.el.facet)
+    if local is None:
+        raise CorrespondenceError(f"no triangles for a boundary face of type {mesh.el.facet!r}; use tet4, tet10 "
+                                  "or hex8 meshes")
+    return np.ascontiguousarray(faces[:, np.asarray(local)].reshape(-1, 3))
 
 
 def segment_distances(P, A, B):
@@ -38,6 +50,36 @@ def segment_distances(P, A, B):
     t = jnp.einsum("pmd,md->pm", P[:, None, :] - A[None], AB) / jnp.maximum(jnp.sum(AB * AB, axis=1), 1e-30)
     closest = A[None] + jnp.clip(t, 0.0, 1.0)[..., None] * AB[None]
     return jnp.sqrt(jnp.sum((P[:, None, :] - closest) ** 2, axis=-1) + 1e-18)
+
+
+def triangle_distances(P, A, B, C):
+    """Distances from every point to every triangle, ``(n_points, n_triangles)``.
+
+    Args:
+        P: ``(n, 3)`` points; A, B, C: ``(m, 3)`` the triangles' corners. A point whose projection
+            falls inside a triangle is at its distance to the plane, any other at its distance to
+            the nearest edge. Differentiable in all four (piecewise smooth).
+    """
+    n = jnp.cross(B - A, C - A)
+    nn = jnp.maximum(jnp.sum(n * n, axis=1), 1e-30)
+    d = P[:, None, :] - A[None]  # (p, m, 3)
+    # barycentric coordinates of the projection: signs of the sub-triangles' normals along n
+    s_c = jnp.einsum("pmd,md->pm", jnp.cross(B - A, d), n) / nn
+    s_a = jnp.einsum("pmd,md->pm", jnp.cross(C - B, P[:, None, :] - B[None]), n) / nn
+    s_b = 1.0 - s_a - s_c
+    within = (s_a >= 0) & (s_b >= 0) & (s_c >= 0)
+    plane = jnp.einsum("pmd,md->pm", d, n) / jnp.sqrt(nn)
+    edges = jnp.minimum(jnp.minimum(segment_distances(P, A, B), segment_distances(P, B, C)),
+                        segment_distances(P, C, A))
+    return jnp.where(within, jnp.sqrt(plane * plane + 1e-18), edges)
+
+
+def facet_distances(P, x, facets):
+    """Distances ``(n_points, n_facets)`` from points ``P (n, dim)`` to the facets ``(m, 2 or 3)``
+    (node indices: segments in 2D, triangles in 3D) of node positions ``x (n_nodes, dim)``."""
+    if facets.shape[1] == 2:
+        return segment_distances(P, x[facets[:, 0]], x[facets[:, 1]])
+    return triangle_distances(P, x[facets[:, 0]], x[facets[:, 1]], x[facets[:, 2]])
 
 
 def softmin(D, tau: float, axis: int = -1):
@@ -78,6 +120,21 @@ def split_outline(cloud: np.ndarray, tol: float, k: int = 10, share: float = 0.7
     off = np.abs(d[:, :, None, 0] * u[:, None, :, 1] - d[:, :, None, 1] * u[:, None, :, 0])  # (n, i, j)
     inliers = (off < tol).sum(axis=1)  # neighbours near the line through the point and neighbour j
     return inliers.max(axis=1) >= share * k
+
+
+def on_boundary(cloud: np.ndarray, tol: float) -> np.ndarray:
+    """Which points of a cloud sample the object's boundary, ``(n,)`` bool: in 2D its outline
+    (:func:`split_outline`; the rest are samples of the sheet's surface, inside the outline), in 3D
+    every point (a range cloud samples the body's visible surface)."""
+    cloud = np.asarray(cloud, float)
+    return split_outline(cloud, tol) if cloud.shape[1] == 2 else np.ones(len(cloud), bool)
+
+
+def seen_nodes(nodes: np.ndarray, cloud: np.ndarray, tol: float) -> np.ndarray:
+    """``(n,)`` bool: the nodes within ``tol`` (length) of a cloud, i.e. on the part of the surface
+    a range camera saw (the reference cloud against the reference nodes)."""
+    d, _ = cKDTree(np.asarray(cloud, float)).query(np.asarray(nodes, float))
+    return d <= tol
 
 
 def point_spacing(cloud: np.ndarray) -> float:

@@ -1,8 +1,9 @@
-"""The model of an object seen without correspondences: a mesh of the bundle's domain, held at
-its clamped sides and moved at its gripped sides by an unknown rigid motion per frame; every other
-boundary point is free. The grips' motion is found from the clouds together with the model's
-parameters (:mod:`refine.correspond.fit`); the free outline and the interior follow from the
-equilibrium, so every node has a position in every frame: the dense correspondences.
+"""The model of an object seen without correspondences: a mesh of the bundle's domain (a sheet in
+2D, a solid body in 3D), held at its clamped sides and moved at its gripped sides by an unknown
+rigid motion per frame (3 unknowns per grip in 2D, 6 in 3D); every other boundary point is free.
+The grips' motion is found from the clouds together with the model's parameters
+(:mod:`refine.correspond.fit`); the free boundary and the interior follow from the equilibrium,
+so every node has a position in every frame: the dense correspondences.
 """
 
 from __future__ import annotations
@@ -15,14 +16,31 @@ import numpy as np
 
 import jaxfem as jf
 
-from refine.bundle.experiment import Experiment, RectangleDomain
+from refine.bundle.experiment import Experiment, MeshDomain, RectangleDomain
 from refine.exceptions import CorrespondenceError
 from refine.model.measured import domain_mesh
-from refine.correspond.geometry import boundary_segments, segment_distances, split_outline
+from refine.correspond.geometry import boundary_facets, facet_distances, on_boundary
 
-#: unknowns of one grip's rigid motion in 2D: translation x, y (length) and rotation as the
-#: displacement of the grip's end (length: the angle times the grip's half-length)
-GRIP_DOF = 3
+#: unknowns of one grip's rigid motion, by dimension: the translation (length), then the rotation
+#: as the displacement of the grip's end (length: the angle, or in 3D the rotation vector, times
+#: the grip's half-length): x, y, turn in 2D; x, y, z, rx, ry, rz in 3D
+GRIP_DOFS = {2: 3, 3: 6}
+GRIP_DOF = GRIP_DOFS[2]
+
+
+def rotation(w):
+    """The rotation matrix of angle ``w (1,)`` (2D) or of rotation vector ``w (3,)`` (3D, radians;
+    Rodrigues' formula, smooth at zero)."""
+    if w.shape[0] == 1:
+        c, s = jnp.cos(w[0]), jnp.sin(w[0])
+        return jnp.array([[c, -s], [s, c]])
+    t2 = jnp.sum(w * w)
+    small = t2 < 1e-12
+    t = jnp.sqrt(jnp.where(small, 1.0, t2))
+    a = jnp.where(small, 1.0 - t2 / 6.0, jnp.sin(t) / t)  # sin t / t
+    b = jnp.where(small, 0.5 - t2 / 24.0, (1.0 - jnp.cos(t)) / (t * t))  # (1 - cos t) / t^2
+    K = jnp.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    return jnp.eye(3) + a * K + b * (K @ K)
 
 
 @dataclass(frozen=True)
@@ -47,31 +65,41 @@ class CloudModel:
     """A finite-element model of a bundle's domain driven by grips.
 
     Args:
-        experiment: the bundle's experiment (a rectangle domain; kind, law, E, nu, thickness).
+        experiment: the bundle's experiment: a rectangle domain (2D; kind, law, E, nu, thickness)
+            or a solid with a mesh domain (3D; sides are those of the mesh's bounding box: left,
+            right, bottom, top, back, front).
         grips: clamped and gripped sides.
-        h: element size (length unit).
-        element: element type.
+        h: element size (length unit; 2D, where the domain is meshed).
+        element: element type (2D).
+        mesh: the model's mesh as it is (default: the domain's; a 3D domain's file is read from
+            ``root``).
+        root: the bundle's directory, where a mesh domain's file lies.
     """
 
     def __init__(self, experiment: Experiment, grips: Grips = Grips(), h: float = 5.0, element: str = "tri3",
-                 linear_solver: str = "auto"):
-        if not isinstance(experiment.domain, RectangleDomain):
-            raise CorrespondenceError("grips are named by the sides of a rectangle domain; give the bundle "
-                                      "model.domain = { rectangle = [...] } (outlines of other shapes come later)")
+                 linear_solver: str = "auto", mesh=None, root=None):
+        if mesh is None and not isinstance(experiment.domain, (RectangleDomain, MeshDomain)):
+            raise CorrespondenceError("grips are named by the sides of a rectangle domain (2D) or of a mesh's bounding "
+                                      "box (3D); give the bundle model.domain = { rectangle = [...] } or a mesh")
         if not grips.clamped and not grips.gripped:
             raise CorrespondenceError("name at least one clamped or gripped side: a free body has rigid modes")
         self.experiment, self.grips, self.h = experiment, grips, float(h)
-        self.mesh = mesh = domain_mesh(experiment, h, element)
-        self.segments = boundary_segments(mesh)
-        self.boundary_nodes = np.unique(self.segments)
-        clamp = np.unique(np.concatenate([mesh.side(s) for s in grips.clamped] or [np.zeros(0, np.int64)]))
-        self.grip_nodes = [np.setdiff1d(mesh.side(s), clamp) for s in grips.gripped]
+        self.mesh = mesh = domain_mesh(experiment, h, element, root=root) if mesh is None else mesh
+        if mesh.dim != experiment.dim:
+            raise CorrespondenceError(f"the mesh is {mesh.dim}D but model.kind {experiment.kind!r} is "
+                                      f"{experiment.dim}D")
+        self.dim = mesh.dim
+        self.grip_dof = GRIP_DOFS[self.dim]
+        self.facets = boundary_facets(mesh)
+        self.boundary_nodes = np.unique(self.facets)
+        clamp = np.unique(np.concatenate([_side(mesh, s) for s in grips.clamped] or [np.zeros(0, np.int64)]))
+        self.grip_nodes = [np.setdiff1d(_side(mesh, s), clamp) for s in grips.gripped]
         held = np.unique(np.concatenate([clamp, *self.grip_nodes]))
         self.clamp = clamp
         self.problem = jf.Problem(mesh, experiment.law, experiment.kind, fixed=jf.dofs(mesh, held))
         self.solver = jf.Solver(self.problem, linear_solver)
         X = mesh.nodes
-        self._centres = np.array([X[n].mean(axis=0) for n in self.grip_nodes]).reshape(-1, 2)
+        self._centres = np.array([X[n].mean(axis=0) for n in self.grip_nodes]).reshape(-1, self.dim)
         self._half = np.array([max(0.5 * np.ptp(X[n], axis=0).max(), 1e-9) for n in self.grip_nodes])
         self._solve_all = jax.jit(self._solve_frames)
         self.size = float(np.ptp(X, axis=0).max())
@@ -90,23 +118,22 @@ class CloudModel:
 
     def prescribed(self, q):
         """``u_D`` (the held dofs' values, in ``problem.fixed`` order) of one frame's grip motion
-        ``q (n_grips, 3)``: translation x, y and the rotation's displacement at the grip's end."""
+        ``q (n_grips, grip_dof)``: the translation, then the rotation's displacement at the grip's
+        end (2D: x, y, turn; 3D: x, y, z and the rotation vector times the half-length)."""
         X = jnp.asarray(self.mesh.nodes)
         U = jnp.zeros_like(X)
-        q = jnp.reshape(jnp.asarray(q), (self.n_grips, GRIP_DOF))
+        q = jnp.reshape(jnp.asarray(q), (self.n_grips, self.grip_dof))
         for g, nodes in enumerate(self.grip_nodes):
-            phi = q[g, 2] / self._half[g]
-            c, s = jnp.cos(phi), jnp.sin(phi)
+            R = rotation(q[g, self.dim:] / self._half[g])
             d = X[nodes] - self._centres[g]
-            moved = jnp.stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]], 1) + self._centres[g] + q[g, :2]
-            U = U.at[nodes].set(moved - X[nodes])
+            U = U.at[nodes].set(d @ R.T + self._centres[g] + q[g, : self.dim] - X[nodes])
         return U.reshape(-1)[self.problem.fixed]
 
     def solve_frames(self, theta, Q, start=None):
-        """Equilibrium displacements ``(n_frames, n_nodes, 2)`` for grip motions ``Q (n_frames,
-        n_grips, 3)``, each frame from the previous one's equilibrium (a ``lax.scan``, compiled once;
+        """Equilibrium displacements ``(n_frames, n_nodes, dim)`` for grip motions ``Q (n_frames,
+        n_grips, grip_dof)``, each frame from the previous one's equilibrium (a ``lax.scan``, compiled once;
         differentiable in theta and Q by the implicit function theorem). ``start``: the equilibrium
-        ``(u (n_nodes, 2), q (n_grips, 3))`` of the frame before the first (default: the reference);
+        ``(u (n_nodes, dim), q (n_grips, grip_dof))`` of the frame before the first (default: the reference);
         it is only where Newton starts."""
         return self._solve_all(theta, jnp.asarray(Q), self.start(start))
 
@@ -128,17 +155,39 @@ class CloudModel:
 
         return jax.lax.scan(step, jax.lax.stop_gradient(start), U_D)[1]
 
+    def boundary_distances(self, points, x=None) -> np.ndarray:
+        """Distances ``(n,)`` of points ``(n, dim)`` to the model's boundary (outline in 2D, surface
+        in 3D) at node positions ``x`` (default: the reference), in chunks of points."""
+        x = jnp.asarray(self.mesh.nodes if x is None else x)
+        facets = jnp.asarray(self.facets)
+        points = np.asarray(points, float)
+        step = max(1, 2_000_000 // max(len(self.facets), 1))
+        return np.concatenate([np.asarray(facet_distances(jnp.asarray(points[i: i + step]), x, facets).min(axis=1))
+                               for i in range(0, len(points), step)] or [np.zeros(0)])
+
     def check_reference(self, cloud: np.ndarray, noise: float, tol: float) -> float:
-        """How far the reference cloud (frame 0) lies from the model's outline: the 95th percentile
-        of the outline points' distances (length). Raises :class:`CorrespondenceError` above ``tol``:
-        the cloud is not of this object, or not in its coordinates."""
-        on = split_outline(cloud, 4 * noise)
-        X = self.mesh.nodes
-        d = np.asarray(segment_distances(jnp.asarray(cloud[on]), X[self.segments[:, 0]], X[self.segments[:, 1]]))
-        far = float(np.percentile(d.min(axis=1), 95)) if on.any() else np.inf
+        """How far the reference cloud (frame 0) lies from the model's boundary: the 95th percentile
+        of its boundary points' distances (length). Raises :class:`CorrespondenceError` above
+        ``tol``: the cloud is not of this object, or not in its coordinates."""
+        cloud = np.asarray(cloud, float)
+        if cloud.ndim != 2 or cloud.shape[1] != self.dim:
+            raise CorrespondenceError(f"the clouds are {cloud.shape[-1]}D points but the model is {self.dim}D")
+        on = on_boundary(cloud, 4 * noise)
+        far = float(np.percentile(self.boundary_distances(cloud[on]), 95)) if on.any() else np.inf
         if not far <= tol:
+            where = "outline" if self.dim == 2 else "surface"
             raise CorrespondenceError(
-                f"the reference cloud (frame 0) lies {far:.3g} from the model's outline (95th percentile; allowed "
+                f"the reference cloud (frame 0) lies {far:.3g} from the model's {where} (95th percentile; allowed "
                 f"{tol:.3g}): the cloud does not show the domain of experiment.toml. Check its coordinates and "
                 "units, or the domain")
         return far
+
+
+def _side(mesh, name: str) -> np.ndarray:
+    """The nodes of a named side of the mesh's bounding box, with a clear error for a wrong name."""
+    try:
+        return mesh.side(name)
+    except jf.MeshError:
+        names = ["left", "right", "bottom", "top", "back", "front"][: 2 * mesh.dim]
+        raise CorrespondenceError(f"unknown side {name!r} for a {mesh.dim}D model; name sides of its bounding box: "
+                                  f"{', '.join(names)}") from None

@@ -102,7 +102,7 @@ def moment_ellipse(cent: np.ndarray, area: np.ndarray) -> tuple[np.ndarray, np.n
     centre = (a[:, None] * cent).sum(0) / a.sum()
     dx = cent - centre
     cov = (a[:, None, None] * dx[:, :, None] * dx[:, None, :]).sum(0) / a.sum()
-    cov += np.eye(2) * a.mean() / (4 * np.pi)  # a single cell is a disc of its area, not a point
+    cov += np.eye(len(centre)) * a.mean() / (4 * np.pi)  # a single cell is a disc of its area, not a point
     ev, evec = np.linalg.eigh(cov)
     axes = 2.0 * np.sqrt(np.maximum(ev[::-1], 1e-12))  # uniform ellipse: second moment = a^2/4
     return centre, axes, float(np.arctan2(evec[1, -1], evec[0, -1]))
