@@ -7,8 +7,7 @@ import numpy as np
 from .exceptions import MeshError
 from .mesh import Mesh
 
-_TRI_SPLIT = {"tri3": [[0, 1, 2]], "tri6": [[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]],
-              "quad4": [[0, 1, 2], [0, 2, 3]]}
+from .surface import FACE_TRIANGLES as _TRI_SPLIT  # a 2D cell is split as a 3D face of its type
 
 
 def _triangles(mesh: Mesh):

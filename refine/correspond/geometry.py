@@ -14,14 +14,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 import jaxfem as jf
+from jaxfem.surface import surface_triangles
 
 from refine.exceptions import CorrespondenceError
-
-
-#: flat triangles of a boundary face, by its element: local node triples (tri6: corners a, b, c,
-#: then the mid-edge nodes of ab, bc, ca)
-_FACE_TRIANGLES = {"tri3": [[0, 1, 2]], "tri6": [[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]],
-                   "quad4": [[0, 1, 2], [0, 2, 3]]}
 
 
 def boundary_facets(mesh: jf.Mesh) -> np.ndarray:
@@ -29,14 +24,12 @@ def boundary_facets(mesh: jf.Mesh) -> np.ndarray:
     corner nodes, each oriented with the material on its left, so that the outward normal of
     ``a -> b`` is ``(dy, -dx)``), ``(n, 3)`` node triples in 3D (boundary faces split into flat
     triangles at their mid-edge nodes, in the face's own order)."""
-    faces = mesh.boundary_facets()
     if mesh.dim == 2:
-        return np.ascontiguousarray(faces[:, :2])
-    local = _FACE_TRIANGLES.get(mesh.el.facet)
-    if local is None:
-        raise CorrespondenceError(f"no triangles for a boundary face of type {mesh.el.facet!r}; use tet4, tet10 "
-                                  "or hex8 meshes")
-    return np.ascontiguousarray(faces[:, np.asarray(local)].reshape(-1, 3))
+        return np.ascontiguousarray(mesh.boundary_facets()[:, :2])
+    try:
+        return surface_triangles(mesh)
+    except jf.MeshError as e:
+        raise CorrespondenceError(f"{e}; use tet4, tet10 or hex8 meshes") from None
 
 
 def segment_distances(P, A, B):

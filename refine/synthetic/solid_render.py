@@ -26,10 +26,12 @@ import numpy as np
 from scipy import ndimage
 from scipy.special import erf
 
+from jaxfem.surface import FACE_TRIANGLES
+
 from refine.exceptions import RefineError
 from refine.synthetic.rasterise import rasterise
 
-_SPLIT = np.array([[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]])  # a tri6 facet (corners, then mid-edges 01, 12, 20)
+_SPLIT = np.asarray(FACE_TRIANGLES["tri6"])  # a tri6 facet (corners, then mid-edges 01, 12, 20)
 
 
 @dataclass(frozen=True)
