@@ -13,7 +13,7 @@ PACKAGES = ("jaxfem", "refine", "tracking")
 
 # refine's rooms, lowest first: a room imports only from rooms of a lower or equal layer
 REFINE_LAYERS = {
-    "refine": 0, "refine.exceptions": 0, "refine.measures": 0,
+    "refine": 0, "refine.exceptions": 0, "refine.measures": 0, "refine.threshold": 0,
     "refine.bundle": 1,
     "refine.model": 2,
     "refine.optimize": 3,

@@ -1,0 +1,162 @@
+"""The threshold of a strain curve: where the growth rate of the maximum strain changes as a
+motion (or load) goes on, with its uncertainty (the paper's Sec. 5: at 80-90 % of the total motion).
+
+The curve is fitted by two straight segments that meet at the threshold (a continuous
+"hinge": ``s = a + b x + c max(x - x0, 0)``). For a fixed ``x0`` the fit is linear least squares,
+so the residual sum of squares ``RSS(x0)`` is profiled over ``x0`` on a fine grid between the
+second and the second-last sample (each segment holds at least two samples) and refined by a
+bounded scalar search. The uncertainty of ``x0`` is its profile-likelihood interval,
+``{x0 : (RSS(x0) - RSS_min) / s^2 <= F(level; 1, n - 4)}`` with ``s^2 = RSS_min / (n - 4)``
+(the F form of the likelihood ratio with the noise estimated from the residuals, Muggeo 2003's
+recommendation for a breakpoint, whose Wald error is unreliable because RSS is not smooth in x0
+where x0 crosses a sample). Whether there is a change at all is the F test of the hinge
+against one straight line (``p_value``).
+
+A pure function of arrays, no model: layer 0 of refine, beside :mod:`refine.measures`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from jaxtyping import Float
+from scipy import optimize, stats
+
+from refine.exceptions import ObservationError
+
+MIN_SAMPLES = 6
+"""Fewest samples a threshold is looked for in: four unknowns (a, b, c, x0) and two left for the noise."""
+
+
+@dataclass(frozen=True)
+class Threshold:
+    """Where a curve's growth rate changes.
+
+    Attributes:
+        motion: the threshold, in the motion's unit; interval: its ``(low, high)`` interval at ``level``.
+        fraction: the threshold as a fraction of the total motion (0 at the first sample, 1 at the
+            last); fraction_interval: the interval as fractions.
+        std: a standard error of the threshold (the interval's half width over the normal quantile
+            of ``level``; motion's unit), for reports that give one number.
+        slopes: growth rates ``(before, after)`` (strain per unit motion).
+        p_value: of the F test of two segments against one line (small: the rate does change).
+        noise: the residuals' standard deviation (strain unit); level: the interval's confidence.
+    """
+
+    motion: float
+    interval: tuple[float, float]
+    fraction: float
+    fraction_interval: tuple[float, float]
+    std: float
+    slopes: tuple[float, float]
+    p_value: float
+    noise: float
+    level: float
+
+    def to_json(self) -> dict:
+        return {"motion": self.motion, "interval": list(self.interval), "fraction": self.fraction,
+                "fraction_interval": list(self.fraction_interval), "std": self.std, "slopes": list(self.slopes),
+                "p_value": self.p_value, "noise": self.noise, "level": self.level}
+
+
+def strain_threshold(motion: Float[np.ndarray, "n"], strain: Float[np.ndarray, "n"], level: float = 0.95,
+                     grid: int = 400) -> Threshold:
+    """The threshold where ``strain`` (e.g. the maximum strain per frame) changes its growth rate
+    against ``motion`` (displacement or load per frame, strictly monotone; any unit), with its
+    profile-likelihood interval at ``level`` (see the module's docstring). ``grid``: trial
+    thresholds before the refinement.
+
+    Raises:
+        ObservationError: fewer than :data:`MIN_SAMPLES` samples, shapes that differ, values
+            that are not finite, or a motion that is not strictly monotone.
+    """
+    x, s = _checked(motion, strain)
+    if not 0 < level < 1:
+        raise ObservationError(f"level must be between 0 and 1, got {level}")
+    flip = x[-1] < x[0]  # a motion that decreases: thresholds are found on its mirror image
+    t = -x if flip else x
+    n = len(t)
+    trials = np.linspace(t[1], t[-2], grid)
+    rss = _rss(t, s, trials)
+    i = int(np.argmin(rss))
+    lo, hi = trials[max(i - 1, 0)], trials[min(i + 1, grid - 1)]
+    best = optimize.minimize_scalar(lambda v: _rss(t, s, np.array([v]))[0], bounds=(lo, hi), method="bounded",
+                                    options={"xatol": 1e-10 * (t[-1] - t[0])})
+    x0, rss_min = (best.x, best.fun) if best.fun <= rss[i] else (trials[i], rss[i])
+    dof = n - 4
+    s2 = max(rss_min / dof, np.finfo(float).tiny)
+    limit = stats.f.ppf(level, 1, dof)
+    inside = lambda v: (_rss(t, s, np.array([v]))[0] - rss_min) / s2 - limit  # noqa: E731 - < 0 inside
+    out = (rss - rss_min) / s2 > limit
+    lo_t = _edge(inside, x0, trials[trials < x0][::-1], out[trials < x0][::-1], t[1])
+    hi_t = _edge(inside, x0, trials[trials > x0], out[trials > x0], t[-2])
+    coef = _coefficients(t, s, x0)
+    line = np.polyfit(t, s, 1)
+    rss_line = float(np.sum((np.polyval(line, t) - s) ** 2))
+    F = max(rss_line - rss_min, 0.0) / 2 / s2  # the hinge adds c and x0
+    p = float(stats.f.sf(F, 2, dof))
+    sign = -1.0 if flip else 1.0
+    slopes = (sign * coef[1], sign * (coef[1] + coef[2]))
+    at, ends = sign * x0, sorted((sign * lo_t, sign * hi_t))
+    span = x[-1] - x[0]
+    frac = lambda v: float((v - x[0]) / span)  # noqa: E731
+    fr = sorted((frac(ends[0]), frac(ends[1])))
+    z = stats.norm.ppf(0.5 + level / 2)
+    return Threshold(float(at), (float(ends[0]), float(ends[1])), frac(at), (fr[0], fr[1]),
+                     float((ends[1] - ends[0]) / (2 * z)), (float(slopes[0]), float(slopes[1])), p,
+                     float(np.sqrt(s2)), level)
+
+
+def _checked(motion, strain):
+    x, s = np.asarray(motion, float), np.asarray(strain, float)
+    if x.ndim != 1 or s.shape != x.shape:
+        raise ObservationError(f"motion and strain must be 1D of one length, got shapes {x.shape} and {s.shape}")
+    if len(x) < MIN_SAMPLES:
+        raise ObservationError(f"a threshold needs at least {MIN_SAMPLES} samples of the curve (two segments "
+                               f"and the noise), got {len(x)}: record more frames of the motion")
+    for name, v in (("motion", x), ("strain", s)):
+        bad = np.flatnonzero(~np.isfinite(v))
+        if bad.size:
+            raise ObservationError(f"{name} is not finite at sample(s) {bad[:5].tolist()}: drop those frames "
+                                   "from both arrays first")
+    d = np.diff(x)
+    if not (np.all(d > 0) or np.all(d < 0)):
+        k = int(np.flatnonzero(np.sign(d) != np.sign(x[-1] - x[0]))[0]) if x[-1] != x[0] else 0
+        raise ObservationError(f"the motion must be strictly monotone (each frame further than the last); it "
+                               f"turns or stalls between samples {k} and {k + 1} ({x[k]:.6g} -> {x[k + 1]:.6g}): "
+                               "give one loading branch, sorted")
+    return x, s
+
+
+def _design(t, x0):
+    return np.stack([np.ones_like(t), t, np.maximum(t - x0, 0.0)], axis=-1)
+
+
+def _coefficients(t, s, x0):
+    return np.linalg.lstsq(_design(t, x0), s, rcond=None)[0]
+
+
+def _rss(t, s, trials) -> np.ndarray:
+    """``RSS(x0)`` of the hinge fit for every trial ``x0`` (least squares on centred, scaled
+    columns, batched over the trials)."""
+    scale = t[-1] - t[0]
+    u = (t - t[0]) / scale
+    knots = (np.asarray(trials, float)[:, None] - t[0]) / scale
+    A = np.stack(np.broadcast_arrays(np.ones_like(u), u, np.maximum(u - knots, 0.0)), axis=-1)  # (g, n, 3)
+    AtA = np.einsum("gni,gnj->gij", A, A) + 1e-14 * np.eye(3)
+    Atb = np.einsum("gni,n->gi", A, s)
+    c = np.linalg.solve(AtA, Atb[..., None])[..., 0]
+    r = np.einsum("gni,gi->gn", A, c) - s
+    return np.einsum("gn,gn->g", r, r)
+
+
+def _edge(inside, x0: float, trials, out, end: float) -> float:
+    """Where the profile first crosses the interval's limit going away from ``x0`` through
+    ``trials`` (``out``: the trials outside it), bisected between the last trial inside and the
+    first outside; ``end`` where it never does."""
+    k = np.flatnonzero(out)
+    if not k.size:
+        return float(end)
+    last = x0 if k[0] == 0 else trials[k[0] - 1]
+    return float(optimize.brentq(inside, last, trials[k[0]], xtol=1e-12 * max(abs(end), 1.0)))
