@@ -69,7 +69,7 @@ def plot_curves(results, path, labels=None) -> Path:
                         color=c, marker="D", ms=5, capsize=3)
     ax.set_xlabel("displacement of the marked point (mm)")
     where = " (area of interest)" if any(r.area is not None for r in results) else ""
-    ax.set_ylabel("max principal Green-Lagrange strain of the skin" + where)
+    ax.set_ylabel("max skin strain (principal, Green-Lagrange)" + where, fontsize=8)
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
