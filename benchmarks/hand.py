@@ -5,6 +5,7 @@ maximum skin strain of its three motions with and without a scar on the wrist.
     python benchmarks/hand.py --quick         # 3 frames per motion, no larger hand
     python benchmarks/hand.py --paper-only    # the paper-size hand's motions only; the larger hand's and the
                                               # finer mesh's entries are carried from the last hand.json (marked)
+    python benchmarks/hand.py --fine-only     # only the finer mesh's wrist motions, into the last hand.json
     python benchmarks/hand.py --series out/hand   # also the ParaView series of every run
 
 Sizes: the paper-size hand (jaxfem.hand.PAPER at h = 24 mm: one finger block, thumb of two
@@ -153,15 +154,18 @@ def analyse(model, frames, series):
 
 def fine(h, frames=3) -> dict:
     """The wrist motions of the paper-size hand on a finer mesh (``h`` mm): how the maximum strain
-    and the scars' effects move with the mesh (re-entrant box edges concentrate strain)."""
+    (over all the skin and over the area of interest) and the scars' effects move with the mesh
+    (re-entrant box edges concentrate strain)."""
     hand, model, size = build(PAPER, h, 2.5)
-    out = {"size": size, "frames": frames}
+    area = skin_area(hand, AREA)
+    out = {"size": size, "frames": frames, "area_facets": int(area.sum())}
     for name, motion in standard_motions(hand.body, frames).items():
         if name.startswith("wrist"):
-            normal = run_motion(model, motion)
-            out[name] = {"none": row(normal, hand)["max_strain"]} | {
-                f"{k}_change_pct": 100 * (run_motion(model, motion, scar=s).max_strain[-1] / normal.max_strain[-1] - 1)
-                for k, s in SCARS.items()}
+            normal = run_motion(model, motion, area=area)
+            out[name] = {"none": float(normal.max_strain[-1]), "area_none": float(normal.area_max_strain[-1])}
+            for k, s in SCARS.items():
+                out[name] |= {f"{k}_{key}": v for key, v in
+                              changes(run_motion(model, motion, scar=s, area=area), normal, hand).items()}
             print("finer", name, out[name], flush=True)
     return out
 
@@ -201,9 +205,16 @@ def main(argv=None):
     ap.add_argument("--fine-h", type=float, default=12.0, help="the paper-size hand again, finer, for the wrist motions")
     ap.add_argument("--paper-only", action="store_true", help="skip the larger and finer hands (carried from the "
                     "last hand.json, marked 'carried')")
+    ap.add_argument("--fine-only", action="store_true", help="rerun only the finer mesh's wrist motions and update "
+                    "mesh_dependence in the last hand.json")
     ap.add_argument("--series", default=None, help="folder for the ParaView series (not written by default)")
     args = ap.parse_args(argv)
     frames = 3 if args.quick else 10
+    if args.fine_only:
+        res = json.loads((OUT / "hand.json").read_text())
+        res["mesh_dependence"] = fine(args.fine_h) | {"load": load()}
+        (OUT / "hand.json").write_text(json.dumps(res, indent=1, default=float))
+        return
     res = {"load_start": load(), "frames": frames, "ratio": RATIO, "strain_limit_factor": LIMIT,
            "scars": {k: {"outline": v.outline.params.tolist(), "depth_mm": v.depth, "ratio": v.ratio}
                      for k, v in SCARS.items()},
