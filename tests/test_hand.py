@@ -1,7 +1,10 @@
 """The articulated hand (jaxfem.hand, the paper's Sec. 5): mesh and named sets, joints that move
 only their own degrees of freedom (rigid motions checked against SciPy's rotations), the soft
-tissue's solve under a small thumb flexion, a scar drawn at random on the wrist raising the
-maximum skin strain of a wrist motion (and restricting it under a stated strain limit), bad input.
+tissue's solve under a small thumb flexion, the strain threshold of a motion that changes speed at a
+fraction drawn at random (found by refine.threshold through run_motion's detector hook, with the
+maximum over the wrist's skin as the area of interest and a strain limit there), a scar drawn at
+random on the wrist raising the maximum skin strain of a wrist motion and restricting it (slow),
+bad input.
 
 A coarse hand (no fingers, ~900 tet10 elements) keeps the fast tests at one compile;
 benchmarks/hand.py runs the paper-size and a larger hand."""
@@ -14,8 +17,10 @@ from scipy.spatial.transform import Rotation
 
 import jaxfem as jf
 from jaxfem.hand import (PAPER, Body, Bone, Box, HandModel, Joint, Motion, Scar, Tissues, bone_displacements,
-                         default_body, hand_mesh, plot_curves, run_motion, scar_cells, write_motion_series)
+                         default_body, hand_mesh, plot_curves, reachable, run_motion, scar_cells, skin_area,
+                         write_motion_series)
 from jaxfem.io import read_pvd
+from refine.threshold import strain_threshold
 
 COARSE = replace(PAPER, forearm=(48.0, 20.0, 28.0), palm=(48.0, 40.0, 26.0), wrist=(48.0, 16.0, 28.0), fingers=0,
                  thumb_phalanges=(20.0, 20.0), thumb=(20.0, 22.0), thumb_at=10.0)
@@ -111,16 +116,57 @@ def random_wrist_scar(hand, seed):
     return Scar(outline, depth=rng.uniform(7, 10), ratio=rng.uniform(3, 6))
 
 
+def speed_change_schedule(frames, at, ratio):
+    """Shares of the full range at frames 1..frames of a motion that moves ``ratio`` times faster
+    after the share ``at`` of its duration than before (continuous, piecewise linear in time)."""
+    t = np.arange(1, frames + 1) / frames
+    slow = 1.0 / (at + ratio * (1 - at))
+    return tuple(np.where(t <= at, slow * t, slow * (at + ratio * (t - at))))
+
+
+@pytest.mark.parametrize("seed", [3])
+def test_threshold_of_a_motion_that_changes_speed(model, seed):
+    """The wrist turns slowly, then (from a random share of the motion's duration, drawn under the
+    seed) 2-4 times faster: the wrist skin's maximum strain against time changes its growth rate
+    there, and refine's detector, wired into run_motion's hook, finds it within 5 % of the motion."""
+    rng = np.random.default_rng(seed)
+    at, ratio = rng.uniform(0.35, 0.65), rng.uniform(2.0, 4.0)
+    frames = 10
+    motion = Motion("wrist up-down", {"wrist_flexion": rng.uniform(8.0, 12.0)}, "thumb tip", frames,
+                    speed_change_schedule(frames, at, ratio))
+    wrist = skin_area(model.hand, model.hand.body.volumes["wrist"])
+    assert 0 < wrist.sum() < len(wrist)
+    limit = 2e-3  # a stated strain limit over the area of interest, passed early in this motion
+    r = run_motion(model, motion, area=wrist, against="time", strain_limit=limit,
+                   detector=lambda x, s: strain_threshold(x, s).to_json())
+    assert len(r.time) == frames + 1 and np.all(r.area_max_strain <= r.max_strain + 1e-15)
+    assert r.restricted and r.limited_by == "strain limit"  # the frames past it are still solved and kept
+    assert r.reached == pytest.approx(reachable(r.fraction, r.area_max_strain, limit))
+    t = r.threshold
+    assert abs(t["fraction"] - at) < 0.05, (t, at)
+    assert t["fraction_interval"][0] < t["fraction"] < t["fraction_interval"][1] and t["p_value"] < 1e-3
+    assert t["slopes"][1] > 1.5 * t["slopes"][0]  # it speeds up
+    with pytest.raises(jf.ProblemError, match="schedule"):
+        Motion("bad", {"wrist_flexion": 5.0}, "thumb tip", 2, (0.6, 0.5))
+    with pytest.raises(jf.ProblemError, match="area of interest"):
+        skin_area(model.hand, Box((500.0, 500.0, 500.0), (501.0, 501.0, 501.0)))
+
+
+@pytest.mark.slow  # two more wrist motions (~15 s): test_threshold_of_a_motion_that_changes_speed covers area and limit
 def test_scar_raises_max_strain_of_wrist_motion_and_restricts_it(model, tmp_path):
     scar = random_wrist_scar(model.hand, 7)
     assert scar_cells(model.hand, scar).sum() >= 4
     motion = Motion("wrist up-down", {"wrist_flexion": 30.0}, "thumb tip", frames=1)
-    normal = run_motion(model, motion)
-    limit = 1.05 * normal.max_strain[-1]  # the stated limit: 5 % over the normal hand's full-range maximum
-    scarred = run_motion(model, motion, scar=scar, strain_limit=limit, detector=lambda d, s: (d[-1], s[-1]))
-    assert scarred.max_strain[-1] > 1.05 * normal.max_strain[-1]
+    # the area of interest of benchmarks/hand.py: the palm-side skin of wrist and forearm, |x| <= 16 mm (over
+    # the wrist's whole skin this scar lowers the maximum: it lies in the stiff scar itself)
+    wrist = skin_area(model.hand, Box((-16.0, -36.1, -20.0), (16.0, 0.1, -10.0)))
+    normal = run_motion(model, motion, area=wrist)
+    limit = 1.05 * normal.area_max_strain[-1]  # the stated limit: 5 % over the normal hand's full-range maximum
+    scarred = run_motion(model, motion, scar=scar, strain_limit=limit, area=wrist,
+                         detector=lambda d, s: (d[-1], s[-1]))
+    assert scarred.area_max_strain[-1] > 1.05 * normal.area_max_strain[-1]
     assert scarred.restricted and scarred.limited_by == "strain limit" and 0.3 < scarred.reached < 1.0
-    assert scarred.threshold == (scarred.displacement[-1], scarred.max_strain[-1])  # the detector hook
+    assert scarred.threshold == (scarred.displacement[-1], scarred.area_max_strain[-1])  # the detector hook
     vol, skin = write_motion_series(scarred, model.hand, tmp_path, E=model.moduli(scar)[0])
     assert len(read_pvd(vol)) == len(read_pvd(skin)) == 2
     assert plot_curves([normal, scarred], tmp_path / "curves.png").stat().st_size > 0

@@ -37,10 +37,12 @@ def write_motion_series(result: MotionResult, hand, folder, E=None) -> tuple[Pat
 
 
 def plot_curves(results, path, labels=None) -> Path:
-    """Plot max skin strain vs the marked point's displacement for each result into the PNG ``path``:
-    one colour per motion, scars dashed (then dash-dotted, dotted), a strain limit as a thin line.
-    ``labels``: one per result (default: the motion's name, "with scar"); a restricted motion's
-    reachable share is added to its label."""
+    """Plot max skin strain (over the area of interest where one was given) vs the marked point's
+    displacement for each result into the PNG ``path``: one colour per motion, scars dashed (then
+    dash-dotted, dotted), a strain limit as a thin line, a threshold (a ``threshold`` with
+    ``"motion"`` and ``"interval"`` in the displacement's unit, as refine.threshold's ``to_json``)
+    as a marker with its interval. ``labels``: one per result (default: the motion's name, "with
+    scar"); a restricted motion's reachable share is added to its label."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -57,11 +59,17 @@ def plot_curves(results, path, labels=None) -> Path:
         label = labels[i] if labels is not None else r.motion.name + (" with scar" if r.scar is not None else "")
         if r.restricted:
             label += f" (restricted at {100 * r.reached:.0f} %: {r.limited_by})"
-        ax.plot(r.displacement, r.max_strain, style, color=c, marker=".", label=label)
+        ax.plot(r.displacement, r.area_max_strain, style, color=c, marker=".", label=label)
         if r.strain_limit is not None:
             ax.axhline(r.strain_limit, color=c, lw=0.6, ls=":")
+        t = r.threshold
+        if isinstance(t, dict) and "motion" in t and "interval" in t:
+            y = np.interp(t["motion"], r.displacement, r.area_max_strain)
+            ax.errorbar([t["motion"]], [y], xerr=[[t["motion"] - t["interval"][0]], [t["interval"][1] - t["motion"]]],
+                        color=c, marker="D", ms=5, capsize=3)
     ax.set_xlabel("displacement of the marked point (mm)")
-    ax.set_ylabel("max principal Green-Lagrange strain of the skin")
+    where = " (area of interest)" if any(r.area is not None for r in results) else ""
+    ax.set_ylabel("max skin strain (principal, Green-Lagrange)" + where, fontsize=8)
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=120)

@@ -1,0 +1,112 @@
+"""Write notebooks/hand.ipynb from the cells below (executed with ``--execute``).
+
+    python notebooks/_make_hand.py --execute
+"""
+
+from pathlib import Path
+
+import sys
+
+from _nbgen import write
+
+CELLS = [
+    ("md", """# The hand and the burn scar (the paper's Sec. 5)
+
+A box-like hand/wrist/forearm (`jaxfem.hand`): soft tissue (neo-Hookean, nu 0.49, locking-free
+`tet10`) around rigid bones that its joints turn (the wrist about two axes, each thumb phalanx about
+one). A stiffer scar (the paper's relative elasticity 5.1) on the palm side of the wrist, and the
+skin's strain during two wrist motions with and without it. The hand here is a coarse one (no
+fingers, ~900 elements) so that the notebook runs in about a minute; `benchmarks/hand.py` runs the
+paper-size hand (2,412 elements) and a larger one.
+
+The maximum strain is taken over an **area of interest** (the paper "ignored strains other than in
+the area of interest"), the benchmark's: the palm-side skin of the wrist and forearm within
+|x| <= 16 mm (the wrist is 48 mm wide), where the scar lies, away from the side faces. The
+full-skin maximum sits at the box model's re-entrant edges (the palm overhangs the wrist), where
+strain depends on the mesh, and barely feels a scar; it is kept beside the area's."""),
+    ("code", """from dataclasses import replace
+import numpy as np
+import matplotlib.pyplot as plt
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+from IPython.display import Image, display
+import jaxfem as jf
+from jaxfem.hand import (PAPER, Box, HandModel, Motion, Scar, default_body, hand_mesh, plot_curves, run_motion,
+                         scar_cells, skin_area, skin_strain_function)
+from refine.threshold import strain_threshold
+
+dims = replace(PAPER, forearm=(48.0, 20.0, 28.0), palm=(48.0, 40.0, 26.0), fingers=0, thumb_phalanges=(20.0, 20.0))
+hand = hand_mesh(default_body(dims), 30.0, 4.5)
+model = HandModel(hand)  # compiles once: every motion and every scar reuses it
+scar = Scar(jf.Ellipse(0.0, -9.0, 20.0, 9.0), depth=8.0, ratio=5.1)
+area = skin_area(hand, Box((-16.0, -36.1, -20.0), (16.0, 0.1, -10.0)))  # palm-side strip of wrist and forearm
+print(hand.mesh.n_cells, "tet10 elements,", hand.mesh.n_nodes, "nodes;", int(scar_cells(hand, scar).sum()),
+      "scar elements;", int(area.sum()), "of", len(area), "skin facets in the area of interest")"""),
+    ("md", """## Two wrist motions, with and without the scar
+
+Each motion takes 8 frames to its full range (wrist up 30 degrees, to the side 20 degrees). The
+threshold of each strain-displacement curve (where the strain's growth rate changes) is found by
+`refine.threshold.strain_threshold` through `run_motion`'s `detector` hook, with its 95 %
+profile-likelihood interval. The scarred hand is restricted where its maximum strain over the area
+of interest passes a stated limit: 1.1 x the normal hand's at the full range (or where Newton fails
+at every cut-back)."""),
+    ("code", """strains = skin_strain_function(model)
+detect = lambda x, s: strain_threshold(x, s).to_json()
+motions = [Motion("wrist up-down", {"wrist_flexion": 30.0}, "thumb tip", 8),
+           Motion("wrist side-to-side", {"wrist_deviation": 20.0}, "thumb tip", 8)]
+runs = []
+for m in motions:
+    normal = run_motion(model, m, area=area, detector=detect, strains=strains)
+    scarred = run_motion(model, m, scar=scar, area=area, detector=detect, strains=strains,
+                         strain_limit=1.1 * normal.area_max_strain[-1])
+    runs += [normal, scarred]
+    for label, r in (("normal", normal), ("scar", scarred)):
+        t = r.threshold
+        print(f"{m.name:20s} {label:6s} max strain: area {r.area_max_strain[-1]:.4f}, all skin {r.max_strain[-1]:.4f}; "
+              f"threshold at {100 * t['fraction']:.0f} % of the displacement "
+              f"[{100 * t['fraction_interval'][0]:.0f}, {100 * t['fraction_interval'][1]:.0f}] %, p = {t['p_value']:.1e}; "
+              f"reached {100 * r.reached:.0f} %" + (f" (restricted: {r.limited_by})" if r.restricted else ""))
+    print(f"{'':20s} scar changes the area's maximum by {100 * (scarred.area_max_strain[-1] / normal.area_max_strain[-1] - 1):+.1f} %, "
+          f"the full skin's by {100 * (scarred.max_strain[-1] / normal.max_strain[-1] - 1):+.1f} %")"""),
+    ("md", """## Strain-displacement curves with their thresholds
+
+Solid: the normal hand, dashed: with the scar; diamonds: the threshold with its interval; thin
+dotted lines: the strain limit of the scarred motion. A restricted motion says where it stopped
+being allowed."""),
+    ("code", """import tempfile, pathlib
+png = pathlib.Path(tempfile.mkdtemp()) / "hand_curves.png"
+display(Image(plot_curves(runs, png, [f"{r.motion.name}" + (", scar" if r.scar else "") for r in runs])))"""),
+    ("md", """## The skin's strain in 3D
+
+The deformed skin at the full wrist flexion, coloured by the skin's largest principal strain
+(facets drawn by their corner nodes), without and with the scar (its outline in black)."""),
+    ("code", """def draw(ax, r, title, vmax):
+    x = hand.mesh.nodes + r.u[-1]
+    tri = x[hand.skin_facets[:, :3]]
+    pc = Poly3DCollection(tri, cmap="viridis", edgecolor="k", linewidths=0.1)
+    pc.set_array(r.skin_strain[-1]); pc.set_clim(0, vmax)
+    ax.add_collection3d(pc)
+    lo, hi = x.min(0), x.max(0)
+    ax.set_xlim(lo[0], hi[0]); ax.set_ylim(lo[1], hi[1]); ax.set_zlim(lo[2], hi[2])
+    ax.set_box_aspect(hi - lo); ax.view_init(elev=-35, azim=-60); ax.set_title(title, fontsize=9)
+    if r.scar is not None:
+        t = np.linspace(0, 2 * np.pi, 80)
+        e = r.scar.outline
+        ax.plot(e.cx + e.rx * np.cos(t), e.cy + e.ry * np.sin(t), np.full_like(t, lo[2]), "k-", lw=1)
+    return pc
+
+fig = plt.figure(figsize=(10, 4.5))
+vmax = max(runs[0].skin_strain[-1].max(), runs[1].skin_strain[-1].max())
+for i, (r, title) in enumerate(zip(runs[:2], ("normal hand, wrist up 30 deg", "with the scar"))):
+    pc = draw(fig.add_subplot(1, 2, i + 1, projection="3d"), r, title, vmax)
+fig.colorbar(pc, ax=fig.axes, shrink=0.6, label="skin strain (max principal Green-Lagrange)")
+import io
+buf = io.BytesIO(); fig.savefig(buf, format="png", dpi=90); plt.close(fig)
+display(Image(buf.getvalue()))  # plot_curves switched matplotlib to Agg: show the PNG"""),
+    ("md", """`jaxfem.hand.write_motion_series(result, hand, folder)` writes the same frames as ParaView
+series (the volume and the skin surface), and `benchmarks/hand.py` the paper-size comparison in
+`benchmarks/results/hand.json`."""),
+]
+
+
+if __name__ == "__main__":
+    write(CELLS, Path(__file__).with_name("hand.ipynb"), execute="--execute" in sys.argv)
