@@ -48,7 +48,8 @@ def check_closed(mesh: jf.Mesh) -> None:
 
 
 def cup_shape(mesh: jf.Mesh) -> CupShape:
-    """The dimensions of a cup holder meshed with its axis along z (:class:`CupShape`): outer
+    """The dimensions of a cup holder meshed with its axis along z (:class:`CupShape`): the axis
+    through the volume's centroid, outer
     radius and height from the extent, bottom thickness from the lowest floor above the outer
     face, inner radius from the inner wall's nodes.
 
@@ -57,7 +58,8 @@ def cup_shape(mesh: jf.Mesh) -> CupShape:
     if mesh.dim != 3:
         raise ObservationError("a cup holder's model is a 3D mesh (model.kind = \"solid\")")
     lo, hi = mesh.bounds()
-    centre = 0.5 * (lo[:2] + hi[:2])
+    vol = mesh.volumes()  # the axis: through the volume's centroid (a polygonal circle's box is lopsided)
+    centre = (vol[:, None] * mesh.nodes[mesh.cells[:, :4]].mean(1)[:, :2]).sum(0) / vol.sum()
     X = mesh.nodes - [*centre, lo[2]]
     r, z = np.hypot(X[:, 0], X[:, 1]), X[:, 2]
     r_out, height = float(r.max()), float(z.max())

@@ -29,6 +29,7 @@ from refine.diagnosis.uncertainty import shape_errors
 from refine.exceptions import ObservationError
 from refine.measures import Residuals
 from refine.solid.cup import CupShape, bottom_points, check_closed, cup_shape
+from refine.solid.loaded import snap_to_surface
 from refine.solid.local import Local, SolidHole
 
 
@@ -41,7 +42,7 @@ class SolidConfig:
     h: float | None = None
     alpha: float = 0.01
     max_candidates: int = 2
-    max_remesh: int = 2
+    max_remesh: int = 4
     linear_solver: str = "auto"
 
 
@@ -85,6 +86,7 @@ def local_recipe(bundle: Bundle, cfg: SolidConfig) -> tuple[CupShape, Local, np.
     check_closed(mesh)
     shape = cup_shape(mesh)
     s = point_spacing(obs.reference)
+    snap_to_surface(mesh, obs.reference, 0.5 * s, obs.ids)  # every point on the body's surface (named if not)
     on = bottom_points(shape, obs.reference, tol=max(3 * (exp.noise_std or 0.0), 0.05 * s))
     roles = obs.roles[on]
     for role in ("boundary", "guide", "validate"):
@@ -109,7 +111,9 @@ def hole_candidates(local: Local, base: Fitted, sigma: float, max_n: int) -> lis
     meas = np.nan_to_num(local.obs.displacements[-1, :, :2])  # the frame of most motion
     found += [c for c in strain_regions(xy, meas, base.predicted[-1, :, :2], sigma, np.pi * s * s, max_n)
               if c.sign < 0]
-    return [Hole(tuple(c.centroid), tuple(c.axes), float(c.angle)) for c in found[:max_n]]
+    # started as large as the points allow (a gap's ellipse stops short of its points; the start
+    # is shrunk until none lies inside): a morph grows a hole only so far before a remesh
+    return [Hole(tuple(c.centroid), tuple(np.asarray(c.axes) + 0.5 * s), float(c.angle)) for c in found[:max_n]]
 
 
 def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) -> SolidDiagnosis:

@@ -9,7 +9,8 @@ Points (lengths in mm, forces in N, moduli in MPa):
   turned by a random angle, those on material (none inside the hole); ``boundary`` in the outer
   ring ``r >= r_in - spacing / 2`` (under the wall), else ``guide`` or ``validate`` (one in three);
 - the outer wall: rings at four heights, ``validate`` (the global model's held-out check);
-- the rim (z = height), held by the fixture: two rings, ``boundary`` (what holds the global model).
+- the rim (z = height), held by the fixture: three rings of pitch ``spacing``, ``boundary`` (what
+  holds the global model).
 
 Each frame's total force is in ``forces.csv`` on the side ``back`` (the z = 0 face). The model
 mesh (``mesh.vtu``) is the cup holder without a hole at ``h_model``.
@@ -76,7 +77,8 @@ def _points(g: CupGeometry, hole, spacing: float, rng) -> tuple[np.ndarray, np.n
                                       radius * np.sin(np.linspace(0, 2 * np.pi, n + 1)[:-1] + z), np.full(n, z)]
     n_ring = max(12, int(2 * np.pi * g.r_out / (2 * spacing)))
     wall = np.vstack([ring(g.r_out, z, n_ring) for z in np.linspace(0, g.height, 6)[1:-1]])
-    rim = np.vstack([ring(g.r_in + f * (g.r_out - g.r_in), g.height, n_ring) for f in (0.25, 0.75)])
+    radii = g.r_in + np.array([0.1, 0.5, 0.9]) * (g.r_out - g.r_in)
+    rim = np.vstack([ring(r, g.height, max(12, int(2 * np.pi * r / spacing))) for r in radii])
     X = np.vstack([np.c_[grid, np.zeros(len(grid))], wall, rim])
     roles = np.r_[bottom_roles, np.full(len(wall), "validate"), np.full(len(rim), "boundary")]
     return X, roles
