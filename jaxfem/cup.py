@@ -38,6 +38,8 @@ class CupHolder:
         bottom_outer_facets: the boundary facets on z = 0, ``(n, 3 or 6)`` (a pushed bottom's load).
         r_in, r_out, height, bottom: the dimensions (length units).
         hole: the hole's :class:`Ellipse` in the (x, y) plane, or ``None``.
+        plan: the ``tri3`` 2D mesh that was extruded (region 1 under the wall, so a morph of the
+            hole keeps the wall's feet); column: ``(n_vertices,)`` the plan node under each vertex.
     """
 
     mesh: Mesh
@@ -48,6 +50,8 @@ class CupHolder:
     height: float
     bottom: float
     hole: Ellipse | None = None
+    plan: Mesh | None = None
+    column: np.ndarray | None = None
 
 
 def _check(r_in, r_out, height, bottom, h, hole):
@@ -111,10 +115,11 @@ def cup_holder(r_in: float, r_out: float, height: float, bottom: float, h: float
     n_bot = max(1, int(round(bottom / h)))
     n_wall = max(1, int(round((height - bottom) / h)))
     z = np.r_[np.linspace(0.0, bottom, n_bot + 1), np.linspace(bottom, height, n_wall + 1)[1:]]
-    mesh, _ = _extrude(nodes2, tri, z, lambda level: np.ones(len(tri), bool) if level < n_bot else in_wall,
-                       lambda level: 0 if level < n_bot else 1, {0: "bottom", 1: "wall"}, element)
+    mesh, column = _extrude(nodes2, tri, z, lambda level: np.ones(len(tri), bool) if level < n_bot else in_wall,
+                            lambda level: 0 if level < n_bot else 1, {0: "bottom", 1: "wall"}, element)
+    plan = fix_orientation(Mesh(nodes2, tri, "tri3", in_wall.astype(np.int64)))
     return CupHolder(mesh, _sets(mesh, r_in, r_out, height, bottom, hole), _bottom_facets(mesh),
-                     float(r_in), float(r_out), float(height), float(bottom), hole)
+                     float(r_in), float(r_out), float(height), float(bottom), hole, plan, column)
 
 
 def _extrude(nodes2, tri, z, used_at, region_at, names, element):

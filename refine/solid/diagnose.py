@@ -11,7 +11,7 @@ and the boundary points' noise carried through the model (:func:`refine.diagnosi
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -30,7 +30,8 @@ from refine.exceptions import ObservationError
 from refine.measures import Residuals
 from refine.solid.cup import CupShape, bottom_points, check_closed, cup_shape
 from refine.solid.loaded import snap_to_surface
-from refine.solid.local import Local, SolidHole
+from refine.solid.global_model import held_by_fixture
+from refine.solid.local import Local, SolidHole, Whole
 
 
 @dataclass(frozen=True)
@@ -51,7 +52,7 @@ class SolidDiagnosis:
     """What the 3D diagnosis found: ``shape`` (the cup), ``local`` (its recipe), the initial
     local model's fit ``base``, the ``null`` test, the ``candidates`` tried, the hole fitted
     (``hole``, None where none could be) and the chosen fit (``chosen``: the hole or ``base``),
-    seconds per stage."""
+    seconds per stage, the found hole refitted in the global model (``whole``; the finding)."""
 
     shape: CupShape
     local: Local
@@ -61,6 +62,7 @@ class SolidDiagnosis:
     hole: Fitted | None
     chosen: Fitted
     seconds: dict = field(default_factory=dict)
+    whole: Fitted | None = None
 
     @property
     def found(self) -> bool:
@@ -148,10 +150,28 @@ def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) 
             if best is None or f.chi2_fit < best.chi2_fit:
                 best = f
     seconds["hole"] = time.perf_counter() - t0 - seconds["initial"]
-    chosen = base
+    chosen, whole = base, None
     if best is not None and best.bic < base.bic and best.chi2_holdout < base.chi2_holdout:
         chosen = best
-    return SolidDiagnosis(shape, local, base, null, tried, best, chosen, seconds)
+        whole = refit_whole(bundle, local, best.shapes[0], sigma, cfg)
+        log(f"  global model: {whole.describe()}")
+        seconds["global_fit"] = time.perf_counter() - t0 - seconds["initial"] - seconds["hole"]
+    return SolidDiagnosis(shape, local, base, null, tried, best, chosen, seconds, whole)
+
+
+def refit_whole(bundle: Bundle, local: Local, hole: Hole, sigma: float, cfg: SolidConfig) -> Fitted:
+    """The local model's hole refitted in the global model (:class:`~refine.solid.local.Whole`),
+    held by the fixture's points, on every bottom point but the ``validate`` ones, scored on all
+    ``validate`` points."""
+    obs = bundle.observations
+    tol = 0.05 * point_spacing(obs.reference)
+    held = held_by_fixture(obs, local.shape, tol)
+    held = replace(held, reference=held.reference - local.shape.offset)
+    whole = Whole(local.shape, local.experiment, held, local.force, local.h, local.linear_solver)
+    guide = (held.roles == "guide") & bottom_points(local.shape, obs.reference, tol)
+    validate = held.roles == "validate"
+    start = SolidHole(whole, jf.Ellipse(*hole.centre, *hole.axes, hole.angle))
+    return refit(fit(start, guide, validate, sigma), guide, validate, sigma, max_remesh=cfg.max_remesh, element="tet10")
 
 
 def report(d: SolidDiagnosis) -> dict:
@@ -165,15 +185,20 @@ def report(d: SolidDiagnosis) -> dict:
                            "points": int(len(d.local.obs.ids))},
            "validate_rms": {"initial": rms(d.base, validate)}, "findings": [], "seconds": d.seconds}
     if d.found:
-        f, s = d.chosen, d.chosen.shapes[0]
-        out["validate_rms"]["refined"] = rms(f, validate)
+        out["validate_rms"]["refined"] = rms(d.chosen, validate)
         out["held_out_gain"] = out["validate_rms"]["initial"] / max(out["validate_rms"]["refined"], 1e-300)
-        err = (shape_errors(f) or [None])[0]
-        area, _ = s.outline()
-        c = np.array([*s.centre, 0.5 * d.shape.bottom]) + d.shape.offset
-        out["findings"].append({
-            "kind": "hole", "through": "bottom", "centroid": c.tolist(), "axes": list(map(float, s.axes)),
+        out["findings"].append({**hole_entry(d, d.whole or d.chosen), "local_model": hole_entry(d, d.chosen)})
+    return out
+
+
+def hole_entry(d: SolidDiagnosis, f: Fitted) -> dict:
+    """A fitted hole as report.json lists it: centroid (mesh frame, mid-thickness), axes, angle,
+    area, volume and their standard errors."""
+    s = f.shapes[0]
+    err = (shape_errors(f) or [None])[0]
+    area, _ = s.outline()
+    c = np.array([*s.centre, 0.5 * d.shape.bottom]) + d.shape.offset
+    return {"kind": "hole", "through": "bottom", "centroid": c.tolist(), "axes": list(map(float, s.axes)),
             "angle": float(s.angle), "area": float(area), "volume": float(area * d.shape.bottom),
             "std": None if err is None else {**err.to_json(), "volume": None if err.area is None
-                                             else round(float(err.area * d.shape.bottom), 4)}})
-    return out
+                                             else round(float(err.area * d.shape.bottom), 4)}}

@@ -9,6 +9,8 @@ geometry ``X``, so a hole cut from the face raises the pressure the same measure
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -17,6 +19,7 @@ from scipy.spatial import cKDTree
 import jaxfem as jf
 from jaxfem.elements import get_element
 
+from refine.bundle.roles import point_spacing
 from refine.exceptions import ObservationError
 from refine.model.measured import MeasuredModel
 
@@ -33,7 +36,7 @@ def straight_tet10_pairs(mesh: jf.Mesh) -> np.ndarray:
     return np.asarray(pairs)
 
 
-def moved_probe(probe: jf.Probe, X, points, pairs=None) -> jf.Probe:
+def moved_probe(probe: jf.Probe, X, points) -> jf.Probe:
     """``probe`` after a morph of the nodes to ``X (n_nodes, 3)`` for the same physical ``points
     (n, 3)``: linear tetrahedra as :meth:`jaxfem.Probe.moved`; ``tet10`` with straight edges (the
     morphs of :mod:`refine.solid.morph` keep mid-edge nodes at their edges' middles) from the
@@ -123,11 +126,10 @@ class LoadedModel(MeasuredModel):
             raise ObservationError("the measured forces must be finite numbers in every frame")
         self.force = force
         self.facets = np.asarray(facets, np.int64)
-        super().__init__(experiment, observations, mesh=mesh, h=h, linear_solver=linear_solver,
-                         traction_facets=self.facets)
-        self.positions = snap_to_surface(mesh, observations.reference, 0.5 * self.spacing, observations.ids)
-        self.probe = jf.locate(mesh, self.positions, names=observations.ids)
-        self._pairs = straight_tet10_pairs(mesh) if mesh.element == "tet10" else None
+        on = snap_to_surface(mesh, observations.reference, 0.5 * point_spacing(observations.reference),
+                             observations.ids)
+        super().__init__(experiment, replace(observations, reference=on), mesh=mesh, h=h,
+                         linear_solver=linear_solver, traction_facets=self.facets)
 
     def tractions(self, X) -> jnp.ndarray:
         """``(n_frames, n_facets, 3)``: each frame's pressure on the loaded face at geometry ``X``."""

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxfem as jf
-from jaxfem.cup import CupBottom
+from jaxfem.cup import CupBottom, CupHolder
 from jaxfem.shapes import Morph
 
 from refine.solid.loaded import straight_tet10_pairs
@@ -44,8 +44,9 @@ class ExtrudedMorph:
     mids: np.ndarray  # (n_mid, 2)
 
     @classmethod
-    def of(cls, slab: CupBottom) -> ExtrudedMorph:
-        """The morph of ``slab``'s hole (it must have one)."""
+    def of(cls, slab: CupBottom | CupHolder) -> ExtrudedMorph:
+        """The morph of the hole of ``slab`` (a cup holder's bottom or the whole cup holder, with a
+        hole; the plan's regions keep the wall's feet where they are)."""
         n_v = len(slab.column)
         return cls(jf.morph(slab.plan, [slab.hole]), slab.column, slab.mesh.nodes[:n_v, 2], midpoint_pairs(slab.mesh))
 

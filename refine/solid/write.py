@@ -24,7 +24,7 @@ def diagnose_and_write(bundle: Bundle | str | Path, out: str | Path, cfg: SolidC
     d = diagnose_solid(bundle, cfg, log=log)
     rep = report(d)
     h = global_h or d.local.h
-    hole = d.chosen.shapes[0] if d.found else None
+    hole = (d.whole or d.chosen).shapes[0] if d.found else None
     root = write_global(bundle, d.shape, hole, Path(out) / "global", h)
     meshes = {"initial": global_mesh(d.shape, None, h)}
     if hole is not None:
