@@ -177,7 +177,8 @@ def refit_whole(bundle: Bundle, local: Local, hole: Hole, sigma: float, cfg: Sol
 def report(d: SolidDiagnosis) -> dict:
     """report.json's content: the cause, the hole's 3D centroid (mesh frame, mid-thickness), axes,
     angle, area and volume with standard errors, the null test, the held-out gain, seconds."""
-    rms = lambda f, m: float(np.sqrt(f.chi2_holdout / max(1, 3 * d.local.obs.n_frames * m.sum())) * f.sigma)  # noqa: E731
+    n = lambda m: max(1, 3 * d.local.obs.n_frames * m.sum())  # noqa: E731
+    rms = lambda f, m: float(np.sqrt(f.chi2_holdout / n(m)) * f.sigma)  # noqa: E731
     validate = d.local.obs.roles == "validate"
     out = {"cause": d.chosen.cause, "null_test": {"statistic": d.null.statistic, "dof": d.null.dof,
                                                    "p_value": d.null.p_value, "noise_std": d.null.sigma},

@@ -91,7 +91,8 @@ class Whole(Local):
 @dataclass(frozen=True, eq=False)
 class SolidHole:
     """The hypothesis of an elliptic hole through the bottom at ``hole`` (cup frame): the local
-    (or global, ``local`` a :class:`Whole`) model with the hole cut, its centre, axes and orientation fitted through an extruded morph
+    (or global, ``local`` a :class:`Whole`) model with the hole cut, its centre, axes and
+    orientation fitted through an extruded morph
     (:class:`~refine.solid.morph.ExtrudedMorph`), remeshed at fitted shapes by
     :func:`refine.diagnosis.fitted.refit`."""
 
