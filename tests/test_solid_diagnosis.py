@@ -117,8 +117,10 @@ def test_hidden_hole_in_the_bottom_is_found(tmp_path):
     d, rep = run_cup(tmp_path, hole, 11)
     assert rep["cause"] == "hole", rep
     f = rep["findings"][0]
-    assert np.hypot(f["centroid"][0] - hole.cx, f["centroid"][1] - hole.cy) < 0.03 * 22.0, (f, hole)
-    assert f["area"] == pytest.approx(hole.area, rel=0.15), (f, hole)
+    # noise-free, seed 1, data at h 1 mm: centre 0.83 % of the diameter off, area +2.5 % (the local
+    # model alone: 1.07 %, -23 %); here with noise and a coarser data mesh, a looser bound
+    assert np.hypot(f["centroid"][0] - hole.cx, f["centroid"][1] - hole.cy) < 0.02 * 22.0, (f, hole)
+    assert f["area"] == pytest.approx(hole.area, rel=0.10), (f, hole)
     assert rep["held_out_gain"] > 1.2
     g = rep["global"]
     assert g["refined"]["validate_rms"] < g["initial"]["validate_rms"], g
