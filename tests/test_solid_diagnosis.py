@@ -92,7 +92,7 @@ def test_bad_input_is_named(tmp_path):
     assert on.all() and local.obs.n_points == len(pts) and local.force.shape == (2, 3)
     off = pts.copy()
     off[5] = [30.0, 0.0, 0.0]  # 19 mm off the cup
-    with pytest.raises(ObservationError, match="not on the model's surface.*point 6"):
+    with pytest.raises(jf.MeshError, match="not on the model's surface.*point 6"):
         local_recipe(hand_bundle(tmp_path, off), SolidConfig())
     with pytest.raises(ObservationError, match="squeeze force.*back"):
         local_recipe(hand_bundle(tmp_path, pts, forces=False), SolidConfig())

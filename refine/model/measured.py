@@ -123,7 +123,11 @@ class MeasuredModel:
                                   fixed=jf.dofs(self.mesh, loop), traction_facets=traction_facets)
         self.linear_solver = linear_solver  # as asked ("auto" included): models derived from this one ask the same
         self.solver = jf.Solver(self.problem, linear_solver)
-        self.probe = jf.locate(self.mesh, positions, names=observations.ids)
+        if dim == 3:  # points on a curved surface lie up to a chord's sagitta outside the faceted mesh
+            from jaxfem.surface import snap_to_surface
+
+            self.positions = snap_to_surface(self.mesh, positions, 0.5 * self.spacing, observations.ids)
+        self.probe = jf.locate(self.mesh, self.positions, names=observations.ids)
         forces = observations.forces
         self.sides = {e: side_nodes(self.mesh, experiment.domain, e) for e in (forces.edges if forces else ())}
         self.drives = [self._drive(f) for f in range(observations.n_frames)]

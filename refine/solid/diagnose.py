@@ -16,6 +16,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 import jaxfem as jf
+from jaxfem.surface import snap_to_surface
 
 from refine.bundle.domains import PolygonDomain
 from refine.bundle.io import Bundle
@@ -29,7 +30,6 @@ from refine.diagnosis.uncertainty import shape_errors
 from refine.exceptions import ObservationError
 from refine.measures import Residuals
 from refine.solid.cup import CupShape, bottom_points, check_closed, cup_shape
-from refine.solid.loaded import snap_to_surface
 from refine.solid.global_model import held_by_fixture
 from refine.solid.local import Local, SolidHole, Whole
 

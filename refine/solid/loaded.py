@@ -9,17 +9,13 @@ geometry ``X``, so a hole cut from the face raises the pressure the same measure
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import jax
 import jax.numpy as jnp
 import numpy as np
-from scipy.spatial import cKDTree
 
 import jaxfem as jf
 from jaxfem.elements import get_element
 
-from refine.bundle.roles import point_spacing
 from refine.exceptions import ObservationError
 from refine.model.measured import MeasuredModel
 
@@ -49,61 +45,6 @@ def moved_probe(probe: jf.Probe, X, points) -> jf.Probe:
     return jf.Probe(probe.cells, probe.nodes, get_element("tet10").shape(lam))
 
 
-def snap_to_surface(mesh: jf.Mesh, points, tol: float, names=None) -> np.ndarray:
-    """``points (n, 3)`` measured on a body's surface, moved onto its faceted mesh surface and a
-    hair inside (the nearest point of the nearest boundary facets' corner triangles, then 1e-6 of
-    the mesh size inwards), so that a probe finds their cells: a point on a curved surface lies up
-    to a chord's sagitta outside the mesh.
-
-    Raises:
-        ObservationError: a point farther than ``tol`` (length unit) from the surface, named.
-    """
-    P = np.asarray(points, float).reshape(-1, 3)
-    f = mesh.boundary_facets()[:, :3]
-    A, B, C = (mesh.nodes[f[:, i]] for i in range(3))
-    k = min(12, len(f))
-    _, cand = cKDTree((A + B + C) / 3).query(P, k=k)
-    cand = cand.reshape(len(P), k)
-    best = np.full(len(P), np.inf)
-    out = P.copy()
-    for j in range(k):
-        i = cand[:, j]
-        q = _closest_on_triangle(P, A[i], B[i], C[i])
-        d = np.linalg.norm(q - P, axis=1)
-        take = d < best
-        best[take], out[take] = d[take], q[take]
-    far = np.flatnonzero(best > tol)
-    if far.size:
-        label = str(names[far[0]]) if names is not None else str(far[0])
-        raise ObservationError(f"{far.size} points are not on the model's surface (e.g. point {label}, "
-                               f"{best[far[0]]:.3g} from it, more than {tol:.3g}); points must lie on the "
-                               "body's surface: check the mesh's units and placement against the points")
-    centre = mesh.nodes.mean(0)
-    inward = centre - out
-    inward /= np.maximum(np.linalg.norm(inward, axis=1, keepdims=True), 1e-300)
-    return out + 1e-6 * np.ptp(mesh.nodes, 0).max() * inward
-
-
-def _closest_on_triangle(P, A, B, C):
-    """The nearest point of each triangle ``(A, B, C)`` to ``P``, all ``(n, 3)``: the plane's
-    projection clamped into the triangle through a few barycentric fixes (exact enough for points
-    within a facet or two of the surface)."""
-    n = np.cross(B - A, C - A)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    Q = P - np.einsum("ni,ni->n", P - A, n)[:, None] * n
-    for _ in range(3):
-        v0, v1, v2 = B - A, C - A, Q - A
-        d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
-        d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
-        den = d00 * d11 - d01 * d01
-        v = np.clip((d11 * d20 - d01 * d21) / den, 0, 1)
-        w = np.clip((d00 * d21 - d01 * d20) / den, 0, 1)
-        s = v + w
-        v, w = v / np.maximum(s, 1.0), w / np.maximum(s, 1.0)
-        Q = A + v[:, None] * v0 + w[:, None] * v1
-    return Q
-
-
 def face_area(X, facets) -> jnp.ndarray:
     """Area of the boundary ``facets`` (their corner triangles) at nodes ``X (n_nodes, 3)``."""
     X = jnp.asarray(X)
@@ -117,7 +58,7 @@ class LoadedModel(MeasuredModel):
     load per reference area). ``mesh`` must have straight edges where it is morphed.
 
     The other arguments are :class:`~refine.model.MeasuredModel`'s; the points are compared with
-    the model where :func:`snap_to_surface` puts them (within half a point spacing)."""
+    the model where :func:`jaxfem.surface.snap_to_surface` puts them (within half a point spacing)."""
 
     def __init__(self, experiment, observations, mesh: jf.Mesh, facets, force, h: float | None = None,
                  linear_solver: str = "auto"):
@@ -126,10 +67,8 @@ class LoadedModel(MeasuredModel):
             raise ObservationError("the measured forces must be finite numbers in every frame")
         self.force = force
         self.facets = np.asarray(facets, np.int64)
-        on = snap_to_surface(mesh, observations.reference, 0.5 * point_spacing(observations.reference),
-                             observations.ids)
-        super().__init__(experiment, replace(observations, reference=on), mesh=mesh, h=h,
-                         linear_solver=linear_solver, traction_facets=self.facets)
+        super().__init__(experiment, observations, mesh=mesh, h=h, linear_solver=linear_solver,
+                         traction_facets=self.facets)
 
     def tractions(self, X) -> jnp.ndarray:
         """``(n_frames, n_facets, 3)``: each frame's pressure on the loaded face at geometry ``X``."""
