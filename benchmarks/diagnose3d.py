@@ -109,6 +109,7 @@ def main() -> None:
     p.add_argument("--sound", type=int, nargs="*", default=[4])
     p.add_argument("--h-data", type=float, default=1.0)
     p.add_argument("--noise", type=float, default=0.01)
+    p.add_argument("--out", type=Path, default=RESULTS / "diagnose3d.json", help="results JSON (the plot beside it)")
     args = p.parse_args()
     rows, last = [], None
     for s in args.holes:
@@ -121,9 +122,9 @@ def main() -> None:
     targets = targets_of(rows)
     out = {"rows": rows, "forward": fwd, "targets": targets, "load_at_end": loadavg(), "cpus": os.cpu_count(),
            "settings": vars(args)}
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "diagnose3d.json").write_text(json.dumps(out, indent=1, default=float), encoding="utf-8")
-    plot(rows, RESULTS / "diagnose3d.png")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(out, indent=1, default=str), encoding="utf-8")
+    plot(rows, args.out.with_suffix(".png"))
     print(json.dumps(targets, indent=1, default=float))
 
 

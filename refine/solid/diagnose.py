@@ -1,7 +1,9 @@
 """The 3D diagnosis of a cup holder's bottom (the paper's Sec. 4): is anything wrong beyond the
 noise, where (candidates from gaps in the bottom's points and from its measured strain), is it a
 hole (fitted by exact implicit gradients through a morph, remeshed while it moves), how much better
-the held-out points are predicted; the report.
+the held-out points are predicted; the found hole refitted in the global model (the whole cup
+holder held by the fixture's points: the local model, which leaves the wall out, gets the hole's
+size a quarter too small); the report.
 
 The local model (:mod:`refine.solid.local`) is fitted on the bottom face's ``guide`` points and
 scored on its ``validate`` points; the null test weighs the ``guide`` residuals against the noise
