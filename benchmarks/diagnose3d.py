@@ -90,7 +90,7 @@ def targets_of(rows) -> dict:
     holes = [r for r in rows if r["hole"] is not None]
     found = [r for r in holes if "centre_error_pct" in r]
     worst = lambda k: max((abs(r[k]) for r in found), default=None)  # noqa: E731
-    ok = lambda k, limit: None if not holes else (len(found) == len(holes) and worst(k) <= limit)  # noqa: E731
+    ok = lambda k, limit: None if not holes else bool(len(found) == len(holes) and worst(k) <= limit)  # noqa: E731
     sound = [r for r in rows if r["hole"] is None]
     local_s = max(r["local_seconds"] for r in rows)
     global_s = max(r["global_seconds"] for r in rows)
@@ -98,8 +98,8 @@ def targets_of(rows) -> dict:
         "centre_error_le_1pct": {"value": worst("centre_error_pct"), "pass": ok("centre_error_pct", 1.0)},
         "area_error_le_2pct": {"value": worst("area_error_pct"), "pass": ok("area_error_pct", 2.0)},
         "no_finding_without_hole": {"pass": all(r["cause"] == "none" for r in sound) if sound else None},
-        "local_diagnosis_lt_300s": {"value": local_s, "pass": local_s < 300},
-        "global_prediction_lt_60s": {"value": global_s, "pass": global_s < 60},
+        "local_diagnosis_lt_300s": {"value": local_s, "pass": bool(local_s < 300)},
+        "global_prediction_lt_60s": {"value": global_s, "pass": bool(global_s < 60)},
     }
 
 
