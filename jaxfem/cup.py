@@ -38,6 +38,8 @@ class CupHolder:
         bottom_outer_facets: the boundary facets on z = 0, ``(n, 3 or 6)`` (a pushed bottom's load).
         r_in, r_out, height, bottom: the dimensions (length units).
         hole: the hole's :class:`Ellipse` in the (x, y) plane, or ``None``.
+        plan: the ``tri3`` 2D mesh that was extruded (region 1 under the wall, so a morph of the
+            hole keeps the wall's feet); column: ``(n_vertices,)`` the plan node under each vertex.
     """
 
     mesh: Mesh
@@ -48,6 +50,8 @@ class CupHolder:
     height: float
     bottom: float
     hole: Ellipse | None = None
+    plan: Mesh | None = None
+    column: np.ndarray | None = None
 
 
 def _check(r_in, r_out, height, bottom, h, hole):
@@ -108,24 +112,68 @@ def cup_holder(r_in: float, r_out: float, height: float, bottom: float, h: float
         raise MeshError(f"cup_holder() makes tet4 or tet10 meshes, not {element!r}")
     _check(r_in, r_out, height, bottom, h, hole)
     nodes2, tri, in_wall = _plan(r_in, r_out, h, hole)
-    n2 = len(nodes2)
     n_bot = max(1, int(round(bottom / h)))
     n_wall = max(1, int(round((height - bottom) / h)))
     z = np.r_[np.linspace(0.0, bottom, n_bot + 1), np.linspace(bottom, height, n_wall + 1)[1:]]
+    mesh, column = _extrude(nodes2, tri, z, lambda level: np.ones(len(tri), bool) if level < n_bot else in_wall,
+                            lambda level: 0 if level < n_bot else 1, {0: "bottom", 1: "wall"}, element)
+    plan = fix_orientation(Mesh(nodes2, tri, "tri3", in_wall.astype(np.int64)))
+    return CupHolder(mesh, _sets(mesh, r_in, r_out, height, bottom, hole), _bottom_facets(mesh),
+                     float(r_in), float(r_out), float(height), float(bottom), hole, plan, column)
+
+
+def _extrude(nodes2, tri, z, used_at, region_at, names, element):
+    """The prisms over the triangles ``tri`` of the 2D nodes ``nodes2`` that ``used_at(level)``
+    selects, between the levels ``z``, as tetrahedra of ``element``; also the 2D node under
+    each vertex ``(n_vertices,)``."""
+    n2 = len(nodes2)
     cells, region = [], []
     for level in range(len(z) - 1):
-        use = np.ones(len(tri), bool) if level < n_bot else in_wall
+        use = used_at(level)
         tets = _prisms_to_tets(tri[use], n2, np.full(use.sum(), level))
         cells.append(tets)
-        region.append(np.full(len(tets), 0 if level < n_bot else 1))
+        region.append(np.full(len(tets), region_at(level)))
     cells, region = np.concatenate(cells), np.concatenate(region)
     X = np.concatenate([np.c_[nodes2, np.full(n2, zk)] for zk in z])
     used, cells = np.unique(cells, return_inverse=True)
-    mesh = fix_orientation(Mesh(X[used], cells.reshape(-1, 4), "tet4", region, {0: "bottom", 1: "wall"}))
-    if element == "tet10":
-        mesh = to_quadratic(mesh)
-    return CupHolder(mesh, _sets(mesh, r_in, r_out, height, bottom, hole), _bottom_facets(mesh),
-                     float(r_in), float(r_out), float(height), float(bottom), hole)
+    mesh = fix_orientation(Mesh(X[used], cells.reshape(-1, 4), "tet4", region, names))
+    return (to_quadratic(mesh) if element == "tet10" else mesh), used % n2
+
+
+@dataclass(frozen=True)
+class CupBottom:
+    """The bottom slab of a cup holder (the disk ``r < r_out``, ``0 <= z <= bottom``): a paper's
+    local model of the observed bottom.
+
+    Attributes:
+        mesh: the 3D mesh (``tet4`` or ``tet10``, straight edges), region 0.
+        plan: the ``tri3`` 2D mesh that was extruded (its hole's curve on its boundary).
+        column: ``(n_vertices,)`` the plan node under each vertex of ``mesh`` (vertices first).
+        facets: the boundary facets on z = 0, ``(n, 3 or 6)``.
+        hole: the hole's :class:`Ellipse` or ``None``.
+    """
+
+    mesh: Mesh
+    plan: Mesh
+    column: np.ndarray
+    facets: np.ndarray
+    hole: Ellipse | None = None
+
+
+def cup_bottom(r_in: float, r_out: float, bottom: float, h: float, hole: Ellipse | None = None,
+               element: str = "tet10", layers: int | None = None) -> CupBottom:
+    """Mesh the bottom slab of the cup holder :func:`cup_holder` would mesh with the same
+    arguments (the same plan, ``layers`` levels through the thickness, default ``bottom / h``
+    rounded), with the elliptic through-``hole`` if given. Lengths in the caller's unit."""
+    if element not in ("tet4", "tet10"):
+        raise MeshError(f"cup_bottom() makes tet4 or tet10 meshes, not {element!r}")
+    _check(r_in, r_out, 2 * bottom, bottom, h, hole)
+    nodes2, tri, _ = _plan(r_in, r_out, h, hole)
+    n = layers or max(1, int(round(bottom / h)))
+    mesh, column = _extrude(nodes2, tri, np.linspace(0.0, bottom, n + 1), lambda level: np.ones(len(tri), bool),
+                            lambda level: 0, {0: "bottom"}, element)
+    plan = fix_orientation(Mesh(nodes2, tri, "tri3"))
+    return CupBottom(mesh, plan, column, _bottom_facets(mesh), hole)
 
 
 def _sets(mesh, r_in, r_out, height, bottom, hole):

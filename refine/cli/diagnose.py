@@ -106,6 +106,10 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
 
         raise ObservationError("the bundle holds unlabelled clouds only (clouds.csv, no points.csv); diagnose needs "
                                "tracked points: follow the clouds with `nonrigid follow BUNDLE --out DIR`")
+    if bundle.experiment.kind == "solid":  # a 3D cup holder: the local model of its bottom (refine.solid)
+        from refine.solid.write import diagnose_and_write
+
+        return diagnose_and_write(bundle, out, quiet=quiet)[0]
     if not isinstance(config, DiagnoseConfig):
         config = settings_of(bundle, config)
     d = diagnosis_of(bundle, config, log=(lambda m: None) if quiet else print)

@@ -89,10 +89,13 @@ class MeasuredModel:
             that follows its known regions and holes).
         element: element type of the default mesh.
         linear_solver: see :mod:`jaxfem.linsolve`.
+        traction_facets: boundary facets that carry the parameter ``traction`` (a dead load; a
+            subclass such as :class:`refine.solid.LoadedModel` sets it per frame).
     """
 
     def __init__(self, experiment: Experiment, observations: Observations, mesh: jf.Mesh | None = None,
-                 element: str = "tri3", h: float | None = None, linear_solver: str = "auto", root=None):
+                 element: str = "tri3", h: float | None = None, linear_solver: str = "auto", root=None,
+                 traction_facets=None):
         if observations.dim != 2 and mesh is None and not isinstance(experiment.domain, MeshDomain):
             raise ObservationError("3D bundles need a mesh (domain = { mesh = ... })")
         experiment = resolve_domain(experiment, observations)
@@ -115,7 +118,7 @@ class MeasuredModel:
         self.loop = loop
         dim = self.mesh.dim
         self.problem = jf.Problem(self.mesh, model_material(experiment), experiment.kind,
-                                  fixed=jf.dofs(self.mesh, loop))
+                                  fixed=jf.dofs(self.mesh, loop), traction_facets=traction_facets)
         self.linear_solver = linear_solver  # as asked ("auto" included): models derived from this one ask the same
         self.solver = jf.Solver(self.problem, linear_solver)
         # 3D: a point projected onto a flat piece of a curved quadratic face may lie a chord's

@@ -1,0 +1,218 @@
+"""The 3D diagnosis of a cup holder's bottom (the paper's Sec. 4): is anything wrong beyond the
+noise, where (candidates from gaps in the bottom's points and from its measured strain), is it a
+hole (fitted by exact implicit gradients through a morph, remeshed while it moves), how much better
+the held-out points are predicted; the found hole refitted in the global model (the whole cup
+holder held by the fixture's points: the local model, which leaves the wall out, gets the hole's
+size a quarter too small); the report.
+
+The local model (:mod:`refine.solid.local`) is fitted on the bottom face's ``guide`` points and
+scored on its ``validate`` points; the null test weighs the ``guide`` residuals against the noise
+and the boundary points' noise carried through the model (:func:`refine.diagnosis.noise.null_test`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+import jaxfem as jf
+from jaxfem.surface import project_to_surface
+
+from refine.bundle.domains import PolygonDomain
+from refine.bundle.io import Bundle
+from refine.bundle.observations import Observations
+from refine.bundle.roles import point_spacing
+from refine.diagnosis.candidates import missing_point_regions, strain_regions
+from refine.diagnosis.fitted import Fitted, NotApplicable, baseline, fit, refit
+from refine.diagnosis.noise import estimate_noise, null_test, propagated_noise
+from refine.diagnosis.shapes import Hole
+from refine.diagnosis.uncertainty import shape_errors
+from refine.exceptions import ObservationError
+from refine.measures import Residuals
+from refine.solid.cup import CupShape, bottom_points, check_closed, cup_shape
+from refine.solid.global_model import held_by_fixture
+from refine.solid.local import Local, SolidHole, Whole
+
+
+@dataclass(frozen=True)
+class SolidConfig:
+    """Settings of the 3D diagnosis: ``h`` the local model's element size (length unit; None: 1.5
+    point spacings), ``alpha`` the null test's level, ``max_candidates`` holes tried,
+    ``max_remesh`` remeshes of a moving hole, ``linear_solver``."""
+
+    h: float | None = None
+    alpha: float = 0.01
+    max_candidates: int = 2
+    max_remesh: int = 4
+    linear_solver: str = "auto"
+
+
+@dataclass
+class SolidDiagnosis:
+    """What the 3D diagnosis found: ``shape`` (the cup), ``local`` (its recipe), the initial
+    local model's fit ``base``, the ``null`` test, the ``candidates`` tried, the hole fitted
+    (``hole``, None where none could be) and the chosen fit (``chosen``: the hole or ``base``),
+    seconds per stage, the found hole refitted in the global model (``whole``; the finding)."""
+
+    shape: CupShape
+    local: Local
+    base: Fitted
+    null: object
+    candidates: list
+    hole: Fitted | None
+    chosen: Fitted
+    seconds: dict = field(default_factory=dict)
+    whole: Fitted | None = None
+
+    @property
+    def found(self) -> bool:
+        return self.chosen is not self.base
+
+
+def squeeze_force(obs: Observations) -> np.ndarray:
+    """The measured total force on the bottom face per frame, ``(n_frames, 3)``: forces.csv's side
+    ``back`` (the mesh's z-min face)."""
+    if obs.forces is None or "back" not in obs.forces.edges:
+        raise ObservationError("a cup holder's diagnosis needs the squeeze force on its bottom: forces.csv with the "
+                               "side 'back' (the z-min face of the mesh), one row per frame")
+    return obs.forces.on("back")
+
+
+def _on_surface(mesh: jf.Mesh, obs: Observations, tol: float) -> None:
+    """Every tracked point lies on the body's surface, within ``tol`` (length unit), or an error
+    names the farthest."""
+    _, d = project_to_surface(mesh, obs.reference)
+    if (d > tol).any():
+        worst = int(np.argmax(d))
+        raise ObservationError(f"{int((d > tol).sum())} points are not on the model's surface (the farthest, point "
+                               f"{obs.ids[worst]}, is {d[worst]:.3g} from it, more than {tol:.3g}); check the mesh's "
+                               "units and placement against the points")
+
+
+def local_recipe(bundle: Bundle, cfg: SolidConfig) -> tuple[CupShape, Local, np.ndarray]:
+    """The cup's shape, the local model's recipe and which points ``(n,)`` bool are on the bottom."""
+    exp, obs = bundle.experiment, bundle.observations
+    if exp.kind != "solid" or obs is None or obs.dim != 3:
+        raise ObservationError("the 3D diagnosis takes a solid bundle with 3D points")
+    root = "" if bundle.root is None else f"{bundle.root}/"
+    mesh = jf.read_mesh(f"{root}{exp.domain.path}")
+    check_closed(mesh)
+    shape = cup_shape(mesh)
+    s = point_spacing(obs.reference)
+    _on_surface(mesh, obs, 0.5 * s)
+    on = bottom_points(shape, obs.reference, tol=max(3 * (exp.noise_std or 0.0), 0.05 * s))
+    roles = obs.roles[on]
+    for role in ("boundary", "guide", "validate"):
+        if not (roles == role).any():
+            raise ObservationError(f"no {role} point on the bottom's outer face (z = {shape.z0:g}): the local "
+                                   "model needs boundary points under the wall, guide and validate points inside")
+    X = obs.reference[on] - shape.offset
+    X[:, 2] = 0.0  # on the face's plane (a depth's noise would put a point outside the slab)
+    local_obs = Observations(obs.ids[on], X, roles, obs.displacements[:, on])
+    h = cfg.h or 1.5 * point_spacing(X[:, :2])
+    return shape, Local(shape, exp, local_obs, squeeze_force(obs), h, cfg.linear_solver), on
+
+
+def hole_candidates(local: Local, base: Fitted, sigma: float, max_n: int) -> list[Hole]:
+    """Where a hole may be, largest first: gaps in the bottom's points inside the floor, then
+    patches of abnormally high measured in-plane strain (the paper's cue), as starting holes."""
+    xy = local.obs.reference[:, :2]
+    s = point_spacing(xy)
+    ring = np.linspace(0, 2 * np.pi, 97)[:-1]
+    floor = PolygonDomain(tuple(map(tuple, local.shape.r_in * np.c_[np.cos(ring), np.sin(ring)])))
+    found = missing_point_regions(xy, floor, gap=0.9)  # a square grid leaves at most 0.71 pitch
+    meas = np.nan_to_num(local.obs.displacements[-1, :, :2])  # the frame of most motion
+    found += [c for c in strain_regions(xy, meas, base.predicted[-1, :, :2], sigma, np.pi * s * s, max_n)
+              if c.sign < 0]
+    # started as large as the points allow (a gap's ellipse stops short of its points; the start
+    # is shrunk until none lies inside): a morph grows a hole only so far before a remesh
+    return [Hole(tuple(c.centroid), tuple(np.asarray(c.axes) + 0.5 * s), float(c.angle)) for c in found[:max_n]]
+
+
+def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) -> SolidDiagnosis:
+    """Diagnose a cup holder's bottom (see the module)."""
+    t0 = time.perf_counter()
+    shape, local, _ = local_recipe(bundle, cfg)
+    obs = local.obs
+    guide, validate = obs.roles == "guide", obs.roles == "validate"
+    sigma = bundle.experiment.noise_std or estimate_noise(obs)
+    model, _ = local.model()
+    base = baseline(model, guide, validate, sigma)
+    if not np.isfinite(base.chi2_fit):
+        model.raise_solve_failure(model.params())
+    at = Residuals.at(obs.displacements, guide, sigma)
+    null = null_test(at.difference(base.predicted), at.valid, sigma, 0.0,
+                     propagated_noise(model, model.params(), sigma, guide, samples=8))
+    seconds = {"initial": time.perf_counter() - t0}
+    log(f"local model: {model.mesh.n_cells} cells, {len(obs.ids)} bottom points; misfit {null.ratio:.2f} x the "
+        f"noise's (p = {null.p_value:.2g})")
+    tried, best = [], None
+    if null.p_value < cfg.alpha:
+        for start in hole_candidates(local, base, sigma, cfg.max_candidates):
+            try:
+                hyp = SolidHole(local, local.hole_from(start))
+            except (NotApplicable, jf.MeshError) as e:
+                log(f"  candidate at ({start.centre[0]:.1f}, {start.centre[1]:.1f}): {e}")
+                continue
+            tried.append(start)
+            f = refit(fit(hyp, guide, validate, sigma), guide, validate, sigma, max_remesh=cfg.max_remesh,
+                      element="tet10")
+            log(f"  {f.describe()}")
+            if best is None or f.chi2_fit < best.chi2_fit:
+                best = f
+    seconds["hole"] = time.perf_counter() - t0 - seconds["initial"]
+    chosen, whole = base, None
+    if best is not None and best.bic < base.bic and best.chi2_holdout < base.chi2_holdout:
+        chosen = best
+        whole = refit_whole(bundle, local, best.shapes[0], sigma, cfg)
+        log(f"  global model: {whole.describe()}")
+        seconds["global_fit"] = time.perf_counter() - t0 - seconds["initial"] - seconds["hole"]
+    return SolidDiagnosis(shape, local, base, null, tried, best, chosen, seconds, whole)
+
+
+def refit_whole(bundle: Bundle, local: Local, hole: Hole, sigma: float, cfg: SolidConfig) -> Fitted:
+    """The local model's hole refitted in the global model (:class:`~refine.solid.local.Whole`),
+    held by the fixture's points, on every bottom point but the ``validate`` ones, scored on all
+    ``validate`` points."""
+    obs = bundle.observations
+    tol = 0.05 * point_spacing(obs.reference)
+    held = held_by_fixture(obs, local.shape, tol)
+    held = replace(held, reference=held.reference - local.shape.offset)
+    whole = Whole(local.shape, local.experiment, held, local.force, local.h, local.linear_solver)
+    guide = (held.roles == "guide") & bottom_points(local.shape, obs.reference, tol)
+    validate = held.roles == "validate"
+    start = SolidHole(whole, jf.Ellipse(*hole.centre, *hole.axes, hole.angle))
+    return refit(fit(start, guide, validate, sigma), guide, validate, sigma, max_remesh=cfg.max_remesh, element="tet10")
+
+
+def report(d: SolidDiagnosis) -> dict:
+    """report.json's content: the cause, the hole's 3D centroid (mesh frame, mid-thickness), axes,
+    angle, area and volume with standard errors, the null test, the held-out gain, seconds."""
+    n = lambda m: max(1, 3 * d.local.obs.n_frames * m.sum())  # noqa: E731
+    rms = lambda f, m: float(np.sqrt(f.chi2_holdout / n(m)) * f.sigma)  # noqa: E731
+    validate = d.local.obs.roles == "validate"
+    out = {"cause": d.chosen.cause, "null_test": {"statistic": d.null.statistic, "dof": d.null.dof,
+                                                   "p_value": d.null.p_value, "noise_std": d.null.sigma},
+           "local_model": {"cells": int(d.base.model.mesh.n_cells), "h": d.local.h,
+                           "points": int(len(d.local.obs.ids))},
+           "validate_rms": {"initial": rms(d.base, validate)}, "findings": [], "seconds": d.seconds}
+    if d.found:
+        out["validate_rms"]["refined"] = rms(d.chosen, validate)
+        out["held_out_gain"] = out["validate_rms"]["initial"] / max(out["validate_rms"]["refined"], 1e-300)
+        out["findings"].append({**hole_entry(d, d.whole or d.chosen), "local_model": hole_entry(d, d.chosen)})
+    return out
+
+
+def hole_entry(d: SolidDiagnosis, f: Fitted) -> dict:
+    """A fitted hole as report.json lists it: centroid (mesh frame, mid-thickness), axes, angle,
+    area, volume and their standard errors."""
+    s = f.shapes[0]
+    err = (shape_errors(f) or [None])[0]
+    area, _ = s.outline()
+    c = np.array([*s.centre, 0.5 * d.shape.bottom]) + d.shape.offset
+    return {"kind": "hole", "through": "bottom", "centroid": c.tolist(), "axes": list(map(float, s.axes)),
+            "angle": float(s.angle), "area": float(area), "volume": float(area * d.shape.bottom),
+            "std": None if err is None else {**err.to_json(), "volume": None if err.area is None
+                                             else round(float(err.area * d.shape.bottom), 4)}}

@@ -1,0 +1,123 @@
+"""The paper's local model of a cup holder's observed bottom, and the hypothesis of a hole through it.
+
+The local model is the bottom slab alone (:func:`jaxfem.cup.cup_bottom`, the disk under the whole
+cup, ``0 <= z <= bottom``), in the cup's frame (origin at the bottom face's centre): its outer
+face's nodes under the ``boundary`` points (the ring under the wall) follow them, its face inside
+carries the measured squeeze force as a uniform pressure (:class:`~refine.solid.loaded.LoadedModel`),
+the rest is free. The wall above is left out: the driven ring holds the floor as the wall does.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import SimpleNamespace
+
+import numpy as np
+
+import jaxfem as jf
+from jaxfem.cup import CupBottom, cup_bottom
+
+from refine.bundle.experiment import Experiment
+from refine.bundle.observations import Observations
+from refine.bundle.roles import point_spacing
+from refine.diagnosis.fitted import NotApplicable
+from refine.diagnosis.holes import hole_hypothesis
+from refine.diagnosis.shapes import Hole
+from refine.model.objective import Compiled
+from refine.model.parametrize import ShapeGeometry
+from refine.solid.cup import CupShape
+from refine.solid.loaded import LoadedModel
+from refine.solid.morph import ExtrudedMorph
+
+
+@dataclass(frozen=True, eq=False)
+class Local:
+    """How to build the local model: the cup's ``shape``, the bundle's ``experiment``, the bottom
+    face's points ``obs`` in the cup's frame, the squeeze ``force (n_frames, 3)``, the element
+    size ``h`` (length unit), the linear solver."""
+
+    shape: CupShape
+    experiment: Experiment
+    obs: Observations
+    force: np.ndarray
+    h: float
+    linear_solver: str = "auto"
+
+    def model(self, hole: jf.Ellipse | None = None) -> tuple[LoadedModel, CupBottom]:
+        """The local model (``tet10``) with ``hole`` cut through it, and its slab mesh."""
+        s = self.shape
+        slab = cup_bottom(s.r_in, s.r_out, s.bottom, self.h, hole)
+        model = LoadedModel(self.experiment, self.obs, slab.mesh, slab.facets, self.force, h=self.h,
+                            linear_solver=self.linear_solver)
+        return model, slab
+
+    def hole_from(self, shape) -> jf.Ellipse:
+        """A hole started at ``shape`` (a :class:`Hole` or region shape, cup frame): shrunk until
+        no point lies inside it (:func:`refine.diagnosis.holes.hole_hypothesis`), then until it
+        keeps half an element from the inner wall. Raises :class:`NotApplicable` where points were
+        seen near its middle."""
+        xy = self.obs.reference[:, :2]
+        base = SimpleNamespace(experiment=self.experiment, spacing=point_spacing(xy), obs=SimpleNamespace(reference=xy))
+        e = hole_hypothesis(base, shape).hole
+        reach = self.shape.r_in - 0.5 * self.h
+        for _ in range(40):
+            ring = np.linspace(0, 2 * np.pi, 181)
+            c, s_ = np.cos(e.angle), np.sin(e.angle)
+            x = e.cx + e.rx * np.cos(ring) * c - e.ry * np.sin(ring) * s_
+            y = e.cy + e.rx * np.cos(ring) * s_ + e.ry * np.sin(ring) * c
+            if np.hypot(x, y).max() < reach:
+                return e
+            e = jf.Ellipse(0.95 * e.cx, 0.95 * e.cy, 0.95 * e.rx, 0.95 * e.ry, e.angle)
+        raise NotApplicable(f"no hole at ({shape.centre[0]:.1f}, {shape.centre[1]:.1f}) fits inside the floor")
+
+
+@dataclass(frozen=True, eq=False)
+class Whole(Local):
+    """How to build the global model in the cup's frame: the whole cup holder (``tet10``), held
+    where its ``boundary`` points are (``obs``: every point, those of the bottom's ring made
+    ``guide``: :func:`refine.solid.global_model.held_by_fixture`), squeezed by ``force``. A hole
+    found by the local model is refitted in it (:class:`SolidHole` takes either recipe): the local
+    model leaves the wall out, which bends the floor's edge as the wall does not (its hole came
+    out 23 % small on noise-free data)."""
+
+    def model(self, hole: jf.Ellipse | None = None) -> tuple[LoadedModel, jf.CupHolder]:
+        s = self.shape
+        cup = jf.cup_holder(s.r_in, s.r_out, s.height, s.bottom, self.h, hole=hole)
+        model = LoadedModel(self.experiment, self.obs, cup.mesh, cup.bottom_outer_facets, self.force, h=self.h,
+                            linear_solver=self.linear_solver)
+        return model, cup
+
+
+@dataclass(frozen=True, eq=False)
+class SolidHole:
+    """The hypothesis of an elliptic hole through the bottom at ``hole`` (cup frame): the local
+    (or global, ``local`` a :class:`Whole`) model with the hole cut, its centre, axes and
+    orientation fitted through an extruded morph
+    (:class:`~refine.solid.morph.ExtrudedMorph`), remeshed at fitted shapes by
+    :func:`refine.diagnosis.fitted.refit`."""
+
+    local: Local
+    hole: jf.Ellipse
+    remeshable = True
+
+    @property
+    def law(self) -> str:
+        return self.local.experiment.law
+
+    def build(self) -> tuple[Compiled, None]:
+        model, slab = self.local.model(self.hole)
+        sp = model.spacing
+        param = ShapeGeometry(ExtrudedMorph.of(slab), self.hole.params[None], scale=0.5 * sp, rotate=True,
+                              mesh=slab.mesh, outside=self.local.obs.reference[:, :2], min_axis=0.1 * sp)
+        return Compiled(model, param), None
+
+    def shapes_at(self, compiled: Compiled, z) -> tuple[Hole]:
+        g = np.asarray(compiled.param.shape_params(z))[0]
+        return (Hole((g[0], g[1]), (g[2], g[3]), g[4]),)
+
+    def cause_of(self, shapes) -> str:
+        return "hole"
+
+    def at(self, shapes, element: str = "tet10") -> SolidHole:
+        s = shapes[0]
+        return SolidHole(self.local, jf.Ellipse(*s.centre, *s.axes, s.angle))

@@ -1,0 +1,41 @@
+"""`nonrigid diagnose` on a solid bundle: the 3D diagnosis of the cup holder's bottom, its report,
+and the global model with the finding (written and checked against the held-out points)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from refine.bundle.io import Bundle, read_bundle
+from refine.solid.diagnose import SolidConfig, SolidDiagnosis, diagnose_solid, report, squeeze_force
+from refine.solid.global_model import global_check, global_mesh, write_global
+
+
+def diagnose_and_write(bundle: Bundle | str | Path, out: str | Path, cfg: SolidConfig = SolidConfig(),
+                       quiet: bool = False, global_h: float | None = None) -> tuple[SolidDiagnosis, dict]:
+    """Diagnose a cup holder's bundle (:func:`refine.solid.diagnose_solid`) and write ``OUT/report.json``
+    (with ``global``: the global models' held-out errors, initial and refined) and ``OUT/global/``
+    (the global model with the finding as a bundle, :func:`refine.solid.global_model.write_global`).
+    ``global_h``: the global model's element size (default: the local model's). Returns the
+    diagnosis and the report."""
+    if isinstance(bundle, (str, Path)):
+        bundle = read_bundle(bundle)
+    log = (lambda m: None) if quiet else print
+    d = diagnose_solid(bundle, cfg, log=log)
+    rep = report(d)
+    h = global_h or d.local.h
+    hole = (d.whole or d.chosen).shapes[0] if d.found else None
+    root = write_global(bundle, d.shape, hole, Path(out) / "global", h)
+    meshes = {"initial": global_mesh(d.shape, None, h)}
+    if hole is not None:
+        meshes["refined"] = global_mesh(d.shape, hole, h)
+    tol = 0.05 * d.base.model.spacing
+    rep["global"] = global_check(bundle, d.shape, squeeze_force(bundle.observations), meshes, tol, cfg.linear_solver)
+    rep["global"]["bundle"] = str(root)
+    Path(out).mkdir(parents=True, exist_ok=True)
+    (Path(out) / "report.json").write_text(json.dumps(rep, indent=1), encoding="utf-8")
+    if not quiet:
+        f = rep["findings"][0] if rep["findings"] else None
+        log(f"finding: {rep['cause']}" + (f" at {[round(v, 2) for v in f['centroid']]}, area {f['area']:.2f}"
+                                         if f else "") + f"; global model in {root}")
+    return d, rep
