@@ -39,11 +39,11 @@ def test_clouds_beside_points_and_older_bundles_unaffected(tmp_path):
     write_bundle(tmp_path / "old", bundle)
     old = read_bundle(tmp_path / "old")
     assert old.clouds is None and old.observations.n_points == bundle.observations.n_points
-    clouds = _clouds(np.random.default_rng(2), (4, 6))
+    clouds = _clouds(np.random.default_rng(2), (4, 6, 5))  # frames 0..2, as displacements' 1..2 and the reference
     write_bundle(tmp_path / "both", Bundle(bundle.experiment, bundle.observations, clouds=clouds))
     both = read_bundle(tmp_path / "both")
     assert both.observations.n_points == bundle.observations.n_points
-    assert [len(p) for p in both.clouds.points] == [4, 6]
+    assert [len(p) for p in both.clouds.points] == [4, 6, 5]
 
 
 @pytest.mark.parametrize("text, problem", [
