@@ -26,15 +26,21 @@ def image_paths(sources: str | Path | Sequence[str | Path]) -> list[Path]:
     (``"frames/img_*.tif"``); several sources keep the order given. Raises :class:`ImageError`
     naming a source that matches no image.
     """
+    return file_paths(sources, IMAGE_SUFFIXES, "image")
+
+
+def file_paths(sources: str | Path | Sequence[str | Path], suffixes: Sequence[str], what: str) -> list[Path]:
+    """The files ``sources`` name (files, folders of files with one of ``suffixes``, glob patterns),
+    in natural order within each source; ``what`` names them in the errors (e.g. "range image")."""
     if isinstance(sources, (str, Path)):
         sources = [sources]
     out: list[Path] = []
     for source in sources:
         path = Path(source)
         if path.is_dir():
-            found = sorted((p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES), key=natural_key)
+            found = sorted((p for p in path.iterdir() if p.suffix.lower() in suffixes), key=natural_key)
             if not found:
-                raise ImageError(f"folder {path} holds no image files ({', '.join(IMAGE_SUFFIXES)})")
+                raise ImageError(f"folder {path} holds no {what} files ({', '.join(suffixes)})")
         elif path.is_file():
             found = [path]
         elif any(c in str(source) for c in "*?["):
@@ -42,7 +48,7 @@ def image_paths(sources: str | Path | Sequence[str | Path]) -> list[Path]:
             if not found:
                 raise ImageError(f"the pattern {source!r} matches no file")
         else:
-            raise ImageError(f"image file not found: {path}")
+            raise ImageError(f"{what} file not found: {path}")
         out.extend(found)
     return out
 

@@ -8,14 +8,13 @@ in the same unit, 0 meaning no data.
 
 from __future__ import annotations
 
-import glob
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
 from ._errors import ImageError
-from ._images import _read_frames, natural_key
+from ._images import _read_frames, file_paths
 
 RANGE_SUFFIXES = (".npy", ".tif", ".tiff", ".png")
 
@@ -23,23 +22,7 @@ RANGE_SUFFIXES = (".npy", ".tif", ".tiff", ".png")
 def range_paths(sources: str | Path | Sequence[str | Path]) -> list[Path]:
     """The range files ``sources`` name (files, folders of ``RANGE_SUFFIXES`` files, glob patterns),
     in natural order within each source."""
-    if isinstance(sources, (str, Path)):
-        sources = [sources]
-    out: list[Path] = []
-    for source in sources:
-        path = Path(source)
-        if path.is_dir():
-            found = sorted((p for p in path.iterdir() if p.suffix.lower() in RANGE_SUFFIXES), key=natural_key)
-        elif path.is_file():
-            found = [path]
-        elif any(c in str(source) for c in "*?["):
-            found = sorted((Path(p) for p in glob.glob(str(source)) if Path(p).is_file()), key=natural_key)
-        else:
-            raise ImageError(f"range image not found: {path}")
-        if not found:
-            raise ImageError(f"{source} names no range image ({', '.join(RANGE_SUFFIXES)})")
-        out.extend(found)
-    return out
+    return file_paths(sources, RANGE_SUFFIXES, "range image")
 
 
 def load_range_images(sources, min_valid: int = 1) -> tuple[np.ndarray, list[str]]:
