@@ -21,8 +21,20 @@ HOLE_MIN_SHRINK = 0.25
 centre, is free of tracked points (a true hole has none inside)."""
 
 
+class HoleShape:
+    """What a hole hypothesis (on a sheet, or through a solid's wall) reads off its fit: the hole
+    from the geometry unknowns (centre, axes, angle), and its cause."""
+
+    def shapes_at(self, compiled: Compiled, z) -> tuple[Hole]:
+        g = np.asarray(compiled.param.shape_params(z))[0]
+        return (Hole((g[0], g[1]), (g[2], g[3]), g[4]),)
+
+    def cause_of(self, shapes) -> str:
+        return "hole"
+
+
 @dataclass(frozen=True, eq=False)
-class HoleHypothesis:
+class HoleHypothesis(HoleShape):
     """The hypothesis of a hole in ``base`` at ``hole`` (a ``jaxfem.Ellipse`` free of tracked
     points), meshed at element size ``h`` (None: :func:`_mesh_size`) with ``element``."""
 
@@ -47,13 +59,6 @@ class HoleHypothesis:
         param = ShapeGeometry(jf.morph(mesh, [hole]), hole.params[None], scale=0.5 * base.spacing, rotate=True,
                               mesh=mesh, outside=base.obs.reference, min_axis=0.1 * base.spacing)
         return Compiled(model, param), None
-
-    def shapes_at(self, compiled: Compiled, z) -> tuple[Hole]:
-        g = np.asarray(compiled.param.shape_params(z))[0]
-        return (Hole((g[0], g[1]), (g[2], g[3]), g[4]),)
-
-    def cause_of(self, shapes) -> str:
-        return "hole"
 
     def at(self, shapes, element: str) -> HoleHypothesis:
         return hole_hypothesis(self.base, shapes[0], h=self.h, element=element)

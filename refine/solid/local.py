@@ -21,8 +21,7 @@ from refine.bundle.experiment import Experiment
 from refine.bundle.observations import Observations
 from refine.bundle.roles import point_spacing
 from refine.diagnosis.fitted import NotApplicable
-from refine.diagnosis.holes import hole_hypothesis
-from refine.diagnosis.shapes import Hole
+from refine.diagnosis.holes import HoleShape, hole_hypothesis
 from refine.model.objective import Compiled
 from refine.model.parametrize import ShapeGeometry
 from refine.solid.cup import CupShape
@@ -89,7 +88,7 @@ class Whole(Local):
 
 
 @dataclass(frozen=True, eq=False)
-class SolidHole:
+class SolidHole(HoleShape):
     """The hypothesis of an elliptic hole through the bottom at ``hole`` (cup frame): the local
     (or global, ``local`` a :class:`Whole`) model with the hole cut, its centre, axes and
     orientation fitted through an extruded morph
@@ -110,13 +109,6 @@ class SolidHole:
         param = ShapeGeometry(ExtrudedMorph.of(slab), self.hole.params[None], scale=0.5 * sp, rotate=True,
                               mesh=slab.mesh, outside=self.local.obs.reference[:, :2], min_axis=0.1 * sp)
         return Compiled(model, param), None
-
-    def shapes_at(self, compiled: Compiled, z) -> tuple[Hole]:
-        g = np.asarray(compiled.param.shape_params(z))[0]
-        return (Hole((g[0], g[1]), (g[2], g[3]), g[4]),)
-
-    def cause_of(self, shapes) -> str:
-        return "hole"
 
     def at(self, shapes, element: str = "tet10") -> SolidHole:
         s = shapes[0]
