@@ -113,7 +113,6 @@ class MeasuredModel:
         self.placement = place(self.mesh, observations.reference, observations.roles == "boundary", observations.ids,
                                outline_tolerance(self.spacing, experiment.noise_std))
         self.positions = self.placement.positions  # where each point is compared with the model
-        self._tol = np.inf  # the placement checked the offsets
         loop, _ = self._interpolation(self._driving_points(), names=observations.ids[self.boundary])
         self.loop = loop
         dim = self.mesh.dim
@@ -136,7 +135,8 @@ class MeasuredModel:
         outline in 2D, on the surface near the points in 3D (:func:`jaxfem.surface.surface_interpolation`,
         nodes within 0.75 point spacings; ``nodes`` fixed once chosen, so lost points only change W)."""
         if self.mesh.dim == 2:
-            return jf.boundary_interpolation(self.mesh, points, tol=self._tol, names=names)
+            # no tolerance: the placement checked the points' offsets from the outline
+            return jf.boundary_interpolation(self.mesh, points, tol=np.inf, names=names)
         from jaxfem.surface import surface_interpolation
 
         return surface_interpolation(self.mesh, points, 0.75 * self.spacing, nodes=nodes, names=names)
