@@ -52,49 +52,57 @@ class Probe:
         carried out of its cell is found again in the neighbouring cell that now holds it (among the
         cells two corner-sharing steps from its own; the choice is piecewise constant, the weights smooth,
         and the interpolated field continuous across it), so it is interpolated, not extrapolated.
-        Linear simplices: the barycentric coordinates. Quadratic triangles and tetrahedra (whose
-        morphed edges may bend): Newton on the isoparametric map from the barycentric coordinates
-        of the corners, a fixed number of steps (exact at once where the edges stay straight)."""
-        name = _SIMPLICES.get((X.shape[1], self.nodes.shape[1]))
-        if name is None:
-            raise MeshError("Probe.moved() supports triangles and tetrahedra (linear or quadratic) only")
-        cells, nodes, pts = self.cells, self.nodes, jnp.asarray(points)
-        if self.neighbours is not None:  # every candidate cell of each point
-            p, m = self.neighbours.shape
-            cells = self.neighbours.reshape(-1)
-            nodes, pts = self.mesh_cells[cells], jnp.repeat(pts, m, axis=0)
-        xi = _simplex_coordinates(jnp.asarray(X)[nodes], pts, name)
-        if self.neighbours is not None:  # keep the candidate that holds the point
-            outside = jnp.maximum(0.0, jnp.maximum(-xi.min(axis=1), xi.sum(axis=1) - 1.0))
-            pick = jnp.argmin(jax.lax.stop_gradient(outside).reshape(p, m), axis=1)  # ties: its own cell
-            xi = xi.reshape(p, m, -1)[jnp.arange(p), pick]
-            cells = jnp.asarray(self.neighbours)[jnp.arange(p), pick]
-            nodes = jnp.asarray(self.mesh_cells)[cells]
-        return Probe(cells, nodes, get_element(name).shape(xi))
+        Linear simplices: the barycentric coordinates. Quadratic triangles (whose morphed edges may
+        bend): Newton on the isoparametric map from the barycentric coordinates of the corners, a
+        fixed number of steps (quadratic convergence from there)."""
+        dim, k = X.shape[1], self.nodes.shape[1]
+        if k != dim + 1 and not (dim == 2 and k == 6):
+            raise MeshError("Probe.moved() supports linear triangles and tetrahedra and quadratic triangles only")
+        if self.neighbours is not None:
+            return self._relocated(X, points)
+        Xe = jnp.asarray(X)[self.nodes]  # (p, k, d)
+        pts = jnp.asarray(points)
+        T = jnp.swapaxes(Xe[:, 1:dim + 1] - Xe[:, :1], 1, 2)  # (p, d, d): the corners' affine map
+        lam = jnp.linalg.solve(T, (pts - Xe[:, 0])[..., None])[..., 0]
+        if k == dim + 1:
+            w = jnp.concatenate([1.0 - lam.sum(axis=1, keepdims=True), lam], axis=1)
+            return Probe(self.cells, self.nodes, w)
+        xi = lam
+        shape = get_element("tri6").shape
+        grad = jax.vmap(jax.jacfwd(shape))  # (p, 6, 2)
+        for _ in range(_TRI6_NEWTON):
+            r = jnp.einsum("pk,pki->pi", shape(xi), Xe) - pts
+            J = jnp.einsum("pki,pkj->pij", Xe, grad(xi))
+            xi = xi - jnp.linalg.solve(J, r[..., None])[..., 0]
+        return Probe(self.cells, self.nodes, shape(xi))
+
+    def _relocated(self, X, points):
+        """:meth:`moved` over every candidate cell of each point, keeping the one that holds it."""
+        p, m = self.neighbours.shape
+        cand = self.neighbours.reshape(-1)
+        pts = jnp.repeat(jnp.asarray(points), m, axis=0)
+        trial = Probe(cand, self.mesh_cells[cand], np.zeros((p * m, self.nodes.shape[1]))).moved(X, pts)
+        dim = X.shape[1]
+        corners = trial.weights if self.nodes.shape[1] == dim + 1 else _corner_coordinates(trial.weights, dim)
+        outside = jax.lax.stop_gradient(jnp.maximum(0.0, -corners.min(axis=1))).reshape(p, m)
+        pick = jnp.argmin(outside, axis=1)  # the first candidate (its own cell) wins ties
+        w = trial.weights.reshape(p, m, -1)[jnp.arange(p), pick]
+        cells = jnp.asarray(self.neighbours)[jnp.arange(p), pick]
+        return Probe(cells, jnp.asarray(self.mesh_cells)[cells], w)
 
 
-#: (dimension, nodes per cell) -> the simplex elements a probe can follow through a morph
-_SIMPLICES = {(2, 3): "tri3", (3, 4): "tet4", (2, 6): "tri6", (3, 10): "tet10"}
-
-_QUADRATIC_NEWTON = 4
+_TRI6_NEWTON = 4
 
 
-def _simplex_coordinates(Xe, pts, name):
-    """Reference coordinates ``(p, dim)`` of ``pts (p, dim)`` in simplices of node positions
-    ``Xe (p, k, dim)``: the corners' barycentric coordinates, then for a quadratic element a fixed
-    number of Newton steps on its isoparametric map (differentiable)."""
-    dim = Xe.shape[2]
-    T = jnp.swapaxes(Xe[:, 1:dim + 1] - Xe[:, :1], 1, 2)  # (p, d, d): the corners' affine map
-    xi = jnp.linalg.solve(T, (pts - Xe[:, 0])[..., None])[..., 0]
-    if Xe.shape[1] == dim + 1:
-        return xi
-    shape = get_element(name).shape
-    grad = jax.vmap(jax.jacfwd(shape))  # (p, k, d)
-    for _ in range(_QUADRATIC_NEWTON):
-        r = jnp.einsum("pk,pki->pi", shape(xi), Xe) - pts
-        J = jnp.einsum("pki,pkj->pij", Xe, grad(xi))
-        xi = xi - jnp.linalg.solve(J, r[..., None])[..., 0]
-    return xi
+def _corner_coordinates(w6, dim):
+    """Barycentric coordinates of a point in a quadratic triangle from its six shape-function
+    values: the corner coordinates l_i solve N_i = l_i (2 l_i - 1), N_(mid ij) = 4 l_i l_j; from
+    the mid-side values, l_i = sqrt(N_ij N_ik / (4 N_jk)) breaks down at edges, so take
+    l_i = N_i + (N_ij + N_ik) / 2 (exact: l_i (2 l_i - 1) + 2 l_i (l_j + l_k) = l_i)."""
+    del dim
+    return jnp.stack([w6[:, 0] + 0.5 * (w6[:, 3] + w6[:, 5]),
+                      w6[:, 1] + 0.5 * (w6[:, 3] + w6[:, 4]),
+                      w6[:, 2] + 0.5 * (w6[:, 4] + w6[:, 5])], axis=1)
 
 
 def _corner_neighbours(mesh: Mesh, cells: np.ndarray, rings: int = 2) -> np.ndarray:
@@ -140,7 +148,7 @@ def locate(mesh: Mesh, points, tol: float = 1e-6, names=None) -> Probe:
         raise MeshError(f"{bad.size} points lie outside the mesh (e.g. {', '.join(labels)} at "
                         f"{pts[bad[0]].round(4).tolist()}); they cannot be compared with the model")
     N = el.shape(best_xi).reshape(len(pts), el.n_nodes)
-    simplex = (mesh.dim, el.n_nodes) in _SIMPLICES
+    simplex = el.name.startswith(("tri", "tet")) and el.n_nodes in (mesh.dim + 1, 6)
     neighbours = _corner_neighbours(mesh, best_cell) if simplex else None
     return Probe(best_cell, mesh.cells[best_cell], N, neighbours, mesh.cells if simplex else None)
 

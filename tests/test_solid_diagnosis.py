@@ -13,6 +13,7 @@ from refine.bundle.io import Bundle
 from refine.bundle.observations import Forces, Observations
 from refine.exceptions import ExperimentError, ObservationError
 from refine.solid import MeshNotClosedError, check_closed, cup_shape
+from refine.solid.loaded import moved_probe
 from refine.solid.morph import ExtrudedMorph
 
 R_IN, R_OUT, HEIGHT, BOTTOM = 8.0, 11.0, 8.0, 3.0
@@ -37,12 +38,12 @@ def test_extruded_hole_morph_moves_the_hole_through_the_thickness_and_the_probe_
     new = jf.Ellipse(*moved[0])
     assert len(on) > 10 and np.abs(np.linalg.norm(Y[on, :2] - new.to_curve(Y[on, :2]), axis=1)).max() < 1e-9
     np.testing.assert_allclose(Y[:, 2], X[:, 2])  # through the thickness: z kept
-    # a probe at fixed physical points follows the morph (jaxfem.Probe.moved): the moved
+    # a probe at fixed physical points follows the morph (each point keeps its cell): the moved
     # geometry maps back onto the points, and a field linear in the moved coordinates is exact
     rng = np.random.default_rng(0)
     pts = np.c_[rng.uniform(-9, 9, (60, 2)), rng.uniform(0.1, 2.9, 60)]
     pts = pts[(np.hypot(*pts[:, :2].T) < 10) & ~jf.Ellipse(1.4, -0.2, 3.2, 2.4, 0.5).contains(pts[:, :2])]
-    probe = jf.locate(mesh, pts).moved(Y, pts)
+    probe = moved_probe(jf.locate(mesh, pts), Y, pts)
     np.testing.assert_allclose(probe(Y), pts, atol=1e-10)
     G = rng.normal(size=(3, 3))
     np.testing.assert_allclose(probe(Y @ G.T), pts @ G.T, atol=1e-10)

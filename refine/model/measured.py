@@ -243,6 +243,6 @@ class MeasuredModel:
         tracked point, ``(n_frames, n_points, dim)``: for callers that also need the nodal
         solution (reaction forces in :mod:`refine.diagnosis.forces`, strain maps), so they solve once."""
         probe = self.probe
-        if self.mesh.element in ("tri3", "tet4", "tri6", "tet10"):  # follow a geometry morph of the reference nodes
+        if self.mesh.element in ("tri3", "tet4", "tri6"):  # follow a geometry morph of the reference nodes
             probe = probe.moved(theta["X"], self.positions)
         return jax.vmap(probe)(U)

@@ -1,5 +1,6 @@
 """A 3D model driven by measured surface points and loaded by a measured force spread uniformly
-over one face (the cup holder squeezed on its bottom).
+over one face (the cup holder squeezed on its bottom), with a probe that follows a geometry morph
+of a straight-edged ``tet10`` mesh.
 
 :class:`LoadedModel` is a :class:`~refine.model.MeasuredModel` whose traction facets carry, in
 frame ``f``, the pressure ``force[f] / area(X)`` (``area`` the loaded face's area at the current
@@ -13,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxfem as jf
+from jaxfem.elements import get_element
 
 from refine.exceptions import ObservationError
 from refine.model.measured import MeasuredModel
@@ -28,6 +30,19 @@ def straight_tet10_pairs(mesh: jf.Mesh) -> np.ndarray:
         k = int(np.argmin(d))
         pairs.append([(a, b) for a in range(4) for b in range(a + 1, 4)][k])
     return np.asarray(pairs)
+
+
+def moved_probe(probe: jf.Probe, X, points) -> jf.Probe:
+    """``probe`` after a morph of the nodes to ``X (n_nodes, 3)`` for the same physical ``points
+    (n, 3)``: linear tetrahedra as :meth:`jaxfem.Probe.moved`; ``tet10`` with straight edges (the
+    morphs of :mod:`refine.solid.morph` keep mid-edge nodes at their edges' middles) from the
+    corners' barycentric coordinates, exact for such cells. Differentiable in ``X``."""
+    if probe.nodes.shape[1] == 4:
+        return probe.moved(X, points)
+    Xe = jnp.asarray(X)[probe.nodes[:, :4]]
+    T = jnp.swapaxes(Xe[:, 1:] - Xe[:, :1], 1, 2)
+    lam = jnp.linalg.solve(T, (jnp.asarray(points) - Xe[:, 0])[..., None])[..., 0]
+    return jf.Probe(probe.cells, probe.nodes, get_element("tet10").shape(lam))
 
 
 def face_area(X, facets) -> jnp.ndarray:
@@ -77,3 +92,6 @@ class LoadedModel(MeasuredModel):
 
         start = (jnp.zeros(self.problem.n_dofs), jnp.zeros_like(U_D[0]), jnp.zeros_like(T[0]))
         return jax.lax.scan(step, start, (U_D, T))[1]
+
+    def at_points(self, U, theta):
+        return jax.vmap(moved_probe(self.probe, theta["X"], self.positions))(U)

@@ -3,7 +3,7 @@ through-thickness hole in an extruded ``tet4``/``tet10`` mesh (:func:`jaxfem.cup
 
 Each vertex moves in (x, y) as the plan node under it does (:func:`jaxfem.morph` on the plan,
 whose hole curve is on its boundary) and keeps its z; each mid-edge node stays at its edge's
-middle, so cells keep straight edges and :meth:`jaxfem.Probe.moved` is exact at once.
+middle, so cells keep straight edges and :func:`refine.solid.loaded.moved_probe` is exact.
 """
 
 from __future__ import annotations
