@@ -27,7 +27,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from refine.correspond.geometry import facet_distances, inside, on_boundary, point_spacing, seen_nodes, softmin
+from refine.correspond.geometry import (candidate_distances, facet_distances, inside, on_boundary, point_spacing,
+                                        seen_nodes, shortlist, softmin)
 from refine.correspond.model import CloudModel
 from refine.exceptions import CorrespondenceError
 
@@ -42,6 +43,9 @@ class FitConfig:
         node_weight: weight of the nodes-to-cloud term relative to the points-to-model terms.
         holdout: share of each frame's outline points held out of every fit (prediction error).
         seed: seeds the hold-out.
+        shortlist: candidate facets per boundary point (the nearest by centroid) where the model
+            has more than four times as many (a 3D surface's triangles): the misfit then costs k
+            facets per point, not all; the 2D outline's few dozen segments are all taken.
     """
 
     noise: float = 0.05
@@ -49,6 +53,7 @@ class FitConfig:
     node_weight: float = 0.2
     holdout: float = 0.25
     seed: int = 0
+    shortlist: int = 32
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,6 +73,8 @@ class FrameData:
             w_labelled ``(n_frames, n_l)`` (0 where a point was lost); probe: ``(nodes (n_l, k),
             weights (n_l, k))`` where each tracked point lies in the model (its cell's nodes and
             shape-function values at its reference position).
+        candidates: ``(n_frames, n_b, k)`` each boundary point's candidate facets
+            (:func:`refine.correspond.geometry.shortlist`) or None (all facets).
     """
 
     boundary: np.ndarray
@@ -79,6 +86,7 @@ class FrameData:
     labelled: np.ndarray | None = None
     w_labelled: np.ndarray | None = None
     probe: tuple | None = None
+    candidates: np.ndarray | None = None
 
     def frames(self, idx) -> FrameData:
         """The data of the frames ``idx`` (indices into this record)."""
@@ -86,6 +94,7 @@ class FrameData:
         lab = None if self.labelled is None else (self.labelled[idx], self.w_labelled[idx])
         return replace(self, boundary=self.boundary[idx], w_boundary=self.w_boundary[idx],
                        interior=self.interior[idx], w_interior=self.w_interior[idx],
+                       candidates=None if self.candidates is None else self.candidates[idx],
                        **({} if lab is None else {"labelled": lab[0], "w_labelled": lab[1]}))
 
     def arrays(self):
@@ -170,13 +179,16 @@ def cauchy(r, c: float):
 
 
 def frame_misfit(x, facets, bnodes, w_nodes, boundary, w_b, interior, w_i, labelled=None, w_l=None, *,
-                 config: FitConfig, spacing: float, probe=None):
+                 config: FitConfig, spacing: float, probe=None, candidates=None):
     """The misfit of one frame's deformed node positions ``x (n_nodes, dim)`` to its cloud
     (scalar); ``facets`` the model's boundary facets, ``bnodes`` its boundary nodes and
     ``w_nodes`` their weights in the nodes-to-cloud term; ``labelled``, ``w_l`` and ``probe`` the
-    tracked points (:class:`FrameData`), if any."""
+    tracked points (:class:`FrameData`), if any; ``candidates (n_b, k)`` the boundary points'
+    shortlists of facets (None: all facets)."""
     s = config.noise
-    d_o = softmin(facet_distances(boundary, x, facets), 0.25 * s)
+    D_o = facet_distances(boundary, x, facets) if candidates is None else candidate_distances(boundary, x, facets,
+                                                                                              candidates)
+    d_o = softmin(D_o, 0.25 * s)
     total = jnp.sum(w_b * cauchy(d_o / s, config.robust))
     if facets.shape[1] == 2:  # a sheet's surface samples lie inside its outline
         A, B = x[facets[:, 0]], x[facets[:, 1]]
@@ -232,17 +244,20 @@ class Fitter:
         """Node positions ``(n_frames, n_nodes, dim)`` for grips ``Q`` and parameters ``zp``."""
         return jnp.asarray(self.model.mesh.nodes)[None] + self.model._solve_frames(self.theta(zp), Q, start)
 
-    def value(self, Q, zp, arrays, start, spacing, reg_weight=1.0, w_nodes=None, probe=None):
+    def value(self, Q, zp, arrays, start, spacing, reg_weight=1.0, w_nodes=None, probe=None, candidates=None):
         """Misfit of the frames in ``arrays`` (:meth:`FrameData.arrays`) plus ``reg_weight`` times
         the parametrisation's regulariser (an argument: a new weight compiles nothing);
         ``w_nodes`` the boundary nodes' weights (:attr:`FrameData.node_weights`; None: all 1),
-        ``probe`` the tracked points' (:attr:`FrameData.probe`; with their arrays in ``arrays``)."""
+        ``probe`` the tracked points' (:attr:`FrameData.probe`; with their arrays in ``arrays``),
+        ``candidates`` the boundary points' facet shortlists (:attr:`FrameData.candidates`)."""
         m, cfg = self.model, self.config
         x = self.positions(Q, zp, start)
         facets, bn = jnp.asarray(m.facets), jnp.asarray(m.boundary_nodes)
         w_n = jnp.ones(len(m.boundary_nodes)) if w_nodes is None else w_nodes
-        per = jax.vmap(lambda xf, *a: frame_misfit(xf, facets, bn, w_n, *a, config=cfg, spacing=spacing,
-                                                   probe=probe))(x, *arrays)
+        cand = jnp.zeros((len(x), 0), int) if candidates is None else candidates  # mapped over frames either way
+        per = jax.vmap(lambda xf, c, *a: frame_misfit(xf, facets, bn, w_n, *a, config=cfg, spacing=spacing,
+                                                      probe=probe, candidates=None if candidates is None else c)
+                       )(x, cand, *arrays)
         return jnp.sum(per) + (0.0 if self.param is None else reg_weight * self.param.regularization(zp))
 
     def fit(self, data: FrameData, Q0, zp=None, start=None, joint: bool = False, maxiter: int = 100,
@@ -264,10 +279,40 @@ class Fitter:
         if Q0.shape != shape:
             raise CorrespondenceError(f"Q0 must have shape {shape}, got {Q0.shape}")
         zp = self.zp0 if zp is None else np.asarray(zp, float)
-        objective = _Objective(self, data, Q0, zp, self.model.start(start), joint, reg_weight)
-        res = lbfgsb(objective, maxiter=maxiter)
-        Q, zp_new = objective.param.split(res.values["z"])
+        start = self.model.start(start)
+        Q, zp_new = Q0, zp
+        for _ in range(3):  # a facet shortlist made where the fit starts holds unless the model moved far
+            if self.uses_shortlist:
+                data = replace(data, candidates=self.shortlists(data, Q, zp_new, start))
+            objective = _Objective(self, data, Q, zp_new, start, joint, reg_weight)
+            res = lbfgsb(objective, maxiter=maxiter)
+            Q, zp_new = objective.param.split(res.values["z"])
+            if not self.uses_shortlist or self.shortlists_hold(data, Q, zp_new, start):
+                break
         return np.asarray(Q), np.asarray(zp_new), res
+
+    @property
+    def uses_shortlist(self) -> bool:
+        """Whether the boundary points see a shortlist of facets (:attr:`FitConfig.shortlist`)."""
+        k = self.config.shortlist
+        return bool(k) and len(self.model.facets) > 4 * k
+
+    def shortlists(self, data: FrameData, Q, zp, start) -> np.ndarray:
+        """``(n_frames, n_b, k)``: each boundary point's nearest facets by centroid at the model's
+        positions for grips ``Q`` and parameters ``zp``."""
+        x = np.asarray(self._positions(jnp.asarray(Q), jnp.asarray(zp), start))
+        return np.stack([shortlist(b, xf, self.model.facets, self.config.shortlist) for b, xf in zip(data.boundary, x)])
+
+    def shortlists_hold(self, data: FrameData, Q, zp, start) -> bool:
+        """True when every boundary point's nearest facet at the fitted positions is on its
+        shortlist (to a tenth of the noise): else the fit is made again with new shortlists."""
+        x = np.asarray(self._positions(jnp.asarray(Q), jnp.asarray(zp), start))
+        facets = jnp.asarray(self.model.facets)
+        for b, c, w, xf in zip(data.boundary, data.candidates, data.w_boundary, x):
+            listed = np.asarray(candidate_distances(jnp.asarray(b), jnp.asarray(xf), facets, jnp.asarray(c))).min(axis=1)
+            if np.any((w > 0) & (listed > self.model.boundary_distances(b, xf) + 0.1 * self.config.noise)):
+                return False
+        return True
 
 
 class _Joint:
@@ -299,6 +344,7 @@ class _Objective:
         self.fitter, self.arrays, self.start, self.spacing = fitter, data.arrays(), start, data.spacing
         self.w_nodes = None if data.node_weights is None else jnp.asarray(data.node_weights)
         self.probe = None if data.probe is None else tuple(jnp.asarray(a) for a in data.probe)
+        self.candidates = None if data.candidates is None else jnp.asarray(data.candidates)
         self.reg_weight = reg_weight
         self.param = _Joint(Q0, zp, joint, fitter.param)
         self.n_forward = self.n_gradient = 0
@@ -308,8 +354,8 @@ class _Objective:
         Q = jnp.reshape(z[: p.n_q], p.Q0.shape)
         if not p.joint:
             v, gQ = f._grips_grad(Q, jnp.asarray(p.zp), self.arrays, self.start, self.spacing, self.reg_weight,
-                                  self.w_nodes, self.probe)
+                                  self.w_nodes, self.probe, self.candidates)
             return v, jnp.ravel(gQ)
         v, (gQ, gp) = f._joint_grad(Q, z[p.n_q:], self.arrays, self.start, self.spacing, self.reg_weight,
-                                    self.w_nodes, self.probe)
+                                    self.w_nodes, self.probe, self.candidates)
         return v, jnp.concatenate([jnp.ravel(gQ), gp])

@@ -7,7 +7,9 @@ Where it exceeds its null level (the same error at frame 0, where the model is t
 shape and only noise and sampling remain, times ``null_factor``), the model is refined: a modulus
 field (total variation) is fitted jointly with the grips of the last ``window`` frames, and the
 error is measured again. Every node's position in every frame (the dense correspondences) comes
-from the fit of its frame.
+from the fit of its frame. At the end the field's regions are refitted as balls of their own
+modulus over every frame, each kept only where the BIC accepts it
+(:mod:`refine.correspond.region`).
 """
 
 from __future__ import annotations
@@ -38,6 +40,9 @@ class FollowConfig:
         track_iterations, refine_iterations: L-BFGS-B iterations of a frame's grips fit and of a
             refinement.
         reference_tol: how far (length) the reference cloud may lie from the model's boundary.
+        refit: refit the final field's regions as balls (centre, radius, ratio with standard
+            errors; a region kept only where the BIC accepts it); refit_iterations its L-BFGS-B
+            iterations per hypothesis.
     """
 
     fit: FitConfig = field(default_factory=FitConfig)
@@ -50,6 +55,8 @@ class FollowConfig:
     track_iterations: int = 60
     refine_iterations: int = 60
     reference_tol: float | None = None
+    refit: bool = True
+    refit_iterations: int = 80
 
 
 @dataclass(frozen=True)
@@ -76,9 +83,13 @@ class FollowResult:
         positions: ``(n_frames + 1, n_nodes, dim)`` every node in every frame (dense correspondences).
         grips: ``(n_frames, n_grips, grip_dof)`` the fitted grip motions.
         log_modulus: ``(n_cells,)`` the final field, log(E / E initial) per cell.
-        findings: the abnormal regions of the final field (cause, centroid, area, and as
+        findings: the regions found: those of the parametric refit the BIC kept (cause, centroid,
+            radius, ``relative_elasticity``, each with its standard error) where a refit ran, else
+            those of the final field.
+        field_findings: the abnormal regions of the final field (cause, centroid, area, and as
             ``relative_elasticity`` the field's peak ratio: smeared by the total variation, well
-            below a region's true ratio; no parametric refit of the region follows yet).
+            below a region's true ratio).
+        refit: the refit's record (:func:`refine.correspond.region.refit_regions`) or None.
     """
 
     records: list
@@ -90,11 +101,15 @@ class FollowResult:
     log_modulus: np.ndarray
     findings: list
     seconds: float
+    field_findings: list = field(default_factory=list)
+    refit: dict | None = None
 
     def summary(self) -> dict:
         """A JSON-ready summary (no arrays but the findings')."""
         return {"null_level": self.null_level, "noise_level": self.noise_level, "seconds": self.seconds,
                 "frames": [asdict(r) for r in self.records], "findings": self.findings,
+                "field_findings": self.field_findings,
+                "refit": None if self.refit is None else {k: v for k, v in self.refit.items() if k != "grips"},
                 "refinements": [r.frame for r in self.records if r.refined]}
 
 
@@ -165,8 +180,15 @@ def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), mod
         records.append(FrameRecord(k, before, after, change is not None, change, time.perf_counter() - t1))
         if progress is not None:
             progress(records[-1])
+    found = _findings(model, zp)
+    refit = None
+    if config.refit and found:
+        from refine.correspond.region import refit_regions
+
+        refit = refit_regions(model, cfg, train.frames(list(range(1, n + 1))), Q[1:], found,
+                              maxiter=config.refit_iterations)
     return FollowResult(records, level, noise_level, model.mesh.nodes.copy(), np.stack(positions), Q[1:], zp,
-                        _findings(model, zp), time.perf_counter() - t0)
+                        found if refit is None else refit["regions"], time.perf_counter() - t0, found, refit)
 
 
 def _check_frame(model: CloudModel, x, data, k: int, tol: float) -> None:

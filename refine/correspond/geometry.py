@@ -39,10 +39,16 @@ def segment_distances(P, A, B):
         P: ``(n, dim)`` points; A, B: ``(m, dim)`` segment ends. Any dimension. Differentiable in
             all three (the clamp of the projection to the segment makes it piecewise smooth).
     """
+    return point_segment_distance(P[:, None], A[None], B[None])
+
+
+def point_segment_distance(P, A, B):
+    """Distance from a point to a segment, broadcast over leading axes: ``P, A, B (..., dim)`` ->
+    ``(...)`` (length). Differentiable in all three (piecewise smooth)."""
     AB = B - A
-    t = jnp.einsum("pmd,md->pm", P[:, None, :] - A[None], AB) / jnp.maximum(jnp.sum(AB * AB, axis=1), 1e-30)
-    closest = A[None] + jnp.clip(t, 0.0, 1.0)[..., None] * AB[None]
-    return jnp.sqrt(jnp.sum((P[:, None, :] - closest) ** 2, axis=-1) + 1e-18)
+    t = jnp.sum((P - A) * AB, axis=-1) / jnp.maximum(jnp.sum(AB * AB, axis=-1), 1e-30)
+    closest = A + jnp.clip(t, 0.0, 1.0)[..., None] * AB
+    return jnp.sqrt(jnp.sum((P - closest) ** 2, axis=-1) + 1e-18)
 
 
 def triangle_distances(P, A, B, C):
@@ -53,17 +59,23 @@ def triangle_distances(P, A, B, C):
             falls inside a triangle is at its distance to the plane, any other at its distance to
             the nearest edge. Differentiable in all four (piecewise smooth).
     """
+    return point_triangle_distance(P[:, None], A[None], B[None], C[None])
+
+
+def point_triangle_distance(P, A, B, C):
+    """Distance from a point to a triangle, broadcast over leading axes: ``P, A, B, C (..., 3)`` ->
+    ``(...)`` (length); as :func:`triangle_distances`."""
     n = jnp.cross(B - A, C - A)
-    nn = jnp.maximum(jnp.sum(n * n, axis=1), 1e-30)
-    d = P[:, None, :] - A[None]  # (p, m, 3)
+    nn = jnp.maximum(jnp.sum(n * n, axis=-1), 1e-30)
+    d = P - A
     # barycentric coordinates of the projection: signs of the sub-triangles' normals along n
-    s_c = jnp.einsum("pmd,md->pm", jnp.cross(B - A, d), n) / nn
-    s_a = jnp.einsum("pmd,md->pm", jnp.cross(C - B, P[:, None, :] - B[None]), n) / nn
+    s_c = jnp.sum(jnp.cross(B - A, d) * n, axis=-1) / nn
+    s_a = jnp.sum(jnp.cross(C - B, P - B) * n, axis=-1) / nn
     s_b = 1.0 - s_a - s_c
     within = (s_a >= 0) & (s_b >= 0) & (s_c >= 0)
-    plane = jnp.einsum("pmd,md->pm", d, n) / jnp.sqrt(nn)
-    edges = jnp.minimum(jnp.minimum(segment_distances(P, A, B), segment_distances(P, B, C)),
-                        segment_distances(P, C, A))
+    plane = jnp.sum(d * n, axis=-1) / jnp.sqrt(nn)
+    edges = jnp.minimum(jnp.minimum(point_segment_distance(P, A, B), point_segment_distance(P, B, C)),
+                        point_segment_distance(P, C, A))
     return jnp.where(within, jnp.sqrt(plane * plane + 1e-18), edges)
 
 
@@ -73,6 +85,28 @@ def facet_distances(P, x, facets):
     if facets.shape[1] == 2:
         return segment_distances(P, x[facets[:, 0]], x[facets[:, 1]])
     return triangle_distances(P, x[facets[:, 0]], x[facets[:, 1]], x[facets[:, 2]])
+
+
+def candidate_distances(P, x, facets, candidates):
+    """Distances ``(n_points, k)`` from points ``P (n, dim)`` to their own ``k`` candidate facets
+    ``candidates (n, k)`` (indices into ``facets``, :func:`shortlist`) at node positions ``x``:
+    :func:`facet_distances` on a shortlist, so that a point costs k facets, not all of them."""
+    F = facets[candidates]  # (n, k, 2 or 3) node indices
+    Q = P[:, None, :]
+    if facets.shape[1] == 2:
+        return point_segment_distance(Q, x[F[..., 0]], x[F[..., 1]])
+    return point_triangle_distance(Q, x[F[..., 0]], x[F[..., 1]], x[F[..., 2]])
+
+
+def shortlist(points: np.ndarray, x: np.ndarray, facets: np.ndarray, k: int) -> np.ndarray:
+    """The ``k`` facets whose centroids lie nearest each point (SciPy's KD-tree): ``(n, k)``
+    indices into ``facets``, at node positions ``x (n_nodes, dim)``. The nearest facet is among
+    them while the facets are small beside the distance the model moves before the list is made
+    again (:meth:`refine.correspond.fit.Fitter.fit` checks it)."""
+    centroids = np.asarray(x, float)[np.asarray(facets)].mean(axis=1)
+    k = min(int(k), len(facets))
+    _, idx = cKDTree(centroids).query(np.asarray(points, float), k)
+    return np.asarray(idx, np.int64).reshape(len(points), k)
 
 
 def softmin(D, tau: float, axis: int = -1):

@@ -1,0 +1,190 @@
+"""The parametric refit of the regions a modulus field located from unlabelled clouds.
+
+A total-variation field smears a small stiff inclusion over more cells at a lower ratio, and from
+outline-only (or surface-only) data it also puts small compensating regions where the boundary
+moves, e.g. a cell at a free edge beside the inclusion: the boundary's shape there is changed as
+well by the inclusion as by that cell. The field locates; this module then fits each region as a
+ball (a disc in 2D) of its own modulus, its centre, radius and ratio together with every frame's
+grips by exact (adjoint) gradients, and keeps a region only where the misfit drops by more than
+the Bayesian information criterion's penalty, ``(dim + 2) ln n`` for ``n`` boundary points: a
+region the data cannot tell from the smearing of another is rejected, with its numbers reported.
+Standard errors come from the misfit's curvature (the misfit is about a chi-square: the
+covariance is twice the inverse Hessian, by central differences of the exact gradient).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from refine.correspond.fit import FitConfig, Fitter, FrameData
+from refine.correspond.model import CloudModel
+
+
+@dataclass(frozen=True, eq=False)
+class SoftBalls:
+    """Balls (discs in 2D) of their own modulus: a cell's modulus is multiplied by
+    ``exp(sum_k log(ratio_k) s_k)``, ``s_k = sigmoid((r_k - |c - centre_k|) / width)`` at its
+    centroid ``c``: smooth in the centre, radius and ratio, so that exact gradients move them.
+
+    z holds per ball its centre divided by ``scale`` (``dim`` unknowns), log radius and log ratio
+    (absolute, not changes: a new start compiles nothing).
+
+    Args:
+        centroids: ``(n_cells, dim)`` the cells' centroids (length).
+        E0: reference modulus (stress).
+        n_balls: how many balls.
+        width: the indicator's blending length (length; about half a cell).
+        scale: length unit of the centres' unknowns.
+    """
+
+    centroids: np.ndarray
+    E0: float
+    n_balls: int
+    width: float
+    scale: float
+
+    @property
+    def dim(self) -> int:
+        return self.centroids.shape[1]
+
+    @property
+    def size(self) -> int:
+        return self.n_balls * (self.dim + 2)
+
+    @property
+    def z0(self):
+        return jnp.zeros(self.size)
+
+    def z_of(self, centre, radius, ratio) -> np.ndarray:
+        """The unknowns of balls of centres ``(n, dim)``, radii ``(n,)`` and ratios ``(n,)``."""
+        c = np.atleast_2d(np.asarray(centre, float)) / self.scale
+        return np.concatenate([c, np.log(np.atleast_1d(radius))[:, None], np.log(np.atleast_1d(ratio))[:, None]],
+                              1).ravel()
+
+    def log_factor(self, z):
+        """log of each cell's modulus factor, ``(n_cells,)``."""
+        p = jnp.reshape(jnp.asarray(z), (self.n_balls, self.dim + 2))
+        d = jnp.sqrt(jnp.sum((jnp.asarray(self.centroids)[:, None] - p[None, :, : self.dim] * self.scale) ** 2,
+                             axis=-1) + 1e-18)
+        s = jax.nn.sigmoid((jnp.exp(p[None, :, self.dim]) - d) / self.width)
+        return s @ p[:, self.dim + 1]
+
+    def apply(self, theta, z):
+        return {**theta, "E": theta["E"] * jnp.exp(self.log_factor(z))}
+
+    def regularization(self, z):
+        return 0.0
+
+    def values(self, z) -> dict:
+        p = np.reshape(np.asarray(z, float), (self.n_balls, self.dim + 2))
+        return {f"ball{k + 1}": {"centre": (q[: self.dim] * self.scale).tolist(), "radius": float(np.exp(q[self.dim])),
+                                 "ratio": float(np.exp(q[self.dim + 1]))} for k, q in enumerate(p)}
+
+
+def ball_fitter(model: CloudModel, config: FitConfig, n_balls: int) -> Fitter:
+    """The :class:`Fitter` of ``n_balls`` soft balls on ``model`` (kept on the model: a second
+    refit compiles nothing)."""
+    cache = model.__dict__.setdefault("_ball_fitters", {})
+    key = (config, n_balls)
+    if key not in cache:
+        cell = float(np.mean(model.mesh.volumes())) ** (1.0 / model.dim)
+        cache[key] = Fitter(model, config, SoftBalls(model.mesh.centroids(), model.experiment.E, n_balls,
+                                                     width=0.5 * cell, scale=cell))
+    return cache[key]
+
+
+def refit_regions(model: CloudModel, config: FitConfig, data: FrameData, Q, candidates: list,
+                  maxiter: int = 80) -> dict:
+    """Refit the field's regions as balls over every frame of ``data`` and keep those the BIC
+    accepts (module docstring).
+
+    Args:
+        model: the :class:`CloudModel`; config: the fit's settings.
+        data: the training clouds of the deformed frames (frame 0 left out), in order.
+        Q: ``(n_frames, n_grips, grip_dof)`` the grips the follow fitted (the start).
+        candidates: the field's regions, strongest first (dicts with ``cause``, ``centroid``,
+            ``relative_elasticity``, ``area``: :func:`refine.correspond.follow.field_findings`).
+
+    Returns a dict: ``regions`` (kept: cause, centroid, radius, relative_elasticity, and
+    standard errors ``centroid_se``, ``radius_se``, ``relative_elasticity_se``), ``rejected``
+    (the candidates the BIC turned down, with the misfit drop and the penalty), ``misfits`` (the
+    misfit with 0, 1, ... balls), ``bic_penalty`` per ball, ``grips`` of the best fit.
+    """
+    Q = np.asarray(Q, float)
+    n = float(np.sum(data.w_boundary))
+    penalty = (model.dim + 2) * np.log(n)
+    base = ball_fitter(model, config, 1)
+    Q0, _, res0 = base.fit(data, Q, base.param.z_of(candidates[0]["centroid"], 1.0, 1.0), maxiter=maxiter)
+    misfits, kept, rejected, z = [float(res0.error)], [], [], np.zeros(0)
+    best_Q = Q0
+    for cand in candidates:
+        fitter = ball_fitter(model, config, len(kept) + 1)
+        z_start = np.concatenate([z, _start(fitter.param, cand, model.dim)])
+        Qk, zk, res = fitter.fit(data, best_Q, z_start, joint=True, maxiter=maxiter)
+        drop = misfits[-1] - float(res.error)
+        if drop > penalty:
+            kept.append(cand)
+            misfits.append(float(res.error))
+            z, best_Q = zk, Qk
+        else:
+            rejected.append({**cand, "misfit_drop": drop, "bic_penalty": penalty})
+    regions = [] if not kept else _described(ball_fitter(model, config, len(kept)), data, best_Q, z)
+    return {"regions": regions, "rejected": rejected, "misfits": misfits, "bic_penalty": penalty,
+            "grips": best_Q.tolist()}
+
+
+def _start(param: SoftBalls, cand: dict, dim: int) -> np.ndarray:
+    """A ball's start from a field region: its centroid, the radius of its area (volume), its
+    ratio at least 2 (a TV field's peak is well below a small region's ratio)."""
+    size = cand["area"]
+    radius = np.sqrt(size / np.pi) if dim == 2 else (3.0 * size / (4.0 * np.pi)) ** (1.0 / 3.0)
+    r = cand["relative_elasticity"]
+    ratio = max(r, 2.0) if cand["cause"] == "stiffer-region" else min(r, 0.5)
+    return param.z_of(cand["centroid"], radius, ratio)
+
+
+def _described(fitter: Fitter, data: FrameData, Q, z) -> list:
+    """The kept balls with their standard errors (from the curvature of the misfit in the grips
+    and the balls' unknowns together)."""
+    param, dim = fitter.param, fitter.model.dim
+    se = _standard_errors(fitter, data, Q, z)[Q.size:].reshape(param.n_balls, dim + 2)
+    out = []
+    for q, s in zip(np.reshape(z, (param.n_balls, dim + 2)), se):
+        ratio = float(np.exp(q[dim + 1]))
+        radius = float(np.exp(q[dim]))
+        out.append({"cause": "stiffer-region" if ratio > 1 else "softer-region",
+                    "centroid": (q[:dim] * param.scale).tolist(), "centroid_se": (s[:dim] * param.scale).tolist(),
+                    "radius": radius, "radius_se": radius * float(s[dim]),
+                    "relative_elasticity": ratio, "relative_elasticity_se": ratio * float(s[dim + 1])})
+    return out
+
+
+def _standard_errors(fitter: Fitter, data: FrameData, Q, z, step: float = 1e-4) -> np.ndarray:
+    """Standard errors of all unknowns (grips, then the balls'), ``sqrt(diag(2 H^-1))`` with H the
+    misfit's Hessian by central differences of its exact gradient; NaN where H is not positive."""
+    from refine.correspond.fit import _Objective
+
+    if fitter.uses_shortlist:
+        from dataclasses import replace
+
+        data = replace(data, candidates=fitter.shortlists(data, Q, z, fitter.model.start(None)))
+    objective = _Objective(fitter, data, Q, z, fitter.model.start(None), True, 1.0)
+    x = np.concatenate([np.ravel(Q), z])
+    H = np.zeros((len(x), len(x)))
+    for i in range(len(x)):
+        e = np.zeros_like(x)
+        e[i] = step * max(1.0, abs(x[i]))
+        gp = np.asarray(objective.value_and_grad(jnp.asarray(x + e))[1])
+        gm = np.asarray(objective.value_and_grad(jnp.asarray(x - e))[1])
+        H[:, i] = (gp - gm) / (2 * e[i])
+    H = 0.5 * (H + H.T)
+    try:
+        cov = 2.0 * np.linalg.inv(H)
+    except np.linalg.LinAlgError:
+        return np.full(len(x), np.nan)
+    d = np.diag(cov)
+    return np.where(d > 0, np.sqrt(np.abs(d)), np.nan)
