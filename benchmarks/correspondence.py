@@ -120,14 +120,24 @@ def run_case(model, cause: str, seed: int, noise: float, refine: bool = True) ->
                      "prediction_before": [x.error_before for x in r.records],
                      "prediction_after": [x.error_after for x in r.records],
                      "refinements": [x.frame for x in r.records if x.refined], "findings": r.findings,
+                     "field_findings": r.field_findings, "refit": r.summary()["refit"],
                      "null_level": r.null_level}
         print(f"  {name}: {row[name]['error']['rms']:.4f} mm rms, {r.seconds:.0f} s, refined at "
               f"{row[name]['refinements']}, findings {r.findings}", flush=True)
     if not refine:
         row["fit"] = row["fit_no_refine"]
-    found = row["fit"]["findings"]
+    found, field = row["fit"]["findings"], row["fit"]["field_findings"]
     if centre is not None and found:
         row["fit"]["centroid_error"] = float(np.linalg.norm(np.subtract(found[0]["centroid"], centre)))
+    if centre is not None and field:
+        row["fit"]["field_centroid_error"] = float(np.linalg.norm(np.subtract(field[0]["centroid"], centre)))
+    if centre is not None and found and "radius_se" in found[0]:  # the refit against the truth, in its standard errors
+        inc, top = row["inclusion"], found[0]
+        row["fit"]["refit_vs_truth"] = {
+            "centroid_z": (np.subtract(top["centroid"], centre) / np.asarray(top["centroid_se"])).tolist(),
+            "radius": [top["radius"], inc["radius"], (top["radius"] - inc["radius"]) / top["radius_se"]],
+            "ratio": [top["relative_elasticity"], inc["ratio"],
+                      (top["relative_elasticity"] - inc["ratio"]) / top["relative_elasticity_se"]]}
     h = hausdorff_track(model, clouds, HausdorffConfig(tol=3 * noise, noise=noise,
                                                        max_iterations=250 if model.dim == 2 else HAUSDORFF_3D))
     row["hausdorff"] = {"seconds": h.seconds, "error": correspondence_error(h.positions, true_pos, size),
@@ -168,6 +178,13 @@ def targets(rows) -> dict:
         out["inclusion_found_cause_and_centroid_within_10_percent"] = {
             "found": found, "centroid_errors": [r["fit"].get("centroid_error") for r in refined], "pass": all(found)}
         out["refinement_gain_last_frames_at_least_2"] = {"gains": gains, "pass": bool(gains) and min(gains) >= 2.0}
+        spurious = [len(r["fit"]["findings"]) - 1 for r in refined]
+        out["no_spurious_region_after_the_refit"] = {
+            "extra_regions": spurious, "field_extra_regions": [len(r["fit"]["field_findings"]) - 1 for r in refined],
+            "pass": all(k == 0 for k in spurious)}
+        pairs = [(r["fit"].get("centroid_error", np.inf), r["fit"].get("field_centroid_error", np.inf)) for r in refined]
+        out["refit_centroid_closer_than_the_fields"] = {"refit_and_field": pairs,
+                                                        "pass": all(a <= b for a, b in pairs)}
     return out
 
 

@@ -6,10 +6,11 @@ frame's held-out boundary points to the predicted boundary (outline in 2D, surfa
 Where it exceeds its null level (the same error at frame 0, where the model is the reference
 shape and only noise and sampling remain, times ``null_factor``), the model is refined: a modulus
 field (total variation) is fitted jointly with the grips of the last ``window`` frames, and the
-error is measured again. Every node's position in every frame (the dense correspondences) comes
-from the fit of its frame. At the end the field's regions are refitted as balls of their own
+error is measured again. At the end the field's regions are refitted as balls of their own
 modulus over every frame, each kept only where the BIC accepts it
-(:mod:`refine.correspond.region`).
+(:mod:`refine.correspond.region`). Every node's position in every frame (the dense
+correspondences) comes from the refitted model where it kept a region, else from the fit of its
+frame.
 """
 
 from __future__ import annotations
@@ -109,7 +110,8 @@ class FollowResult:
         return {"null_level": self.null_level, "noise_level": self.noise_level, "seconds": self.seconds,
                 "frames": [asdict(r) for r in self.records], "findings": self.findings,
                 "field_findings": self.field_findings,
-                "refit": None if self.refit is None else {k: v for k, v in self.refit.items() if k != "grips"},
+                "refit": None if self.refit is None else {k: v for k, v in self.refit.items()
+                                                          if k not in ("grips", "positions")},
                 "refinements": [r.frame for r in self.records if r.refined]}
 
 
@@ -187,6 +189,8 @@ def follow_clouds(experiment, clouds, config: FollowConfig = FollowConfig(), mod
 
         refit = refit_regions(model, cfg, train.frames(list(range(1, n + 1))), Q[1:], found,
                               maxiter=config.refit_iterations)
+        if refit["regions"]:  # the refitted model's motion of every frame: the dense correspondences
+            positions[1:], Q[1:] = list(refit.pop("positions")), np.asarray(refit["grips"])
     return FollowResult(records, level, noise_level, model.mesh.nodes.copy(), np.stack(positions), Q[1:], zp,
                         found if refit is None else refit["regions"], time.perf_counter() - t0, found, refit)
 

@@ -112,7 +112,8 @@ def refit_regions(model: CloudModel, config: FitConfig, data: FrameData, Q, cand
     Returns a dict: ``regions`` (kept: cause, centroid, radius, relative_elasticity, and
     standard errors ``centroid_se``, ``radius_se``, ``relative_elasticity_se``), ``rejected``
     (the candidates the BIC turned down, with the misfit drop and the penalty), ``misfits`` (the
-    misfit with 0, 1, ... balls), ``bic_penalty`` per ball, ``grips`` of the best fit.
+    misfit with 0, 1, ... balls), ``bic_penalty`` per ball, ``grips`` of the best fit and, where a
+    ball was kept, ``positions (n_frames, n_nodes, dim)`` every node in every frame under it.
     """
     Q = np.asarray(Q, float)
     n = float(np.sum(data.w_boundary))
@@ -132,9 +133,12 @@ def refit_regions(model: CloudModel, config: FitConfig, data: FrameData, Q, cand
             z, best_Q = zk, Qk
         else:
             rejected.append({**cand, "misfit_drop": drop, "bic_penalty": penalty})
-    regions = [] if not kept else _described(ball_fitter(model, config, len(kept)), data, best_Q, z)
-    return {"regions": regions, "rejected": rejected, "misfits": misfits, "bic_penalty": penalty,
-            "grips": best_Q.tolist()}
+    out = {"regions": [], "rejected": rejected, "misfits": misfits, "bic_penalty": penalty, "grips": best_Q.tolist()}
+    if kept:
+        fitter = ball_fitter(model, config, len(kept))
+        out["regions"] = _described(fitter, data, best_Q, z)
+        out["positions"] = np.asarray(fitter._positions(jnp.asarray(best_Q), jnp.asarray(z), model.start(None)))
+    return out
 
 
 def _start(param: SoftBalls, cand: dict, dim: int) -> np.ndarray:
