@@ -50,6 +50,9 @@ MODEL_BRICKS = (8, 4, 4)
 DATA_H = 2.5
 #: force updates per frame of the Hausdorff method in 3D (each a 3D solve: 250 as in 2D is hours here)
 HAUSDORFF_3D = 60
+#: the 3D frames, fractions of the drawn grip motion: past 1 so that frames follow a refinement
+#: (a small sphere's effect passes the null level only late in the motion)
+FRACTIONS_3D = (0.25, 0.5, 0.75, 1.0, 1.25, 1.5)
 
 
 def correspondence_error(positions, truth_positions, size: float = SIZE) -> dict:
@@ -95,7 +98,8 @@ def case_2d(cause: str, seed: int, noise: float):
 def case_3d(cause: str, seed: int, noise: float):
     """A generated 3D block sequence seen by a range camera (as :func:`case_2d`)."""
     truth = random_solid_truth(np.random.default_rng(seed), cause, BLOCK)
-    bundle, hidden = solid_cloud_sequence(truth, seed=seed, block=BLOCK, h=DATA_H, noise=noise)
+    bundle, hidden = solid_cloud_sequence(truth, seed=seed, block=BLOCK, h=DATA_H, noise=noise,
+                                          fractions=FRACTIONS_3D)
     row, centre = {"grip": list(truth.grip), "points_per_frame": [len(c) for c in bundle.clouds.points]}, None
     if truth.inclusion is not None:
         centre = list(truth.inclusion.centre)

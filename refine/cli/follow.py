@@ -75,4 +75,7 @@ def follow(bundle, out: str | Path, grips=None, h: float = 5.0, noise: float | N
     plot_errors(out / "errors.png", result.records, result.null_level)
     say(f"null level {result.null_level:.4g}; refinements at frames "
         f"{[r.frame for r in result.records if r.refined] or 'none'}; findings {result.findings}; wrote {out}")
+    if result.refit is not None and result.refit["rejected"]:
+        say(f"regions of the field rejected by the BIC (misfit drop below {result.refit['bic_penalty']:.3g}): "
+            f"{[(r['cause'], [round(c, 2) for c in r['centroid']]) for r in result.refit['rejected']]}")
     return result
