@@ -145,16 +145,20 @@ def test_bad_3d_clouds_give_clear_errors(model):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [41])
+@pytest.mark.parametrize("seed", [100])
 def test_follow_finds_a_hidden_stiff_sphere_from_range_clouds(seed):
     """A stiff sphere of random place, size and ratio (under the seed) inside a block seen only as
     range clouds, generated on a finer tet10 mesh (h 2.5 mm) than the model's (8 x 4 x 4 bricks):
     the prediction fails, the refinement it triggers and the refit of its region find the
     sphere (cause, centroid within 10 % of the block's length, one region), and the dense motion
-    stays within 1 % of the length. About 4 minutes on a quiet core (a facet shortlist per point:
-    all 1280 surface triangles per point took over an hour)."""
+    stays within 1 % of the length. The grip's motion runs to 1.5 times the drawn one in 6 frames
+    (a small sphere's effect passes the null level late). About 10 minutes at load 10 on 2 cores
+    (a facet shortlist per point: all 1280 surface triangles per point took over an hour). Seed
+    100 is the stiffer-region case of ``benchmarks/correspondence.py --dim 3`` (same data, model
+    and settings)."""
     truth = random_solid_truth(np.random.default_rng(seed), "stiffer-region")
-    bundle, hidden = solid_cloud_sequence(truth, seed=seed, h=2.5, noise=NOISE)
+    bundle, hidden = solid_cloud_sequence(truth, seed=seed, h=2.5, noise=NOISE,
+                                          fractions=(0.25, 0.5, 0.75, 1.0, 1.25, 1.5))
     model = CloudModel(_experiment(), Grips(), mesh=jf.box(*BLOCK, 8, 4, 4, element="tet10"))
     r = follow_clouds(bundle.experiment, bundle.clouds.points, FollowConfig(fit=FitConfig(noise=NOISE, seed=seed)),
                       model=model)

@@ -45,7 +45,12 @@ def test_refinement_finds_the_inclusion_and_predicts_better(model, seed):
     assert last(never) >= 2.0 * last(refined)
     top = refined.findings[0]
     s = truth.inclusion.shape
-    assert top["cause"] == "stiffer-region" and np.hypot(top["centroid"][0] - s.cx, top["centroid"][1] - s.cy) < 10.0
+    assert top["cause"] == "stiffer-region" and np.hypot(top["centroid"][0] - s.cx, top["centroid"][1] - s.cy) < 5.0
+    # the refit keeps one region (a field's small compensating region at a free edge fails the BIC) and
+    # places it closer than the field did
+    assert len(refined.findings) == 1 and np.all(np.isfinite(top["centroid_se"]))
+    field = refined.field_findings[0]["centroid"]
+    assert np.hypot(top["centroid"][0] - s.cx, top["centroid"][1] - s.cy) <= np.hypot(field[0] - s.cx, field[1] - s.cy)
     err = np.linalg.norm(refined.positions - hidden.positions(model.mesh.nodes), axis=-1)
     assert np.sqrt((err ** 2).mean()) < 0.01 * 100.0
 

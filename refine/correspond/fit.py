@@ -309,7 +309,8 @@ class Fitter:
         x = np.asarray(self._positions(jnp.asarray(Q), jnp.asarray(zp), start))
         facets = jnp.asarray(self.model.facets)
         for b, c, w, xf in zip(data.boundary, data.candidates, data.w_boundary, x):
-            listed = np.asarray(candidate_distances(jnp.asarray(b), jnp.asarray(xf), facets, jnp.asarray(c))).min(axis=1)
+            listed = np.asarray(candidate_distances(jnp.asarray(b), jnp.asarray(xf), facets, jnp.asarray(c)))
+            listed = listed.min(axis=1)
             if np.any((w > 0) & (listed > self.model.boundary_distances(b, xf) + 0.1 * self.config.noise)):
                 return False
         return True
