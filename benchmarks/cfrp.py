@@ -5,6 +5,8 @@ domain left whole, ``--keep-holes``), then with the found hole in the model.
     python benchmarks/cfrp.py             # ~40-60 minutes on 2 cores (the whole domain's diagnosis is most of it)
     python benchmarks/cfrp.py --tracked B --previous results/cfrp.json [--shortfall-only]
                                           # keep a previous run's diagnoses, redo the later stages
+    python benchmarks/cfrp.py --tracked B --previous results/cfrp.json --subsets-only
+                                          # only the hole seen through the DIC subsets (subset_hole in cfrp.json)
 
 Targets (issue 22, item 6): the hole is named, its centre within 2 % of the specimen's width and
 its area within 10 % of the hole seen in the reference image (a dark disc measured from the
@@ -14,7 +16,9 @@ held-out validation points. The area shortfall (issue 22's CFRP figures: +26 %) 
 (:func:`shortfall`): the laminate's anisotropy (the fibre-reinforced law fitted with the image's
 hole in the model; the hole fitted in a fibre-reinforced material, target: area within 10 %), how
 far the hole's edge lies from the nearest tracked points, and the noise estimate against the
-correlation of neighbouring points' noise. Writes benchmarks/results/cfrp.json and
+correlation of neighbouring points' noise. The bundle carries the tracker's subset
+(``measurement.subset``), so the diagnosis keeps the hole out of every tracked subset
+(refine.diagnosis.subsets); :func:`subset_hole` measures that fit alone. Writes benchmarks/results/cfrp.json and
 cfrp_strain.png (the measured strain map beside the models', before and after).
 tests/test_cfrp.py (slow) runs :func:`run` and checks the same targets.
 """
