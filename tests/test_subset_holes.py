@@ -182,12 +182,12 @@ def test_a_hole_keeps_half_a_subset_from_every_tracked_point():
     assert plain.rx * plain.ry > start.rx * start.ry  # today's start fills the ring
 
 
-@pytest.mark.slow  # two to four hole fits, 1-2.5 min at load 10 on the shared 2 cores (benchmarks/subset_holes.py)
+@pytest.mark.slow  # one to three hole fits, about a minute at load 10 on the shared 2 cores (benchmarks/subset_holes.py)
 def test_a_hole_fitted_with_its_failed_subsets_keeps_its_area():
     """A random hole (seed 2201's, as benchmarks/subset_holes.py draws it) on data from a finer
     quadratic solve with noise, every point whose square subset meets it removed: fitted with the
-    bundle's subset, its area lies within 10 % and it covers no tracked subset; fitted to the
-    points alone, it grows into the ring of failed subsets (it covers some tracked subsets)."""
+    bundle's subset, its area lies within 10 % and it covers no tracked subset (the fit to the
+    points alone is compared in benchmarks/subset_holes.py: +5.3 % here, +5 to +10 % over 4 seeds)."""
     import importlib.util
 
     from refine.diagnosis.holes import fit_hole
@@ -201,8 +201,6 @@ def test_a_hole_fitted_with_its_failed_subsets_keeps_its_area():
     obs = bundle.observations
     start = bench.gap_start(bundle, 5.0)
     guide, hold = obs.mask("guide"), obs.mask("validate")
-    holes = {name: fit_hole(MeasuredModel(ex, obs), start, guide, hold, 0.02).shapes[0]
-             for name, ex in (("points", replace(bundle.experiment, subset=None)), ("subsets", bundle.experiment))}
-    assert holes["subsets"].axes[0] * holes["subsets"].axes[1] / (truth.rx * truth.ry) == pytest.approx(1.0, abs=0.10)
-    assert subset_distance(obs.reference, holes["subsets"].params, subset).min() > 0
-    assert subset_distance(obs.reference, holes["points"].params, subset).min() < 0  # it covers tracked subsets
+    hole = fit_hole(MeasuredModel(bundle.experiment, obs), start, guide, hold, 0.02).shapes[0]
+    assert hole.axes[0] * hole.axes[1] / (truth.rx * truth.ry) == pytest.approx(1.0, abs=0.10)
+    assert subset_distance(obs.reference, hole.params, subset).min() > 0  # no tracked subset covered
