@@ -3,7 +3,7 @@ finer solve recovered within 1 %, and a standard error for every fitted quantity
 
 Cases are drawn at random under a seed (place, size, ratio); data come from a larger sheet meshed
 with quadratic triangles that follow the hidden shape (refine.synthetic), never from the
-inversion's own mesh. ``benchmarks/coverage.py`` measures the coverage of the errors over many
+inversion's own mesh. ``benchmarks/error_coverage.py`` measures the coverage of the errors over many
 cases and the noise-free accuracy over more rectangles.
 """
 
@@ -74,7 +74,7 @@ def _rectangle_case(seed: int, size: dict):
     return Truth(inclusions=(Inclusion(jf.Rect(cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2), ratio),))
 
 
-# Both slow (80 s and minutes on 2 cores; the suite is near its 15 minutes): benchmarks/coverage.py
+# Both slow (80 s and minutes on 2 cores; the suite is near its 15 minutes): benchmarks/error_coverage.py
 # measures noise-free rectangles within 1 % (3 cases, at most 0.34 %).
 @pytest.mark.slow
 @pytest.mark.parametrize("size", [SMALL, FULL], ids=["small", "full"])
@@ -84,7 +84,7 @@ def test_a_noise_free_rectangle_is_recovered_within_one_percent(size):
     10-15 %, 0.05 rad, ratio 3), then refitted on every guide point with quadratic triangles
     at its fit (as the diagnosis does its chosen model): ratio within 1 %, centre within 0.3 mm,
     area within 2 %; its finding reports a standard error for every quantity. (The full size
-    takes minutes: slow; the small one 75 s at load 2-5 on 2 cores; ``benchmarks/coverage.py
+    takes minutes: slow; the small one 75 s at load 2-5 on 2 cores; ``benchmarks/error_coverage.py
     --noise 0 --kinds rectangle`` measures more.)"""
     from refine.diagnosis.fitted import refit
     from refine.diagnosis.regions import fit_regions

@@ -184,6 +184,7 @@ def test_speckle_images_and_tracker_options(tmp_path):
     bundle = read_bundle(tmp_path / "b")
     obs = bundle.observations
     assert bundle.experiment.noise_std == 0.003 and bundle.experiment.kind == "plane-strain"
+    assert bundle.experiment.subset == pytest.approx(2.1)  # the 21 px subset at 0.1 mm/px (measurement.subset)
     assert np.allclose(np.diff(np.unique(obs.reference[:, 0])), 1.2)  # 12 px lattice at 0.1 mm/px
     truth = np.stack(field(*(obs.reference / 0.1).T), axis=1) * 0.1
     assert np.nanmax(np.abs(obs.displacements[1] - truth)) < 0.01

@@ -9,7 +9,7 @@ import pytest
 import jaxfem as jf
 
 
-@pytest.mark.slow  # small compilations, but 15 min at load 30-55 on the shared 2 cores; coverage.py measures the effect
+@pytest.mark.slow  # small compilations, but 15 min at load 30-55 on the shared 2 cores; benchmarks/error_coverage.py measures the effect
 def test_drive_covariance_is_the_first_order_motion_of_the_fit_under_drive_noise():
     from refine.diagnosis.fitted import fit
     from refine.diagnosis.regions import regions_hypothesis

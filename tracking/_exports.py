@@ -8,6 +8,7 @@ DICe); nothing is dropped: a point that failed in a frame is kept, lost, with Na
 from __future__ import annotations
 
 import csv
+import re
 from pathlib import Path
 from typing import Sequence
 
@@ -87,6 +88,19 @@ def _read_dice_table(path: Path) -> dict[str, np.ndarray]:
     return {name: values[:, k] for k, name in enumerate(header)}
 
 
+def _dice_subset(path: Path) -> dict:
+    """``{"subset_px": side}`` from a DICe solution file's header (``*** Subset size: 27``), or
+    ``{}`` where it does not say (the subset is then unknown)."""
+    with open(path) as fh:
+        for line in fh:
+            if not line.lstrip().startswith("*"):
+                break
+            m = re.match(r"\*+\s*subset size:\s*([0-9.]+)", line.strip(), re.IGNORECASE)
+            if m:
+                return {"subset_px": float(m.group(1))}
+    return {}
+
+
 def read_dice(sources: str | Path | Sequence[str | Path]) -> Tracks:
     """DICe solution files (one per deformed frame, against the same reference) as tracks in pixels.
 
@@ -136,7 +150,8 @@ def read_dice(sources: str | Path | Sequence[str | Path]) -> Tracks:
             status[k] = t["STATUS_FLAG"][rows]
     return Tracks(ids=ids, reference=ref, positions=positions, lost=lost, quality=quality,
                   grid_index=lattice_index(ref), units="px", quality_kind="-gamma (DICe, 0 best)",
-                  meta={"source": "DICe", "files": [str(p) for p in files], "status_flag": status})
+                  meta={"source": "DICe", "files": [str(p) for p in files], "status_flag": status,
+                        **_dice_subset(files[0])})
 
 
 def write_dice(folder: str | Path, tracks: Tracks, start: int = 1) -> list[Path]:

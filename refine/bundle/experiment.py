@@ -40,6 +40,9 @@ class Experiment:
         units: e.g. ``{"length": "mm", "stress": "kPa", "force": "mN"}`` (free text, a consistent set).
         noise_std: standard deviation of each measured displacement component, length unit (>= 0;
             0: noise-free data); None if unknown.
+        subset: side of the square DIC subset (or tracker window) centred on each tracked point,
+            length unit (> 0; ``measurement.subset``); None if unknown. A tracked point's whole
+            subset lay on material, so a hole hypothesis keeps half a subset away from it.
         extra: the free tables of experiment.toml (:data:`FREE_TABLES`: ``meta``, user-defined
             metadata; ``diagnose``, settings of the diagnosis), nested as in the file.
         regions: known regions of other stiffness or law (:class:`~refine.bundle.regions.KnownRegion`,
@@ -63,6 +66,7 @@ class Experiment:
     regions: tuple[KnownRegion, ...] = ()
     parameters: dict[str, float] = field(default_factory=dict)
     mesh: str | None = None
+    subset: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name:
@@ -88,6 +92,8 @@ class Experiment:
             if noise < 0:  # 0 is a standard deviation too: noise-free data
                 raise ExperimentError(f"measurement.noise_std must be >= 0, got {noise}")
             object.__setattr__(self, "noise_std", noise)
+        if self.subset is not None:
+            object.__setattr__(self, "subset", _number(self.subset, "measurement.subset", positive=True))
         if not isinstance(self.units, dict) or not all(isinstance(v, str) for v in self.units.values()):
             raise ExperimentError('experiment.units must be a table of strings, e.g. { length = "mm" }')
         _check_extra(self.extra)
@@ -144,6 +150,7 @@ class Experiment:
             E=mat.pop("E"),
             nu=mat.pop("nu"),
             noise_std=meas.pop("noise_std", None),
+            subset=meas.pop("subset", None),
             regions=regions_from_toml(model.pop("regions", [])),
             mesh=model.pop("mesh", None),
         )
@@ -168,6 +175,8 @@ class Experiment:
             data["model"]["mesh"] = self.mesh
         if self.noise_std is not None:
             data["measurement"] = {"noise_std": self.noise_std}
+        if self.subset is not None:
+            data.setdefault("measurement", {})["subset"] = self.subset
         _merge(data, copy.deepcopy(self.extra))
         return data
 
@@ -232,7 +241,7 @@ def _registries() -> tuple[tuple[str, ...], tuple[str, ...]]:
 
 #: the keys of experiment.toml's tables that are fields of :class:`Experiment`
 KNOWN_KEYS = {"experiment": ("name", "units"), "model": ("kind", "thickness", "domain", "regions", "mesh"),
-              "material": ("law", "E", "nu"), "measurement": ("noise_std",)}
+              "material": ("law", "E", "nu"), "measurement": ("noise_std", "subset")}
 #: tables kept as they are in :attr:`Experiment.extra`: ``meta`` (user-defined metadata, any
 #: keys) and ``diagnose`` (settings of the diagnosis, checked by refine.diagnosis)
 FREE_TABLES = ("meta", "diagnose")

@@ -92,8 +92,19 @@ def bundle_from_tracks(tracks: Tracks, name: str, model: ModelSkeleton = ModelSk
     obs = Observations(ids=tracks.ids[keep], reference=reference[keep], roles=roles[keep],
                        displacements=tracks.displacements()[1:, keep])
     experiment = Experiment(name=name, kind=model.kind, domain=domain, law=model.law, E=model.E, nu=model.nu,
-                            thickness=model.thickness, units={"length": tracks.units}, noise_std=model.noise_std)
+                            thickness=model.thickness, units={"length": tracks.units}, noise_std=model.noise_std,
+                            subset=subset_size(tracks))
     return Bundle(experiment, obs), tracks.ids[~inside]
+
+
+def subset_size(tracks: Tracks) -> float | None:
+    """The side of the square subset (window) the tracker correlated around each point, in the
+    tracks' length unit (``meta["subset_px"]`` times ``meta["scale_per_px"]`` where they were
+    converted to lengths); None where the tracker did not say (a grid tracker, a CSV export)."""
+    px = tracks.meta.get("subset_px")
+    if px is None:
+        return None
+    return float(px) * float(tracks.meta.get("scale_per_px", 1.0))
 
 
 def lattice_outline(grid_index: np.ndarray) -> np.ndarray:

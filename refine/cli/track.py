@@ -291,7 +291,7 @@ def _comment_experiment(path: Path, pattern: str, images, scale: float, origin) 
              "# images: set kind, thickness, law, E and nu to what you know of the specimen. The domain is\n"
              "# the outline through the outer ring of tracked points (the boundary points lie on it).\n")
     text = head + path.read_text(encoding="utf-8").replace("[model]", model + "[model]", 1)
-    if "[measurement]" not in text:
+    if "noise_std" not in text:
         text += ("\n# [measurement] noise_std is not given: `nonrigid diagnose` estimates it from the data;\n"
                  "# set it (mm) if you know the tracking noise.\n")
     path.write_text(text, encoding="utf-8")

@@ -1,8 +1,12 @@
 """Coverage of the diagnosis' standard errors, and accuracy on noise-free data.
 
-    python benchmarks/coverage.py --cases 24                 # noisy cases, as many as 24 (resumable)
-    python benchmarks/coverage.py --cases 4 --noise 0 --kinds rectangle --rows R0.jsonl
-    python benchmarks/coverage.py --merge benchmarks/results/coverage_rows.jsonl   # summary only
+    python benchmarks/error_coverage.py --cases 24                 # noisy cases, as many as 24 (resumable)
+    python benchmarks/error_coverage.py --cases 4 --noise 0 --kinds rectangle --rows R0.jsonl
+    python benchmarks/error_coverage.py --merge benchmarks/results/error_coverage_rows.jsonl   # summary only
+    python benchmarks/error_coverage.py --cases 20 --seed 9000 --spacing 10 --frames 1   # small cases, ~1-2 min each
+
+(Named error_coverage.py, not coverage.py: a benchmarks/coverage.py shadows the ``coverage``
+package for anything run from this folder.)
 
 Each case draws a hidden effect (place, size, ratio) under its own seed from
 :func:`refine.synthetic.random_truth` (kinds: a stiff circle, a soft ellipse, a hole, a
@@ -27,8 +31,13 @@ in quadrature. Coverage comes with exact binomial 95 % intervals (quantities as 
 trials) and intervals from resampling whole cases (a case's quantities are correlated), per
 quantity and per kind; the errors' median sizes per variant show how much each widens them.
 
-Rows go to a JSONL file (resumable); the summary to benchmarks/results/coverage.json (with
-``targets``) and coverage.png. Seconds are wall seconds per case, with the load average.
+Small cases (``--spacing 10 --frames 1``: a quarter of the points, the last frame alone, a
+coarser model mesh, which follows the spacing) cost a fraction of the default ones (5 mm, two
+frames), so that 30+ cases fit a shared machine; coverage is also given per case size
+(``per_size``: spacing and frames), since fewer points make the fit less linear in its noise.
+
+Rows go to a JSONL file (resumable); the summary to benchmarks/results/error_coverage.json (with
+``targets``) and error_coverage.png. Seconds are wall seconds per case, with the load average.
 """
 
 from __future__ import annotations
@@ -125,7 +134,7 @@ def run_case(case: dict) -> dict:
     kind, seed, noise, spacing = case["kind"], case["seed"], case["noise"], case["spacing"]
     truth = truth_of(kind, seed)
     q_true = true_quantities(truth)
-    bundle = synthetic_bundle(truth, seed=seed, spacing=spacing, noise=noise, fractions=(0.5, 1.0))
+    bundle = synthetic_bundle(truth, seed=seed, spacing=spacing, noise=noise, fractions=FRACTIONS[case.get("frames", 2)])
     start = started(q_true, kind, spacing, np.random.default_rng(seed + 1))
     row = {**case, "truth": q_true.tolist()}
     try:
@@ -169,6 +178,16 @@ def _code_version() -> str:
     git = lambda *a: subprocess.run(["git", *a], capture_output=True, text=True,  # noqa: E731
                                     cwd=Path(__file__).parent).stdout.strip()
     return git("rev-parse", "--short", "HEAD") + ("+dirty" if git("status", "--porcelain", "refine") else "")
+
+
+FRACTIONS = {1: (1.0,), 2: (0.5, 1.0)}
+"""The frames of a case (fractions of the final stretch) by their number (rows without
+``frames`` are the two-frame cases of the first runs)."""
+
+
+def size_of(row: dict) -> str:
+    """A case's size: its grid spacing and frames, e.g. ``"5mm x 2 frames"``."""
+    return f"{row['spacing']:g}mm x {row.get('frames', 2)} frames"
 
 
 VARIANTS = ("gauss_newton", "reported", "with_discretisation")
@@ -229,7 +248,9 @@ def summarise(rows: list[dict]) -> dict:
     for v in VARIANTS:
         variants[v] = {"overall": _per(noisy, v, lambda r, i: True),
                        "per_quantity": {q: _per(noisy, v, lambda r, i, j=j: i == j) for j, q in enumerate(QUANTITIES)},
-                       "per_kind": {kind: _per(noisy, v, lambda r, i, k=kind: r["kind"] == k) for kind in KINDS}}
+                       "per_kind": {kind: _per(noisy, v, lambda r, i, k=kind: r["kind"] == k) for kind in KINDS},
+                       "per_size": {size: _per(noisy, v, lambda r, i, z=size: size_of(r) == z)
+                                    for size in sorted({size_of(r) for r in noisy})}}
     sizes = {}
     for j, q in enumerate(QUANTITIES):
         use = [r for r in noisy if r["z"][j] is not None]
@@ -258,7 +279,9 @@ def summarise(rows: list[dict]) -> dict:
             "noise_free_cases": len(clean), "coverage_within_2_std": overall["within_2_std"],
             "variants": variants, "error_sizes": sizes,
             "noise_free_ratio_errors": clean_err, "targets": targets,
-            "median_seconds": float(np.median([r["seconds"] for r in ok])) if ok else None}
+            "median_seconds": float(np.median([r["seconds"] for r in ok])) if ok else None,
+            "median_seconds_per_size": {z: float(np.median([r["seconds"] for r in ok if size_of(r) == z]))
+                                        for z in sorted({size_of(r) for r in ok})}}
 
 
 def _plot(rows: list[dict], summary: dict, path: Path):
@@ -268,7 +291,7 @@ def _plot(rows: list[dict], summary: dict, path: Path):
     import matplotlib.pyplot as plt
 
     noisy = [r for r in rows if "z" in r and r["noise"] > 0 and "z_gauss_newton" in r]
-    fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4))
+    fig, (a, b, c) = plt.subplots(1, 3, figsize=(17, 4), gridspec_kw={"width_ratios": [3, 3, 2]})
     for i, name in enumerate(QUANTITIES):
         zs = [v for r in noisy if (v := scores(r, "reported")[i]) is not None]
         jitter = np.random.default_rng(i).uniform(-0.2, 0.2, len(zs))
@@ -290,6 +313,15 @@ def _plot(rows: list[dict], summary: dict, path: Path):
     b.set_xticks(x, names)
     b.set(ylim=(0, 1.05), ylabel="share within 2 std (binomial 95 %)", title="coverage per quantity")
     b.legend(fontsize=8, loc="lower left")
+    groups = [("kind", k) for k in KINDS] + [("per_size", z) for z in summary["variants"]["reported"]["per_size"]]
+    per = [summary["variants"]["reported"]["per_kind" if g == "kind" else g][k] for g, k in groups]
+    shown = [(k, q) for (_, k), q in zip(groups, per) if q["n"]]
+    val = np.array([q["within_2_std"] for _, q in shown])
+    lo, hi = (np.array([q["binomial_95"][e] for _, q in shown]) for e in (0, 1))
+    c.bar(range(len(shown)), val, 0.6, yerr=[val - lo, hi - val], capsize=2, color="tab:orange")
+    c.axhline(0.95, color="k", lw=0.6)
+    c.set_xticks(range(len(shown)), [f"{k}\n(n={q['n']})" for k, q in shown], rotation=45, ha="right", fontsize=7)
+    c.set(ylim=(0, 1.05), title="reported errors per kind and case size")
     fig.tight_layout()
     fig.savefig(path, dpi=110, bbox_inches="tight")
 
@@ -301,18 +333,20 @@ def main():
     p.add_argument("--noise", type=float, default=0.02, help="noise std, mm (0: noise-free cases)")
     p.add_argument("--spacing", type=float, default=5.0, help="grid spacing of the tracked points, mm")
     p.add_argument("--seed", type=int, default=7000, help="first case's seed")
-    p.add_argument("--rows", type=Path, default=OUT / "coverage_rows.jsonl", help="rows file (appended, resumable)")
+    p.add_argument("--frames", type=int, default=2, choices=sorted(FRACTIONS), help="frames per case (1: the last alone)")
+    p.add_argument("--rows", type=Path, default=OUT / "error_coverage_rows.jsonl", help="rows file (appended, resumable)")
     p.add_argument("--merge", type=Path, nargs="*", help="only summarise these rows files")
     p.add_argument("--minutes", type=float, default=None, help="stop starting new cases after this many minutes")
     args = p.parse_args()
     paths = args.merge if args.merge is not None else [args.rows]
     if args.merge is None:
-        done = {(r["kind"], r["seed"], r["noise"], r["spacing"]) for r in _read(args.rows)}
+        done = {(r["kind"], r["seed"], r["noise"], r["spacing"], r.get("frames", 2)) for r in _read(args.rows)}
         t0 = time.time()
         for k in range(args.cases):
             kind = args.kinds[k % len(args.kinds)]
-            case = {"kind": kind, "seed": args.seed + k, "noise": args.noise, "spacing": args.spacing}
-            if (kind, case["seed"], args.noise, args.spacing) in done:
+            case = {"kind": kind, "seed": args.seed + k, "noise": args.noise, "spacing": args.spacing,
+                    "frames": args.frames}
+            if (kind, case["seed"], args.noise, args.spacing, args.frames) in done:
                 continue
             if args.minutes is not None and time.time() - t0 > 60 * args.minutes:
                 break
@@ -325,8 +359,8 @@ def main():
     rows = [r for path in paths for r in _read(path)]
     summary = summarise(rows)
     OUT.mkdir(exist_ok=True)
-    (OUT / "coverage.json").write_text(json.dumps({**summary, "rows": rows}, indent=1))
-    _plot(rows, summary, OUT / "coverage.png")
+    (OUT / "error_coverage.json").write_text(json.dumps({**summary, "rows": rows}, indent=1))
+    _plot(rows, summary, OUT / "error_coverage.png")
     print(json.dumps(summary["targets"], indent=1))
 
 
