@@ -58,7 +58,7 @@ class TrackConfig:
     """
 
     noise: float = 0.2
-    marker_noise: float = 0.3
+    marker_noise: float = 0.1
     robust: float = 3.0
     candidates: int = 12
     max_points: int = 1500

@@ -36,11 +36,15 @@ VIEW = (0.35, -0.2, -1.0)
 #: the field of view's proximal edge: the forearm nearer the held cut than this (y, mm, reference) is not seen
 VIEW_FROM_Y = -40.0
 #: the marked points (reference positions on the skin of ``default_body(PAPER)``, mm; snapped to the
-#: nearest skin node): three on the forearm and wrist (the global pose), two on the palm, one on each
-#: thumb phalanx, one on the finger block
+#: nearest skin node), away from the joints where the skin follows its bone: three on the forearm and
+#: wrist (the global pose), three on the palm, two on each thumb phalanx, three on the finger block
 MARKERS = {"forearm back": (0.0, -40.0, 14.0), "forearm side": (-24.0, -30.0, 0.0), "wrist back": (10.0, -8.0, 14.0),
-           "palm back": (0.0, 35.0, 13.0), "palm side": (-40.0, 50.0, 0.0), "thumb base": (55.0, 20.0, 11.0),
-           "thumb tip": (100.0, 20.0, 0.0), "finger back": (0.0, 120.0, 11.0), "finger tip": (0.0, 150.0, 0.0)}
+           "palm back": (0.0, 35.0, 13.0), "palm side": (-40.0, 50.0, 0.0), "palm back 2": (25.0, 55.0, 13.0),
+           "thumb base back": (55.0, 20.0, 12.0), "thumb base side": (55.0, 30.0, 0.0),
+           "thumb tip back": (83.0, 20.0, 12.0), "thumb tip": (95.0, 20.0, 0.0),
+           "finger back": (0.0, 120.0, 11.0), "finger side": (-40.0, 110.0, 0.0), "finger tip": (0.0, 150.0, 0.0)}
+#: a marker's localisation noise (mm): a painted dot's centre found to a fraction of a pixel
+MARKER_NOISE = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,7 +98,7 @@ def random_angles(rng: np.random.Generator, names) -> np.ndarray:
 
 
 def hand_range_sequence(seed: int = 0, frames: int = 4, h: float = 12.0, snap: float = 4.5, dims=PAPER,
-                        spacing: float = 2.5, noise: float = SCANNER_NOISE, marker_noise: float = 0.3,
+                        spacing: float = 2.5, noise: float = SCANNER_NOISE, marker_noise: float = MARKER_NOISE,
                         pose_deg: float = 3.0, pose_mm: float = 5.0, view=VIEW,
                         view_from_y: float = VIEW_FROM_Y) -> HandSequence:
     """Generate a sequence: random final angles, ``frames`` equal steps from rest to them.
