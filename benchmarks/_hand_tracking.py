@@ -94,5 +94,5 @@ def targets(res: dict) -> dict:
     out["tracked_strain_near_the_floor"] = {
         "target": "RMS skin-strain error over the area of interest (tracked angles) within 1.5x that of the model at "
                   "the true angles (the mesh's own floor against the fine truth)",
-        "ratio": float(ratio), "pass": ratio <= 1.5}
+        "ratio": float(ratio), "pass": bool(ratio <= 1.5)}
     return out

@@ -360,7 +360,7 @@ def sections(only, frames):
         res["found_scar"] = found_scar_section(fine, fine_size, frames) | {"load": load()}
     res["targets"] = targets(res)
     (OUT / "hand.json").write_text(json.dumps(res, indent=1, default=float))
-    print(json.dumps({k: v.get("pass") for k, v in res["targets"].items()}, indent=1))
+    print(json.dumps({k: v.get("pass") for k, v in res["targets"].items()}, indent=1, default=bool))
 
 
 if __name__ == "__main__":
