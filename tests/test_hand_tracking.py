@@ -3,7 +3,7 @@ Dirichlet data differentiable in the joint angles, the tracker's exact Jacobian 
 through the solve), a strain map carried between hand meshes, bad input (no data, an empty range
 frame, a cloud far from the hand, markers off it, unknown angles), and (slow) joint angles
 recovered within a degree from a range sequence and from markers generated on a finer mesh with
-noise (refine.synthetic.hand_range), angles and pose drawn under a seed.
+noise (refine.synthetic.hand_range) by the paper-size model, angles and pose drawn under a seed.
 
 A coarse hand (no fingers, ~900 tet10 elements, as tests/test_hand.py) keeps the fast tests at one
 compile; benchmarks/hand.py tracks the paper-size hand."""
@@ -110,11 +110,14 @@ def test_bad_input(hand, tracker):
         tracker.track([X, X], (X[:3], np.stack([X[:3]] * 3)))
 
 
-@pytest.mark.slow  # a finer data solve (~30 s) and two tracked sequences (~1-2 min on 2 shared cores)
-@pytest.mark.parametrize("seed", [0])
-def test_joint_angles_within_a_degree_from_range_clouds_and_from_markers(hand, tracker, seed):
-    seq = hand_range_sequence(seed=seed, frames=2, h=15.0, dims=COARSE)
-    assert all(len(c) > 100 for c in seq.clouds)
+@pytest.mark.slow  # a finer data solve and two tracked sequences of the paper-size hand (~4 min on 2 shared cores)
+@pytest.mark.parametrize("seed", [1])  # benchmarks/hand.py tracks seed 0
+def test_joint_angles_within_a_degree_from_range_clouds_and_from_markers(seed):
+    """The paper-size model (2,412 tet10): on the coarse test hand (one ~22 mm element along each
+    20 mm thumb phalanx) the thumb tip's angle is off by up to ~1.2 degrees, the model's own limit."""
+    seq = hand_range_sequence(seed=seed, frames=2, h=12.0)
+    assert all(len(c) > 1000 for c in seq.clouds)
+    tracker = HandTracker(HandModel(hand_mesh(default_body(PAPER), 24.0, 4.5)), TrackConfig(seed=seed))
     names = tracker.names
     assert names == seq.names
     for kw in ({"clouds": seq.clouds}, {"markers": (seq.marker_reference, seq.markers)}):

@@ -183,9 +183,11 @@ class HandTracker:
 
     # ------------------------------------------------------------------ the fit
     def fit_frame(self, cloud=None, markers=None, start: FrameFit | None = None) -> FrameFit:
-        """Fit one frame: ``cloud (n, 3)`` (scanner frame, mm) and/or ``markers`` = ``(reference
-        (m, 3), positions (m, 3))`` (model-frame rest positions; scanner-frame positions, NaN where
-        lost); ``start``: the last frame's fit (default: rest, identity pose).
+        """Fit one frame: ``cloud (n, 3)`` (scanner frame, mm; non-finite rows, a range camera's
+        holes, are left out; above ``max_points`` a random subset is used) and/or ``markers`` =
+        ``(reference (m, 3), positions (m, 3))`` (model-frame rest positions; scanner-frame
+        positions, NaN where lost: weight 0); ``start``: the last frame's fit (default: rest,
+        identity pose).
 
         Raises:
             CorrespondenceError: neither data, an empty frame, a cloud far from the hand, markers
@@ -203,6 +205,9 @@ class HandTracker:
             self._check_near(q, warm[0], P[wP > 0])
         dx, (x, u_D) = self._nodes(jnp.asarray(q[6:]), warm)
         state = self._evaluate(q, x, dx, P, wP, mk, u_D)
+        if "r" not in state:
+            raise CorrespondenceError(f"the hand model's solve failed at the starting angles "
+                                      f"{np.degrees(q[6:]).round(2)} deg; start from a nearer fit (start=)")
         lam, trials = 1e-3, 0
         while trials < c.iterations:
             r, J, w = state["r"], state["J"], state["w"]

@@ -35,14 +35,18 @@ SCANNER_NOISE = 0.2
 VIEW = (0.35, -0.2, -1.0)
 #: the field of view's proximal edge: the forearm nearer the held cut than this (y, mm, reference) is not seen
 VIEW_FROM_Y = -40.0
-#: the marked points (reference positions on the skin of ``default_body(PAPER)``, mm; snapped to the
-#: nearest skin node), away from the joints where the skin follows its bone: three on the forearm and
-#: wrist (the global pose), three on the palm, two on each thumb phalanx, three on the finger block
-MARKERS = {"forearm back": (0.0, -40.0, 14.0), "forearm side": (-24.0, -30.0, 0.0), "wrist back": (10.0, -8.0, 14.0),
-           "palm back": (0.0, 35.0, 13.0), "palm side": (-40.0, 50.0, 0.0), "palm back 2": (25.0, 55.0, 13.0),
-           "thumb base back": (55.0, 20.0, 12.0), "thumb base side": (55.0, 30.0, 0.0),
-           "thumb tip back": (83.0, 20.0, 12.0), "thumb tip": (95.0, 20.0, 0.0),
-           "finger back": (0.0, 120.0, 11.0), "finger side": (-40.0, 110.0, 0.0), "finger tip": (0.0, 150.0, 0.0)}
+#: the marked points, each on a face of a soft-tissue volume of :func:`jaxfem.hand.default_body`: the
+#: volume's name and the point's place in its box as shares of each side (0 or 1: on that face),
+#: snapped to the nearest skin node; away from the joints where the skin follows its bone: three on
+#: the forearm and wrist (the global pose), three on the palm, two on each thumb phalanx, three on the
+#: first finger's first phalanx (markers on volumes the hand lacks are left out)
+MARKERS = {"forearm back": ("forearm", (0.5, 0.4, 1.0)), "forearm side": ("forearm", (0.0, 0.6, 0.5)),
+           "wrist back": ("wrist", (0.7, 0.5, 1.0)), "palm back": ("palm", (0.5, 0.5, 1.0)),
+           "palm side": ("palm", (0.0, 0.7, 0.5)), "palm back 2": ("palm", (0.8, 0.8, 1.0)),
+           "thumb base back": ("thumb_1", (0.5, 0.5, 1.0)), "thumb base side": ("thumb_1", (0.5, 1.0, 0.5)),
+           "thumb tip back": ("thumb_2", (0.5, 0.5, 1.0)), "thumb tip": ("thumb_2", (1.0, 0.5, 0.5)),
+           "finger back": ("index_1", (0.5, 0.5, 1.0)), "finger side": ("index_1", (0.0, 0.5, 0.5)),
+           "finger tip": ("index_1", (0.5, 1.0, 0.5))}
 #: a marker's localisation noise (mm): a painted dot's centre found to a fraction of a pixel
 MARKER_NOISE = 0.1
 
@@ -131,7 +135,10 @@ def hand_range_sequence(seed: int = 0, frames: int = 4, h: float = 12.0, snap: f
     strains = skin_strain_function(model)
     X = hand.mesh.nodes
     skin = np.unique(hand.skin_facets)
-    ref = np.array(list(MARKERS.values()))
+    vols = hand.body.volumes
+    marked = {n: np.asarray(vols[v].lo) + np.asarray(share) * (np.asarray(vols[v].hi) - np.asarray(vols[v].lo))
+              for n, (v, share) in MARKERS.items() if v in vols}
+    ref = np.array(list(marked.values()))
     at = skin[np.argmin(np.linalg.norm(X[skin][None] - ref[:, None], axis=2), axis=1)]
     U, E, clouds, marks, start = [], [], [], [], None
     for a in angles:
@@ -145,5 +152,5 @@ def hand_range_sequence(seed: int = 0, frames: int = 4, h: float = 12.0, snap: f
         pts = pts[pts[:, 1] >= view_from_y]
         clouds.append(pts[rng.permutation(len(pts))] @ R.T + t)
         marks.append((X[at] + u[at]) @ R.T + t + rng.normal(0.0, marker_noise, (len(at), 3)))
-    return HandSequence(names, angles, pose, tuple(clouds), tuple(MARKERS), X[at].copy(), np.stack(marks), hand,
+    return HandSequence(names, angles, pose, tuple(clouds), tuple(marked), X[at].copy(), np.stack(marks), hand,
                         np.stack(U), np.stack(E), noise, marker_noise)
