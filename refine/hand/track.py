@@ -53,6 +53,8 @@ class TrackConfig:
             moves more than this (radians) and the pose less than this (radians, and mm x 0.01).
         far: refuse a cloud whose median distance to the hand at the starting estimate exceeds
             this (mm): it is in another frame or unit, or not of this hand.
+        max_turn: the largest change of any angle in one trial (radians; a longer step is
+            shortened): a trust region against jumps to another local minimum.
         pose: fit the global pose (otherwise it stays where it starts).
         seed: seeds the subset of points.
     """
@@ -62,9 +64,10 @@ class TrackConfig:
     robust: float = 3.0
     candidates: int = 12
     max_points: int = 1500
-    iterations: int = 10
+    iterations: int = 12
     step_tol: float = 1e-4
     far: float = 20.0
+    max_turn: float = 0.15
     pose: bool = True
     seed: int = 0
 
@@ -218,6 +221,7 @@ class HandTracker:
                 H[:6], H[:, :6], g[:6] = 0.0, 0.0, 0.0
                 H[:6, :6] = np.eye(6)
             step = -np.linalg.solve(H + lam * np.diag(np.maximum(np.diag(H), 1e-12)), g)
+            step *= min(1.0, c.max_turn / max(np.abs(step[6:]).max(initial=0.0), 1e-300))
             trials += 1
             q_new = q + step
             warm = (np.asarray(state["x"] - self.model.hand.mesh.nodes).reshape(-1), state["loads"])
