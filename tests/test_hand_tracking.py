@@ -43,8 +43,8 @@ def test_kinematic_data_is_differentiable_in_the_angles(hand, tracker, seed):
     u_D = np.asarray(model.drive(dict(zip(names, a))))
     assert np.allclose(u_D, model.params(dict(zip(names, a)))["u_D"], atol=1e-12)
     assert np.allclose(u_D, bone_displacements(hand, dict(zip(names, a))).reshape(-1)[model.problem.fixed])
-    f = lambda v: model.drive(dict(zip(names, v)))  # noqa: E731
-    J = np.asarray(jax.jacfwd(f)(jnp.asarray(a)))
+    f = jax.jit(lambda v: model.drive(dict(zip(names, v))))
+    J = np.asarray(jax.jit(jax.jacfwd(f))(jnp.asarray(a)))
     d = rng.normal(size=len(names))
     for eps in (1e-3, 5e-4):  # Taylor: the remainder falls as eps^2
         rem = np.linalg.norm(np.asarray(f(a + eps * d)) - u_D - eps * J @ d)
