@@ -18,7 +18,7 @@ REFINE_LAYERS = {
     "refine.model": 2,
     "refine.optimize": 3,
     "refine.diagnosis": 4, "refine.synthetic": 4, "refine.correspond": 4, "refine.solid": 4,
-    "refine.paper": 5, "refine.batch": 5,
+    "refine.paper": 5, "refine.batch": 5, "refine.hand": 5,
     "refine.cli": 6,
 }
 MAX_LINES = 420  # "about 400 lines"

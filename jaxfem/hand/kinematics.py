@@ -14,17 +14,19 @@ from ..exceptions import ProblemError
 from .body import Body
 
 
-def rotation(axis, angle: float) -> np.ndarray:
-    """The rotation matrix ``(3, 3)`` by ``angle`` radians about ``axis (3,)`` (right hand; Rodrigues)."""
+def rotation(axis, angle, xp=np):
+    """The rotation matrix ``(3, 3)`` by ``angle`` radians about ``axis (3,)`` (right hand; Rodrigues).
+    ``xp``: the array module (``numpy``, or ``jax.numpy`` for an angle that is traced)."""
     k = np.asarray(axis, float)
     k = k / np.linalg.norm(k)
     K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+    return np.eye(3) + xp.sin(angle) * K + (1 - xp.cos(angle)) * (K @ K)
 
 
-def bone_transforms(body: Body, angles: dict) -> dict:
+def bone_transforms(body: Body, angles: dict, xp=np) -> dict:
     """Each bone's rigid motion ``{name: (R (3, 3), t (3,))}``, ``x = R X + t``, for the joint
-    ``angles`` ``{angle name: radians}`` (angles not given are 0).
+    ``angles`` ``{angle name: radians}`` (angles not given are 0). ``xp``: the array module
+    (``jax.numpy``: differentiable in the angles).
 
     Raises:
         ProblemError: an angle name that no joint has.
@@ -39,19 +41,24 @@ def bone_transforms(body: Body, angles: dict) -> dict:
             continue
         R = np.eye(3)
         for axis, name in zip(bone.joint.axes, bone.joint.names):
-            R = R @ rotation(axis, float(angles.get(name, 0.0)))
+            R = R @ rotation(axis, angles.get(name, 0.0), xp)
         p = np.asarray(bone.joint.pivot, float)
         Rp, tp = out[bone.parent]
         out[bone.name] = (Rp @ R, Rp @ (p - R @ p) + tp)
     return out
 
 
-def bone_displacements(hand, angles: dict) -> np.ndarray:
+def bone_displacements(hand, angles: dict, xp=np):
     """Displacements ``(n_nodes, 3)`` (mm) that move every bone's nodes rigidly for ``angles``
-    (radians); zero at every other node."""
-    U = np.zeros_like(hand.mesh.nodes)
-    for name, (R, t) in bone_transforms(hand.body, angles).items():
+    (radians); zero at every other node. ``xp=jax.numpy``: a JAX array, differentiable in the angles
+    (the kinematic Dirichlet data of a fit of joint angles)."""
+    U = xp.zeros(hand.mesh.nodes.shape)
+    for name, (R, t) in bone_transforms(hand.body, angles, xp).items():
         nodes = hand.bone_nodes[name]
         X = hand.mesh.nodes[nodes]
-        U[nodes] = X @ R.T + t - X
+        move = X @ R.T + t - X
+        if xp is np:
+            U[nodes] = move
+        else:
+            U = U.at[nodes].set(move)
     return U

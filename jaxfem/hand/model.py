@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import jax.numpy as jnp
 import numpy as np
 
 from ..exceptions import MeshError, ProblemError
@@ -130,6 +131,14 @@ class HandModel:
         E, nu = self.moduli(scar)
         u_D = self.problem.prescribe(bone_displacements(self.hand, angles))
         return self.problem.params(E=E, nu=nu, u_D=u_D)
+
+    def drive(self, angles: dict):
+        """The kinematic Dirichlet data ``u_D (n_fixed,)`` (mm) for ``angles`` ``{name: radians}`` as
+        a JAX array, differentiable in the angles: ``{**model.params({}), "u_D": model.drive(a)}``
+        is a parameter pytree whose solve (:meth:`jaxfem.Solver.displacement`) has exact derivatives
+        in the joint angles."""
+        U = bone_displacements(self.hand, angles, jnp)
+        return U.reshape(-1)[jnp.asarray(self.problem.fixed)]
 
     def solve(self, angles: dict, scar: Scar | None = None, start=None) -> Solution:
         """The equilibrium at ``angles`` (radians); ``start`` as for :meth:`jaxfem.Solver.solve`.

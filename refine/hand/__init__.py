@@ -1,0 +1,14 @@
+"""Tracking the articulated hand (the paper's Sec. 5): joint angles and a global pose of a coarse
+:mod:`jaxfem.hand` model fitted to range clouds without correspondences and/or a few marked
+points, with exact derivatives through the solve; the tracked skin strain against a truth.
+
+    from refine.hand import HandTracker, TrackConfig
+    tracker = HandTracker(HandModel(hand_mesh(default_body(PAPER), 24.0, 4.5)))
+    fits = tracker.track(clouds=sequence.clouds)            # (a) unlabelled range clouds
+    fits = tracker.track(markers=(reference, positions))    # (b) the paper's marked points
+"""
+
+from .compare import angle_errors, skin_strain_on
+from .track import FrameFit, HandTracker, TrackConfig
+
+__all__ = ["FrameFit", "HandTracker", "TrackConfig", "angle_errors", "skin_strain_on"]
