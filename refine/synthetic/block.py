@@ -2,8 +2,9 @@
 block"): a neo-Hookean block held by two grips, the left one (x = min) fixed, the right one
 (x = max) pulled or pushed along x, hiding a stiffer or softer ellipsoid of random place, semi-axes,
 orientation and modulus ratio drawn under a seed (or none). The data come from an independent solve
-on a finer ``tet10`` mesh than the inversion's (a cell's modulus mixes the two materials by the
-fraction of its sample points inside the ellipsoid), with Gaussian noise on every displacement.
+on a finer ``tet10`` mesh than the inversion's (a cell is of the inclusion's material where most
+of its sample points lie inside the ellipsoid: sharp, as a voxel model's phases), with Gaussian
+noise on every displacement.
 
 Points (lengths in mm, moduli in kPa), all on the block's surface:
 
@@ -99,10 +100,11 @@ def random_inclusion(rng: np.random.Generator, block, cause: str = "stiffer-regi
     centre = rng.uniform(lo + margin, hi - margin)
     ratio = rng.uniform(3.0, 8.0) if cause == "stiffer-region" else rng.uniform(0.15, 0.35)
     R = random_rotation(rng)
-    return Ellipsoid(tuple(map(float, centre)), tuple(map(float, axes)), tuple(map(tuple, R)), float(ratio))
+    return Ellipsoid(tuple(map(float, centre)), tuple(map(float, axes)), tuple(tuple(map(float, r)) for r in R),
+                     float(ratio))
 
 
-def inclusion_fraction(mesh: jf.Mesh, inclusion: Ellipsoid | None, samples: int = 6) -> np.ndarray:
+def inclusion_fraction(mesh: jf.Mesh, inclusion: Ellipsoid | None, samples: int = 8) -> np.ndarray:
     """``(n_cells,)``: the fraction of each cell's sample points inside ``inclusion`` (zeros for
     None). The samples are the points of a regular lattice of ``samples`` steps per edge in each
     cell's corner tetrahedron (barycentric coordinates ``(i, j, k, l) / samples``, interior ones)."""
@@ -155,7 +157,7 @@ def solve_data(s: BlockSetting, inclusion: Ellipsoid | None, points) -> np.ndarr
     problem = jf.Problem(mesh, "neo-hookean", "solid", fixed=jf.dofs(mesh, np.r_[mesh.side("left"), right]))
     solver = jf.Solver(problem)
     ratio = 1.0 if inclusion is None else inclusion.ratio
-    E = s.E * (1.0 + (ratio - 1.0) * inclusion_fraction(mesh, inclusion))
+    E = s.E * np.where(inclusion_fraction(mesh, inclusion) >= 0.5, ratio, 1.0)
     probe = jf.locate(mesh, points, tol=1e-6)
     out, start = [], None
     for g in s.grip:
