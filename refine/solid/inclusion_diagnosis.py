@@ -27,7 +27,7 @@ from refine.exceptions import ObservationError
 from refine.measures import Residuals
 from refine.model.measured import MeasuredModel
 from refine.solid.field import Field, modulus_field
-from refine.solid.inclusion import Inclusion, ellipsoid_errors
+from refine.solid.inclusion import MAX_LOG_RATIO, Inclusion, ellipsoid_errors
 
 
 @dataclass(frozen=True)
@@ -130,8 +130,10 @@ def diagnose_inclusion(bundle: Bundle, cfg: InclusionConfig = InclusionConfig(),
 
 def inclusion_report(d: InclusionDiagnosis) -> dict:
     """report.json's content: the cause, the inclusion's centroid, semi-axes, axis directions,
-    volume and relative elasticity with standard errors, the field's regions, the null test, the
-    held-out gain, seconds."""
+    volume and relative elasticity with standard errors (``ratio_at_bound``: the fit ran to
+    :data:`~refine.solid.inclusion.MAX_LOG_RATIO`, so the data fix only a bound on the ratio, and
+    the volume is that of an all but rigid or empty inclusion acting alike: the standard errors,
+    linearised there, do not hold), the field's regions, the null test, the held-out gain, seconds."""
     obs = d.base.model.obs
     validate = obs.roles == "validate"
     n = max(1, 3 * obs.n_frames * int(validate.sum()))
@@ -151,5 +153,6 @@ def inclusion_report(d: InclusionDiagnosis) -> dict:
         out["held_out_gain"] = out["validate_rms"]["initial"] / max(out["validate_rms"]["refined"], 1e-300)
         out["findings"].append({"kind": "inclusion", "cause": s.cause, "centroid": list(s.centre),
                                 "axes": list(s.axes), "directions": [list(c) for c in np.asarray(s.rotation).T],
-                                "volume": s.volume, "relative_elasticity": s.ratio, "std": ellipsoid_errors(d.chosen)})
+                                "volume": s.volume, "relative_elasticity": s.ratio, "std": ellipsoid_errors(d.chosen),
+                                "ratio_at_bound": bool(abs(np.log(s.ratio)) > 0.95 * MAX_LOG_RATIO)})
     return out

@@ -71,10 +71,10 @@ class BlockSetting:
     E: float = 50.0
     nu: float = 0.3
     h_data: float = 2.5
-    h_model: float = 5.0
+    h_model: float = 4.0
     spacing: float = 2.5
-    noise: float = 0.005
-    faces: tuple = field(default=("top", "front", "bottom"))
+    noise: float = 0.01
+    faces: tuple = field(default=("top", "front", "bottom", "back"))
 
 
 def random_rotation(rng: np.random.Generator) -> np.ndarray:
@@ -87,8 +87,10 @@ def random_rotation(rng: np.random.Generator) -> np.ndarray:
 def random_inclusion(rng: np.random.Generator, block, cause: str = "stiffer-region") -> Ellipsoid | None:
     """An ellipsoid drawn under ``rng`` (None for ``cause`` ``"none"``): semi-axes 22-32 % of the
     block's smallest side, any orientation, its centre leaving a tenth of that side between the
-    ellipsoid's bounding sphere and every face; ratio 3 to 8 (``"stiffer-region"``) or 0.15 to 0.35
-    (``"softer-region"``)."""
+    ellipsoid's bounding sphere and every face; ratio 2 to 5 (``"stiffer-region"``) or 0.2 to 0.5
+    (``"softer-region"``). Seen from the surface alone, a much stiffer inclusion acts as a rigid
+    one of a smaller volume: a 7 times stiffer one was fitted at the ratio's bound (148) with 60 %
+    of its volume, as well as the truth fits."""
     if cause not in CAUSES:
         raise ExperimentError(f"unknown cause {cause!r} for a synthetic block; use one of {', '.join(CAUSES)}")
     if cause == "none":
@@ -98,25 +100,23 @@ def random_inclusion(rng: np.random.Generator, block, cause: str = "stiffer-regi
     axes = rng.uniform(0.22, 0.32, 3) * small
     margin = axes.max() + 0.1 * small
     centre = rng.uniform(lo + margin, hi - margin)
-    ratio = rng.uniform(3.0, 8.0) if cause == "stiffer-region" else rng.uniform(0.15, 0.35)
+    ratio = rng.uniform(2.0, 5.0) if cause == "stiffer-region" else rng.uniform(0.2, 0.5)
     R = random_rotation(rng)
     return Ellipsoid(tuple(map(float, centre)), tuple(map(float, axes)), tuple(tuple(map(float, r)) for r in R),
                      float(ratio))
 
 
-def inclusion_fraction(mesh: jf.Mesh, inclusion: Ellipsoid | None, samples: int = 8) -> np.ndarray:
+def inclusion_fraction(mesh: jf.Mesh, inclusion: Ellipsoid | None, samples: int = 5) -> np.ndarray:
     """``(n_cells,)``: the fraction of each cell's sample points inside ``inclusion`` (zeros for
-    None). The samples are the points of a regular lattice of ``samples`` steps per edge in each
-    cell's corner tetrahedron (barycentric coordinates ``(i, j, k, l) / samples``, interior ones)."""
+    None). The samples are the 56 points of a lattice of ``samples`` steps per edge of each cell's
+    corner tetrahedron (barycentric coordinates ``(i, j, k, l) / samples``, faces included)."""
     if inclusion is None:
         return np.zeros(mesh.n_cells)
     n = samples
     lam = np.array([(i, j, k, n - i - j - k) for i in range(n + 1) for j in range(n + 1 - i)
                     for k in range(n + 1 - i - j)], float) / n
-    lam = lam[(lam > 0).all(axis=1)] if (lam > 0).all(axis=1).any() else np.full((1, 4), 0.25)
-    corners = mesh.nodes[mesh.cells[:, :4]]  # (cells, 4, 3)
-    pts = np.einsum("qc,ncd->nqd", lam, corners)
-    return inclusion.inside(pts.reshape(-1, 3)).reshape(len(corners), -1).mean(axis=1)
+    pts = np.einsum("qc,ncd->nqd", lam, mesh.nodes[mesh.cells[:, :4]])
+    return inclusion.inside(pts.reshape(-1, 3)).reshape(mesh.n_cells, -1).mean(axis=1)
 
 
 def _grid(a: np.ndarray, b: np.ndarray) -> np.ndarray:
