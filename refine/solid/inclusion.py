@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Float
@@ -131,7 +132,7 @@ class EllipsoidModulus:
         # what is left, about exp(-k) / k with k = axis / (3 width), is 0.5 % at a width of a
         # tenth of the cell size and an axis of a cell
         d = (rho**3 - 1.0) / (3.0 * jnp.sqrt(jnp.sum(grad * grad, -1) + 1e-12))
-        return jnp.mean(1.0 / (1.0 + jnp.exp(d / self.width)), axis=-1)
+        return jnp.mean(jax.nn.sigmoid(-d / self.width), axis=-1)  # stable far out, where rho^3 is large
 
     def apply(self, theta, z):
         return {**theta, "E": theta["E"] * mori_tanaka(self.fraction(z), jnp.asarray(z)[0], self.nu)}
@@ -148,6 +149,8 @@ class EllipsoidModulus:
 
     def infeasibility(self, z) -> str | None:
         """Why the ellipsoid at ``z`` is not one to solve for (None: it is)."""
+        if not np.isfinite(np.asarray(z, float)).all():
+            return "the step is not a finite number"
         _, c, M = self.geometry(np.asarray(z, float), np)
         smallest = float(np.linalg.eigvalsh(M).min())
         if smallest <= self.min_axis:

@@ -156,3 +156,21 @@ def inclusion_report(d: InclusionDiagnosis) -> dict:
                                 "volume": s.volume, "relative_elasticity": s.ratio, "std": ellipsoid_errors(d.chosen),
                                 "ratio_at_bound": bool(abs(np.log(s.ratio)) > 0.95 * MAX_LOG_RATIO)})
     return out
+
+
+def diagnose_and_write(bundle: Bundle, out, cfg: InclusionConfig = InclusionConfig(),
+                       quiet: bool = False) -> tuple[InclusionDiagnosis, dict]:
+    """Diagnose a solid body (:func:`diagnose_inclusion`) and write ``OUT/report.json``
+    (:func:`inclusion_report`); returns the diagnosis and the report."""
+    import json
+    from pathlib import Path
+
+    log = (lambda m: None) if quiet else print
+    d = diagnose_inclusion(bundle, cfg, log=log)
+    rep = inclusion_report(d)
+    Path(out).mkdir(parents=True, exist_ok=True)
+    (Path(out) / "report.json").write_text(json.dumps(rep, indent=1), encoding="utf-8")
+    f = rep["findings"][0] if rep["findings"] else None
+    log(f"finding: {rep['cause']}" + (f" at {[round(v, 2) for v in f['centroid']]}, volume {f['volume']:.1f}, "
+                                      f"x{f['relative_elasticity']:.3g}" if f else ""))
+    return d, rep
