@@ -5,6 +5,8 @@ an inclusion drawn at random under a seed and of a sound block."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -169,20 +171,38 @@ def diagnosed(tmp_path, cause, seed):
 
     root, truth = write_block_bundle(tmp_path / f"{cause}{seed}", cause=cause, seed=seed)
     d = diagnose_solid(read_bundle(root), log=lambda m: None)
-    return d, report(d), truth
+    rep = report(d)
+    json.dumps(rep)  # report.json's content as it is
+    return d, rep, truth
 
 
-@pytest.mark.slow  # a finer 3D solve for the data, a 3D field and two inclusion fits: ~6 minutes on 2 shared cores
-def test_hidden_inclusion_in_a_block_is_found(tmp_path):
-    d, rep, truth = diagnosed(tmp_path, "stiffer-region", 11)
-    assert rep["cause"] == "stiffer-region" and rep["held_out_gain"] > 1.5
+@pytest.fixture(scope="module")
+def stiffer(tmp_path_factory):
+    """A block with a stiffer ellipsoid drawn under seed 11, diagnosed (the default settings of
+    refine.synthetic.block: data tet10 at 2.5 mm with 0.01 mm noise, the model tet10 at 4 mm)."""
+    return diagnosed(tmp_path_factory.mktemp("block"), "stiffer-region", 11)
+
+
+@pytest.mark.slow  # a finer 3D solve for the data, a 3D field and an inclusion fit: ~6 minutes on 2 shared cores
+def test_hidden_inclusion_in_a_block_is_found(stiffer):
+    d, rep, truth = stiffer
+    assert rep["cause"] == "stiffer-region" and rep["held_out_gain"] > 1.3
     f = rep["findings"][0]
     assert np.linalg.norm(np.subtract(f["centroid"], truth.centre)) < 0.03 * 40.0  # 3 % of the block's length
     ratio, std = f["relative_elasticity"], f["std"]["relative_elasticity"]
-    assert abs(ratio - truth.ratio) < max(0.1 * truth.ratio, 2 * std)
+    assert not f["ratio_at_bound"] and abs(ratio - truth.ratio) < max(0.1 * truth.ratio, 2 * std)
 
 
-@pytest.mark.slow  # a finer 3D solve for the data and the null test (and a field where it fails): minutes
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="surface points alone trade the inclusion's volume against its ratio: seed 11 "
+                                       "came out 41 % small and twice as stiff (within 2 standard errors of the ratio)")
+def test_hidden_inclusion_volume_and_ratio_are_recovered(stiffer):
+    d, rep, truth = stiffer
+    f = rep["findings"][0]
+    assert abs(f["volume"] / truth.volume - 1) < 0.2 and abs(f["relative_elasticity"] / truth.ratio - 1) < 0.1
+
+
+@pytest.mark.slow  # a finer 3D solve for the data, the null test and a 3D field: ~5 minutes
 def test_sound_block_gives_no_finding(tmp_path):
     d, rep, truth = diagnosed(tmp_path, "none", 12)
     assert truth is None and rep["cause"] == "none" and rep["findings"] == []

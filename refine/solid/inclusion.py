@@ -6,12 +6,17 @@ The ellipsoid is ``{x : |M^-1 (x - c)| <= 1}`` with ``M`` symmetric positive def
 eigenvalues the semi-axes, its eigenvectors their directions), so axes and orientation change
 together and smoothly, through a sphere too. A cell holds the share ``f`` of the inclusion: the
 mean over 84 sample points of the cell of a smooth indicator ``sigmoid(-d / width)``, ``d`` the
-signed distance to the surface to first order (its volume exact: :meth:`EllipsoidModulus.fraction`), ``width`` a tenth of the cell size, so that the
-misfit is a smooth function of the shape (a cell-centroid test, all or nothing, is not). Its
-modulus is the Mori-Tanaka estimate of the background holding that share of the inclusion's
-material (:func:`mori_tanaka`): with ``E exp(log_ratio f)`` instead, a cell a third inside a
-148 times stiffer ellipsoid came out 4.5 times stiffer where Mori-Tanaka gives 1.9, and the fit
-of a 7 times stiffer inclusion ran to a fifth of its volume at the ratio's bound.
+signed distance to the surface to first order (its volume exact:
+:meth:`EllipsoidModulus.fraction`), ``width`` a tenth of the cell size, so that the misfit is a
+smooth function of the shape (a cell-centroid test, all or nothing, is not). Its modulus is the
+Mori-Tanaka estimate of the background holding that share of the inclusion's material
+(:func:`mori_tanaka`): with ``E exp(log_ratio f)`` instead, a cell a third inside a 148 times
+stiffer ellipsoid came out 4.5 times stiffer where Mori-Tanaka gives 1.9, and the fit of a 7 times
+stiffer inclusion ran to a fifth of its volume at the ratio's bound.
+
+Seen from the surface alone, the inclusion's volume and ratio trade against each other: fits
+place it within 1.3 % of the block's length but come out about 40 % small and stiffer, some at
+the ratio's bound (:data:`MAX_LOG_RATIO`; benchmarks/inclusion3d.py).
 
 Unknowns ``z (10,)``: the log ratio, the change of the centre (3) and of ``M``'s entries
 ``(M11, M22, M33, M12, M13, M23)``, all lengths in units of ``scale``.
