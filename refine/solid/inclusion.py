@@ -15,7 +15,7 @@ stiffer ellipsoid came out 4.5 times stiffer where Mori-Tanaka gives 1.9, and th
 stiffer inclusion ran to a fifth of its volume at the ratio's bound.
 
 Seen from the surface alone, the inclusion's volume and ratio trade against each other: fits
-place it within 1.3 % of the block's length but come out about 40 % small and stiffer, some at
+place it within 1.3 % of the block's length but come out 40-55 % small and more extreme, some at
 the ratio's bound (:data:`MAX_LOG_RATIO`; benchmarks/inclusion3d.py).
 
 Unknowns ``z (10,)``: the log ratio, the change of the centre (3) and of ``M``'s entries

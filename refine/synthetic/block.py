@@ -89,8 +89,8 @@ def random_inclusion(rng: np.random.Generator, block, cause: str = "stiffer-regi
     block's smallest side, any orientation, its centre leaving a tenth of that side between the
     ellipsoid's bounding sphere and every face; ratio 2 to 5 (``"stiffer-region"``) or 0.2 to 0.5
     (``"softer-region"``). Seen from the surface alone, a much stiffer inclusion acts as a rigid
-    one of a smaller volume: a 7 times stiffer one was fitted at the ratio's bound (148) with 60 %
-    of its volume, as well as the truth fits."""
+    one of a smaller volume: a 7 times stiffer one was fitted at the ratio's bound (148) with 53 %
+    of its volume, which the model fitted better than the truth (so ratios drawn here stay below 5)."""
     if cause not in CAUSES:
         raise ExperimentError(f"unknown cause {cause!r} for a synthetic block; use one of {', '.join(CAUSES)}")
     if cause == "none":
