@@ -33,6 +33,7 @@ from refine.exceptions import ObservationError
 from refine.measures import Residuals
 from refine.solid.cup import CupShape, bottom_points, check_closed, cup_shape
 from refine.solid.global_model import held_by_fixture
+from refine.solid.inclusion_diagnosis import InclusionDiagnosis, diagnose_inclusion, fills_hull, inclusion_report
 from refine.solid.local import Local, SolidHole, Whole
 
 
@@ -131,8 +132,12 @@ def hole_candidates(local: Local, base: Fitted, sigma: float, max_n: int) -> lis
     return [Hole(tuple(c.centroid), tuple(np.asarray(c.axes) + 0.5 * s), float(c.angle)) for c in found[:max_n]]
 
 
-def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) -> SolidDiagnosis:
-    """Diagnose a cup holder's bottom (see the module)."""
+def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) -> SolidDiagnosis | InclusionDiagnosis:
+    """Diagnose a cup holder's bottom (see the module); a body without a cavity (its mesh fills its
+    convex hull: a block) for an ellipsoidal inclusion instead
+    (:func:`refine.solid.inclusion_diagnosis.diagnose_inclusion`)."""
+    if _fills_hull(bundle):
+        return diagnose_inclusion(bundle, log=log)
     t0 = time.perf_counter()
     shape, local, _ = local_recipe(bundle, cfg)
     obs = local.obs
@@ -172,6 +177,15 @@ def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) 
     return SolidDiagnosis(shape, local, base, null, tried, best, chosen, seconds, whole)
 
 
+def _fills_hull(bundle: Bundle) -> bool:
+    """Whether a solid bundle's mesh file fills its convex hull (no cavity; False where the bundle
+    is not a solid one with a mesh: :func:`local_recipe` names what is wrong)."""
+    domain, root = bundle.experiment.domain, "" if bundle.root is None else f"{bundle.root}/"
+    if bundle.experiment.kind != "solid" or not hasattr(domain, "path"):
+        return False
+    return fills_hull(jf.read_mesh(f"{root}{domain.path}"))
+
+
 def refit_whole(bundle: Bundle, local: Local, hole: Hole, sigma: float, cfg: SolidConfig) -> Fitted:
     """The local model's hole refitted in the global model (:class:`~refine.solid.local.Whole`),
     held by the fixture's points, on every bottom point but the ``validate`` ones, scored on all
@@ -189,7 +203,10 @@ def refit_whole(bundle: Bundle, local: Local, hole: Hole, sigma: float, cfg: Sol
 
 def report(d: SolidDiagnosis) -> dict:
     """report.json's content: the cause, the hole's 3D centroid (mesh frame, mid-thickness), axes,
-    angle, area and volume with standard errors, the null test, the held-out gain, seconds."""
+    angle, area and volume with standard errors, the null test, the held-out gain, seconds (a
+    body's inclusion: :func:`refine.solid.inclusion_diagnosis.inclusion_report`)."""
+    if isinstance(d, InclusionDiagnosis):
+        return inclusion_report(d)
     n = lambda m: max(1, 3 * d.local.obs.n_frames * m.sum())  # noqa: E731
     rms = lambda f, m: float(np.sqrt(f.chi2_holdout / n(m)) * f.sigma)  # noqa: E731
     validate = d.local.obs.roles == "validate"

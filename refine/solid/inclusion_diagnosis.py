@@ -1,0 +1,176 @@
+"""The 3D diagnosis of a solid body without a cavity (a block held by grips; issue 23's "stiff
+inclusion in a block"): is anything wrong beyond the noise (the null test on the ``guide``
+points), where (the regularised modulus field on the model's mesh, :mod:`refine.solid.field`), is
+it an ellipsoidal inclusion (:mod:`refine.solid.inclusion`, fitted by exact gradients, with
+standard errors), how much better the held-out ``validate`` points are predicted; the report.
+
+The model is the bundle's mesh as it is (``domain = { mesh = ... }``), driven by its ``boundary``
+points (e.g. markers on the grips' jaws) with the experiment's law, ``E`` and ``nu``; under pure
+displacement driving only moduli relative to the background are identifiable. An inclusion is
+reported where it lowers the BIC and the held-out misfit both.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+import jaxfem as jf
+
+from refine.bundle.io import Bundle
+from refine.diagnosis.fitted import Fitted, baseline, covariance, fit
+from refine.diagnosis.noise import estimate_noise, null_test, propagated_noise
+from refine.diagnosis.uncertainty import drive_covariance
+from refine.exceptions import ObservationError
+from refine.measures import Residuals
+from refine.model.measured import MeasuredModel
+from refine.solid.field import Field, modulus_field
+from refine.solid.inclusion import MAX_LOG_RATIO, Inclusion, ellipsoid_errors
+
+
+@dataclass(frozen=True)
+class InclusionConfig:
+    """Settings of a solid body's diagnosis: ``alpha`` the null test's level, ``max_candidates``
+    field regions tried as inclusions, the field's smoothing ``field_weight`` (x residuals per
+    cell) and ``field_iterations`` (L-BFGS-B), ``linear_solver``."""
+
+    alpha: float = 0.01
+    max_candidates: int = 2
+    field_weight: float = 2.0
+    field_iterations: int = 60
+    linear_solver: str = "auto"
+
+
+@dataclass
+class InclusionDiagnosis:
+    """What a solid body's diagnosis found: the initial model's fit ``base``, the ``null`` test,
+    the modulus ``field`` (None where the null test passed), the inclusions fitted
+    (``candidates``), the best (``inclusion``) and the chosen fit (``chosen``: it or ``base``),
+    seconds per stage."""
+
+    base: Fitted
+    null: object
+    field: Field | None
+    candidates: list
+    inclusion: Fitted | None
+    chosen: Fitted
+    seconds: dict = field(default_factory=dict)
+
+    @property
+    def found(self) -> bool:
+        return self.chosen is not self.base
+
+
+def fills_hull(mesh: jf.Mesh, fraction: float = 0.97) -> bool:
+    """Whether a 3D mesh fills at least ``fraction`` of its convex hull: a body without a cavity
+    (a block), which :func:`refine.solid.diagnose_solid` diagnoses for an inclusion, unlike a cup
+    holder (two thirds of its hull), whose bottom it diagnoses for a hole."""
+    from scipy.spatial import ConvexHull
+
+    return bool(mesh.volumes().sum() >= fraction * ConvexHull(mesh.nodes).volume)
+
+
+def body_model(bundle: Bundle, cfg: InclusionConfig) -> MeasuredModel:
+    """The initial model of a solid bundle: its mesh file, driven by its boundary points."""
+    exp, obs = bundle.experiment, bundle.observations
+    if exp.kind != "solid" or obs is None or obs.dim != 3:
+        raise ObservationError("the 3D diagnosis takes a solid bundle with 3D points (x, y, z; ux, uy, uz)")
+    for role in ("boundary", "guide", "validate"):
+        if not (obs.roles == role).any():
+            raise ObservationError(f"no {role} point: a solid body's diagnosis needs boundary points that drive it, "
+                                   "guide points to fit and validate points to check")
+    root = "" if bundle.root is None else f"{bundle.root}/"
+    mesh = jf.read_mesh(f"{root}{exp.domain.path}")
+    return MeasuredModel(exp, obs, mesh=mesh, linear_solver=cfg.linear_solver)
+
+
+def with_errors(f: Fitted, points, sigma: float) -> Fitted:
+    """``f`` with the covariance of its unknowns: Gauss-Newton on ``points``, plus the drive's
+    noise (:func:`refine.diagnosis.uncertainty.drive_covariance`)."""
+    cov = covariance(f, points, sigma) + drive_covariance(f, points, sigma)
+    return replace(f, z_std=np.sqrt(np.clip(np.diag(cov), 0, None)), z_cov=cov)
+
+
+def diagnose_inclusion(bundle: Bundle, cfg: InclusionConfig = InclusionConfig(), log=print) -> InclusionDiagnosis:
+    """Diagnose a solid body for an ellipsoidal inclusion (see the module)."""
+    t0 = time.perf_counter()
+    model = body_model(bundle, cfg)
+    obs = model.obs
+    guide, validate = obs.roles == "guide", obs.roles == "validate"
+    sigma = bundle.experiment.noise_std or estimate_noise(obs)
+    base = baseline(model, guide, validate, sigma)
+    if not np.isfinite(base.chi2_fit):
+        model.raise_solve_failure(model.params())
+    at = Residuals.at(obs.displacements, guide, sigma)
+    null = null_test(at.difference(base.predicted), at.valid, sigma, 0.0,
+                     propagated_noise(model, model.params(), sigma, guide, samples=8))
+    seconds = {"initial": time.perf_counter() - t0}
+    log(f"model: {model.mesh.n_cells} {model.mesh.element} cells, {len(obs.ids)} points; misfit {null.ratio:.2f} x "
+        f"the noise's (p = {null.p_value:.2g})")
+    fld, tried, best = None, [], None
+    if null.p_value < cfg.alpha:
+        fld = modulus_field(model, sigma, guide, cfg.field_weight, cfg.field_iterations, cfg.max_candidates)
+        seconds["field"] = fld.seconds
+        log(f"  modulus field: {len(fld.blobs)} regions ({fld.gradients} gradients, {fld.seconds:.0f} s)")
+        for blob in fld.blobs:
+            f = fit(Inclusion.from_blob(model, blob), guide, validate, sigma)
+            tried.append(f)
+            log(f"  {f.describe()}")
+            if np.isfinite(f.chi2_fit) and (best is None or f.chi2_fit < best.chi2_fit):
+                best = f
+        seconds["inclusion"] = time.perf_counter() - t0 - sum(seconds.values())
+    chosen = base
+    if best is not None and best.bic < base.bic and best.chi2_holdout < base.chi2_holdout:
+        best = chosen = with_errors(best, guide, sigma)
+    seconds["total"] = time.perf_counter() - t0
+    return InclusionDiagnosis(base, null, fld, tried, best, chosen, seconds)
+
+
+def inclusion_report(d: InclusionDiagnosis) -> dict:
+    """report.json's content: the cause, the inclusion's centroid, semi-axes, axis directions,
+    volume and relative elasticity with standard errors (``ratio_at_bound``: the fit ran to
+    :data:`~refine.solid.inclusion.MAX_LOG_RATIO`, so the data fix only a bound on the ratio, and
+    the volume is that of an all but rigid or empty inclusion acting alike: the standard errors,
+    linearised there, do not hold), the field's regions, the null test, the held-out gain, seconds."""
+    obs = d.base.model.obs
+    validate = obs.roles == "validate"
+    n = max(1, 3 * obs.n_frames * int(validate.sum()))
+    rms = lambda f: float(np.sqrt(f.chi2_holdout / n) * f.sigma)  # noqa: E731
+    out = {"cause": d.chosen.cause, "null_test": {"statistic": d.null.statistic, "dof": d.null.dof,
+                                                   "p_value": d.null.p_value, "noise_std": d.null.sigma},
+           "model": {"cells": int(d.base.model.mesh.n_cells), "element": d.base.model.mesh.element,
+                     "points": int(len(obs.ids))},
+           "validate_rms": {"initial": rms(d.base)}, "findings": [], "seconds": d.seconds}
+    if d.field is not None:
+        out["field"] = {"gradients": d.field.gradients, "regions": [
+            {"sign": b.sign, "centroid": b.centroid.tolist(), "axes": b.axes.tolist(), "volume": b.volume,
+             "peak_ratio": b.ratio} for b in d.field.blobs]}
+    if d.found:
+        s = d.chosen.shapes[0]
+        out["validate_rms"]["refined"] = rms(d.chosen)
+        out["held_out_gain"] = out["validate_rms"]["initial"] / max(out["validate_rms"]["refined"], 1e-300)
+        out["findings"].append({"kind": "inclusion", "cause": s.cause, "centroid": list(s.centre),
+                                "axes": list(s.axes), "directions": [list(c) for c in np.asarray(s.rotation).T],
+                                "volume": s.volume, "relative_elasticity": s.ratio, "std": ellipsoid_errors(d.chosen),
+                                "ratio_at_bound": bool(abs(np.log(s.ratio)) > 0.95 * MAX_LOG_RATIO)})
+    return out
+
+
+def diagnose_and_write(bundle: Bundle, out, cfg: InclusionConfig = InclusionConfig(),
+                       quiet: bool = False) -> tuple[InclusionDiagnosis, dict]:
+    """Diagnose a solid body (:func:`diagnose_inclusion`) and write ``OUT/report.json``
+    (:func:`inclusion_report`); returns the diagnosis and the report."""
+    import json
+    from pathlib import Path
+
+    log = (lambda m: None) if quiet else print
+    d = diagnose_inclusion(bundle, cfg, log=log)
+    rep = inclusion_report(d)
+    Path(out).mkdir(parents=True, exist_ok=True)
+    (Path(out) / "report.json").write_text(json.dumps(rep, indent=1), encoding="utf-8")
+    f = rep["findings"][0] if rep["findings"] else None
+    log(f"finding: {rep['cause']}" + (f" at {[round(v, 2) for v in f['centroid']]}, volume {f['volume']:.1f}, "
+                                      f"x{f['relative_elasticity']:.3g}" if f else ""))
+    return d, rep

@@ -1,0 +1,208 @@
+"""A solid block's hidden ellipsoidal inclusion (issue 23): the synthetic block bundle, the 3D
+modulus field's regions, the inclusion hypothesis (its smooth share per cell, the Mori-Tanaka
+modulus, exact derivatives through the solver) and, marked slow, the diagnosis of a block with
+an inclusion drawn at random under a seed and of a sound block."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import jaxfem as jf
+
+from refine.exceptions import ExperimentError, ObservationError
+
+TINY = dict(block=(0.0, 0.0, 0.0, 8.0, 4.0, 4.0), grip=(0.3, 0.6), h_data=4 / 3, h_model=2.0, spacing=1.0,
+            noise=0.002)
+
+
+def tiny_bundle(cause="stiffer-region", seed=0, **kw):
+    from refine.synthetic.block import BlockSetting, block_bundle
+
+    return block_bundle(cause, seed, BlockSetting(**{**TINY, **kw}))
+
+
+@pytest.fixture(scope="module")
+def tiny():
+    """A tiny block with a stiffer inclusion (data: 324 tet10 cells; model: 96)."""
+    return tiny_bundle(seed=1)
+
+
+def test_block_bundle_sees_the_surface_only_and_drives_by_the_grips(tiny):
+    bundle, mesh, truth = tiny
+    obs = bundle.observations
+    X, roles = obs.reference, obs.roles
+    on_end = (np.abs(X[:, 0]) < 1e-9) | (np.abs(X[:, 0] - 8.0) < 1e-9)
+    assert (roles[on_end] == "boundary").all() and (roles[~on_end] != "boundary").all()
+    lo, hi = np.zeros(3), np.array([8.0, 4.0, 4.0])
+    on_face = (np.abs(X - lo) < 1e-9) | (np.abs(X - hi) < 1e-9)
+    assert on_face.any(axis=1).all()  # no interior marker
+    assert {"guide", "validate"} <= set(roles) and obs.displacements.shape == (2, len(X), 3)
+    right = np.abs(X[:, 0] - 8.0) < 1e-9
+    assert np.allclose(obs.displacements[1, right, 0], 0.6, atol=5 * 0.002)  # the grip's stroke
+    assert mesh.element == "tet10" and np.isclose(mesh.volumes().sum(), 128.0)
+    assert truth is not None and truth.ratio > 1 and truth.inside(np.array([truth.centre])).all()
+
+
+def test_block_bundle_names_bad_settings():
+    with pytest.raises(ExperimentError, match="finer than the model"):
+        tiny_bundle(h_data=2.0)
+    with pytest.raises(ExperimentError, match="unknown cause"):
+        tiny_bundle("hole")
+    with pytest.raises(ExperimentError, match="unknown face 'side'"):
+        tiny_bundle(faces=("top", "side"))
+
+
+def test_random_inclusions_differ_by_seed_and_stay_inside():
+    from refine.synthetic.block import random_inclusion
+
+    block = (0.0, 0.0, 0.0, 40.0, 20.0, 20.0)
+    drawn = [random_inclusion(np.random.default_rng(s), block, c) for c in ("stiffer-region", "softer-region")
+             for s in range(6)]
+    assert len({d.centre for d in drawn[:6]}) == 6 and random_inclusion(np.random.default_rng(0), block, "none") is None
+    for d in drawn:
+        R = np.asarray(d.rotation)
+        assert np.allclose(R.T @ R, np.eye(3)) and np.isclose(np.linalg.det(R), 1.0)
+        assert (np.asarray(d.centre) - max(d.axes) > 0).all() and (np.asarray(d.centre) + max(d.axes) < block[3:]).all()
+        assert 2.0 <= d.ratio <= 5.0 or 0.2 <= d.ratio <= 0.5
+
+
+def ellipsoid_cells(mesh, centre, axes, R):
+    local = (mesh.centroids() - centre) @ R
+    return ((local / axes) ** 2).sum(1) <= 1.0
+
+
+def test_3d_field_regions_are_summarised_by_their_moment_ellipsoid():
+    from refine.solid.field import blobs, moment_ellipsoid
+
+    mesh = jf.box(0, 0, 0, 20, 10, 10, 40, 20, 20, element="tet4")
+    t = 0.4
+    R = np.array([[np.cos(t), -np.sin(t), 0], [np.sin(t), np.cos(t), 0], [0, 0, 1.0]])
+    centre, axes = np.array([8.0, 5.0, 5.0]), np.array([4.0, 2.5, 2.0])
+    inside = ellipsoid_cells(mesh, centre, axes, R)
+    c, a, V = moment_ellipsoid(mesh.centroids()[inside], mesh.volumes()[inside])
+    assert np.allclose(c, centre, atol=0.05) and np.allclose(a, axes, rtol=0.05)
+    assert abs(V[:, 0] @ R[:, 0]) > 0.99  # the longest axis's direction
+    z = np.where(inside, 1.0, 0.0) + np.where(ellipsoid_cells(mesh, np.array([17.0, 5, 5]), np.ones(3) * 1.5,
+                                                              np.eye(3)), -0.7, 0.0)
+    found = blobs(mesh, z, max_regions=3)
+    assert [b.sign for b in found] == [1, -1]
+    assert np.allclose(found[0].centroid, centre, atol=0.05) and np.isclose(found[0].ratio, np.e)
+    assert np.isclose(found[0].volume, mesh.volumes()[inside].sum())
+
+
+def test_mori_tanaka_share_lies_between_the_bounds_and_is_exact_at_the_ends():
+    from refine.solid.inclusion import mori_tanaka
+
+    f = np.linspace(0, 1, 11)
+    for r in (0.2, 3.0, 50.0):
+        E = np.asarray(mori_tanaka(f, np.log(r), 0.3))
+        assert np.isclose(E[0], 1.0) and np.isclose(E[-1], r)
+        reuss, voigt = 1.0 / (1 - f + f / r), 1 + f * (r - 1)
+        assert (E >= reuss - 1e-12).all() and (E <= voigt + 1e-12).all()
+        assert np.all(np.diff(E) * np.sign(r - 1) > 0)
+
+
+def test_ellipsoid_share_holds_its_volume_and_is_smooth_in_the_shape():
+    import jax
+
+    from refine.solid.inclusion import EllipsoidModulus, cell_size
+
+    mesh = jf.box(0, 0, 0, 12, 8, 8, 6, 4, 4, element="tet10")
+    t = 0.3
+    R = np.array([[1.0, 0, 0], [0, np.cos(t), -np.sin(t)], [0, np.sin(t), np.cos(t)]])
+    axes = np.array([4.0, 3.0, 2.5])
+    h = cell_size(mesh)
+    p = EllipsoidModulus(mesh, np.array([6.3, 4.2, 3.9]), R @ np.diag(axes) @ R.T, 0.5 * h, 0.1 * h, 0.25 * h,
+                         np.log(3.0), 0.3)
+    z = np.asarray(p.z0)
+    share = (np.asarray(p.fraction(z)) * mesh.volumes()).sum()
+    assert share == pytest.approx(4 / 3 * np.pi * axes.prod(), rel=0.01)
+    s = p.shape(z)
+    assert np.allclose(s.axes, axes) and np.allclose(s.centre, [6.3, 4.2, 3.9]) and np.isclose(s.ratio, 3.0)
+    g = jax.grad(lambda zz: (p.fraction(zz) * mesh.volumes()).sum())(z)
+    assert np.isfinite(g).all() and np.abs(g[1:4]).max() < 0.1 * np.abs(g).max()  # a shift moves little volume
+    assert p.infeasibility(z) is None
+    assert "semi-axis" in p.infeasibility(z - np.r_[0, 0, 0, 0, 5.0, 0, 0, 0, 0, 0] / (0.5 * h) * 0.5 * h)
+    assert "leave the body" in p.infeasibility(z + np.r_[0, 20.0, 0, 0, 0, 0, 0, 0, 0, 0])
+
+
+def test_inclusion_prediction_derivatives_pass_a_taylor_test(tiny):
+    from refine.model.measured import MeasuredModel
+    from refine.solid.inclusion import Inclusion
+
+    bundle, mesh, truth = tiny
+    model = MeasuredModel(bundle.experiment, bundle.observations, mesh=mesh)
+    R = np.eye(3)
+    compiled, z0 = Inclusion(model, (4.2, 2.1, 1.9), (1.6, 1.2, 1.0), tuple(map(tuple, R)), 2.5).build()
+    pred, J = compiled.evaluate(z0)
+    dz = np.random.default_rng(0).normal(size=z0.size) * np.r_[0.3, np.full(9, 0.1)]
+    errs = []
+    for eps in (1e-1, 5e-2, 2.5e-2):
+        errs.append(np.abs(compiled.predict(z0 + eps * dz) - pred - eps * J @ dz).max())
+    rates = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    assert (rates > 1.7).all(), (errs, rates)
+
+
+def test_a_solid_body_without_a_cavity_is_diagnosed_for_an_inclusion(tmp_path, tiny):
+    from refine.bundle.io import read_bundle, write_bundle
+    from refine.solid.inclusion_diagnosis import InclusionConfig, body_model, fills_hull
+
+    assert fills_hull(jf.box(0, 0, 0, 2, 1, 1, 2, 1, 1, element="tet4"))
+    assert not fills_hull(jf.cup_holder(8.0, 11.0, 8.0, 3.0, 4.0).mesh)
+    (tmp_path / "b").mkdir()
+    jf.write_vtu(tmp_path / "b" / "mesh.vtu", tiny[1])
+    bundle = read_bundle(write_bundle(tmp_path / "b", tiny[0]))
+    assert body_model(bundle, InclusionConfig()).mesh.n_cells == 4 * 2 * 2 * 6
+    obs = bundle.observations
+    no_validate = type(bundle)(bundle.experiment, type(obs)(obs.ids, obs.reference,
+                                                              np.where(obs.roles == "validate", "guide", obs.roles),
+                                                              obs.displacements), root=bundle.root)
+    with pytest.raises(ObservationError, match="no validate point"):
+        body_model(no_validate, InclusionConfig())
+
+
+def diagnosed(tmp_path, cause, seed):
+    from refine.bundle.io import read_bundle
+    from refine.solid import diagnose_solid, report
+    from refine.synthetic.block import write_block_bundle
+
+    root, truth = write_block_bundle(tmp_path / f"{cause}{seed}", cause=cause, seed=seed)
+    d = diagnose_solid(read_bundle(root), log=lambda m: None)
+    rep = report(d)
+    json.dumps(rep)  # report.json's content as it is
+    return d, rep, truth
+
+
+@pytest.fixture(scope="module")
+def stiffer(tmp_path_factory):
+    """A block with a stiffer ellipsoid drawn under seed 11, diagnosed (the default settings of
+    refine.synthetic.block: data tet10 at 2.5 mm with 0.01 mm noise, the model tet10 at 4 mm)."""
+    return diagnosed(tmp_path_factory.mktemp("block"), "stiffer-region", 11)
+
+
+@pytest.mark.slow  # a finer 3D solve for the data, a 3D field and an inclusion fit: ~6 minutes on 2 shared cores
+def test_hidden_inclusion_in_a_block_is_found(stiffer):
+    d, rep, truth = stiffer
+    assert rep["cause"] == "stiffer-region" and rep["held_out_gain"] > 1.3
+    f = rep["findings"][0]
+    assert np.linalg.norm(np.subtract(f["centroid"], truth.centre)) < 0.03 * 40.0  # 3 % of the block's length
+    ratio, std = f["relative_elasticity"], f["std"]["relative_elasticity"]
+    assert not f["ratio_at_bound"] and abs(ratio - truth.ratio) < max(0.1 * truth.ratio, 2 * std)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="surface points alone trade the inclusion's volume against its ratio: seed 11 "
+                                       "came out 41 % small and twice as stiff (within 2 standard errors of the ratio)")
+def test_hidden_inclusion_volume_and_ratio_are_recovered(stiffer):
+    d, rep, truth = stiffer
+    f = rep["findings"][0]
+    assert abs(f["volume"] / truth.volume - 1) < 0.2 and abs(f["relative_elasticity"] / truth.ratio - 1) < 0.1
+
+
+@pytest.mark.slow  # a finer 3D solve for the data, the null test and a 3D field: ~5 minutes
+def test_sound_block_gives_no_finding(tmp_path):
+    d, rep, truth = diagnosed(tmp_path, "none", 12)
+    assert truth is None and rep["cause"] == "none" and rep["findings"] == []
