@@ -47,6 +47,7 @@ class SolidConfig:
     max_candidates: int = 2
     max_remesh: int = 4
     linear_solver: str = "auto"
+    global_modulus: bool = True
 
 
 @dataclass
@@ -183,7 +184,7 @@ def refit_whole(bundle: Bundle, local: Local, hole: Hole, sigma: float, cfg: Sol
     whole = Whole(local.shape, local.experiment, held, local.force, local.h, local.linear_solver)
     guide = (held.roles == "guide") & bottom_points(local.shape, obs.reference, tol)
     validate = held.roles == "validate"
-    start = SolidHole(whole, jf.Ellipse(*hole.centre, *hole.axes, hole.angle))
+    start = SolidHole(whole, jf.Ellipse(*hole.centre, *hole.axes, hole.angle), cfg.global_modulus)
     return refit(fit(start, guide, validate, sigma), guide, validate, sigma, max_remesh=cfg.max_remesh, element="tet10")
 
 
