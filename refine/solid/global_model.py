@@ -24,7 +24,6 @@ from refine.bundle.io import Bundle, write_bundle
 from refine.bundle.observations import Observations
 from refine.bundle.roles import point_spacing
 from refine.diagnosis.shapes import Hole
-from refine.exceptions import ObservationError
 from refine.solid.cup import CupShape, bottom_points
 from refine.solid.loaded import LoadedModel
 

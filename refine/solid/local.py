@@ -93,7 +93,8 @@ class SolidHole(HoleShape):
     (or global, ``local`` a :class:`Whole`) model with the hole cut, its centre, axes and
     orientation fitted through an extruded morph
     (:class:`~refine.solid.morph.ExtrudedMorph`), remeshed at fitted shapes by
-    :func:`refine.diagnosis.fitted.refit`."""
+    :func:`refine.diagnosis.fitted.refit`. ``free_modulus``: a uniform modulus is fitted too (the
+    last unknown; between half and twice the experiment's E)."""
 
     local: Local
     hole: jf.Ellipse
