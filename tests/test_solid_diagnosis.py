@@ -118,10 +118,10 @@ def test_hidden_hole_in_the_bottom_is_found(tmp_path):
     d, rep = run_cup(tmp_path, hole, 11)
     assert rep["cause"] == "hole", rep
     f = rep["findings"][0]
-    # noise-free, seed 1, data at h 1 mm: centre 0.83 % of the diameter off, area +2.5 % (the local
-    # model alone: 1.07 %, -23 %). Here (seed 11, a small hole, noise 0.01 mm, data at h 1.2 mm)
-    # measured: centre within 2 %, area +17.6 % (13.17 against 11.19 mm2; the target is
-    # 2 %, not met yet): the bound records what the method does today
+    # seed 11, a small hole (11.2 mm2), noise 0.01 mm, data at h 1.2 mm: area +17.6 % while the
+    # global model's modulus was held (its discretisation stiffness enlarged the hole); noise-free
+    # with the modulus fitted -0.9 %. With noise the area's standard error is 6-8 %
+    # (benchmarks/diagnose3d.py: seeds 1-3 within 1.6 of it): the bounds allow about 3 of them
     assert np.hypot(f["centroid"][0] - hole.cx, f["centroid"][1] - hole.cy) < 0.02 * 22.0, (f, hole)
     assert f["area"] == pytest.approx(hole.area, rel=0.25), (f, hole)
     assert rep["held_out_gain"] > 1.2
