@@ -23,7 +23,8 @@ seed, solved on a finer tet10 mesh than the inversion uses, sampled at the cross
 grid with noise 0.01 mm (the end-to-end path from rendered intensity + range images through
 `nonrigid track --range` is in `tests/test_solid_diagnosis.py` and `benchmarks/diagnose3d.py`).
 The whole run takes several minutes on 2 cores (tests/test_notebooks.py runs it with the slow tests)."""),
-    ("code", """import json, tempfile
+    ("code", """%matplotlib inline
+import json, tempfile
 from pathlib import Path
 import numpy as np
 import matplotlib.pyplot as plt
