@@ -188,6 +188,7 @@ def main() -> None:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(out, indent=1, default=str), encoding="utf-8")
     plot(rows, args.out.with_suffix(".png"))
+    args.out.with_suffix(".partial.jsonl").unlink(missing_ok=True)  # the rows so far, for a run cut short
     print(json.dumps(targets, indent=1, default=float))
 
 
