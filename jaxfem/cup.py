@@ -100,19 +100,20 @@ def _prisms_to_tets(tri, n2, layers):
 
 
 def cup_holder(r_in: float, r_out: float, height: float, bottom: float, h: float, hole: Ellipse | None = None,
-               element: str = "tet10") -> CupHolder:
+               element: str = "tet10", layers: int | None = None) -> CupHolder:
     """Mesh a cup holder of inner/outer radius ``r_in``/``r_out``, total ``height`` and ``bottom``
     thickness, target element size ``h`` (all length units), ``element`` ``"tet10"`` (default; the
     locking-free choice for nearly incompressible foams) or ``"tet4"``.
 
     ``hole``: an :class:`Ellipse` (centre, semi-axes, angle in the (x, y) plane) cut through the
-    bottom's whole thickness; it must lie inside the floor ``r < r_in``.
+    bottom's whole thickness; it must lie inside the floor ``r < r_in``. ``layers``: levels of
+    elements through the bottom (default ``bottom / h`` rounded, at least 1).
     """
     if element not in ("tet4", "tet10"):
         raise MeshError(f"cup_holder() makes tet4 or tet10 meshes, not {element!r}")
     _check(r_in, r_out, height, bottom, h, hole)
     nodes2, tri, in_wall = _plan(r_in, r_out, h, hole)
-    n_bot = max(1, int(round(bottom / h)))
+    n_bot = layers or max(1, int(round(bottom / h)))
     n_wall = max(1, int(round((height - bottom) / h)))
     z = np.r_[np.linspace(0.0, bottom, n_bot + 1), np.linspace(bottom, height, n_wall + 1)[1:]]
     mesh, column = _extrude(nodes2, tri, z, lambda level: np.ones(len(tri), bool) if level < n_bot else in_wall,

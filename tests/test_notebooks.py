@@ -12,7 +12,8 @@ import pytest
 
 NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.ipynb"))
 SLOW = {"real_cfrp.ipynb",  # real data in ../shared and two diagnoses of 2,800 points: minutes (tests/test_cfrp.py)
-        "hand.ipynb"}  # two scarred wrist motions and a tracked range sequence (a finer solve, two compiles): minutes
+        "hand.ipynb",  # two scarred wrist motions and a tracked range sequence (a finer solve, two compiles): minutes
+        "cup_holder.ipynb"}  # a 3D data solve and the 3D diagnosis (local and global fits): minutes
 
 
 @pytest.mark.parametrize("path", [pytest.param(p, marks=pytest.mark.slow) if p.name in SLOW else p for p in NOTEBOOKS],

@@ -1,7 +1,8 @@
 """The 3D diagnosis of a cup holder's bottom (refine.solid, the paper's Sec. 4): the bottom slab and
 its extruded hole morph, the cup's shape read off its mesh, bad input with clear errors, and (slow)
 a hidden hole drawn under a seed found, a sound cup holder left alone, on data solved on a finer
-mesh with noise (refine.synthetic.cup)."""
+mesh with noise (refine.synthetic.cup), and the whole path from rendered intensity + range images
+through ``nonrigid track --range`` to the diagnosis (refine.synthetic.cup_views)."""
 
 import numpy as np
 import pytest
@@ -117,10 +118,10 @@ def test_hidden_hole_in_the_bottom_is_found(tmp_path):
     d, rep = run_cup(tmp_path, hole, 11)
     assert rep["cause"] == "hole", rep
     f = rep["findings"][0]
-    # noise-free, seed 1, data at h 1 mm: centre 0.83 % of the diameter off, area +2.5 % (the local
-    # model alone: 1.07 %, -23 %). Here (seed 11, a small hole, noise 0.01 mm, data at h 1.2 mm)
-    # measured: centre within 2 %, area +17.6 % (13.17 against 11.19 mm2; the issue's target is
-    # 2 %, not met yet): the bound records what the method does today
+    # seed 11, a small hole (11.2 mm2), noise 0.01 mm, data at h 1.2 mm: area +17.6 % while the
+    # global model's modulus was held (its discretisation stiffness enlarged the hole); noise-free
+    # with the modulus fitted -0.9 %. With noise the area's standard error is 6-8 %
+    # (benchmarks/diagnose3d.py: seeds 1-3 within 1.6 of it): the bounds allow about 3 of them
     assert np.hypot(f["centroid"][0] - hole.cx, f["centroid"][1] - hole.cy) < 0.02 * 22.0, (f, hole)
     assert f["area"] == pytest.approx(hole.area, rel=0.25), (f, hole)
     assert rep["held_out_gain"] > 1.2
@@ -133,3 +134,43 @@ def test_hidden_hole_in_the_bottom_is_found(tmp_path):
 def test_sound_cup_holder_gives_no_finding(tmp_path):
     d, rep = run_cup(tmp_path, None, 4)
     assert rep["cause"] == "none" and rep["findings"] == [], rep
+
+
+def track_and_diagnose(frames, camera, out, noise: float, nu: float, seed: int):
+    """``nonrigid track --range`` of rendered frames, the load cell's forces added as forces.csv
+    (side ``back``), then ``nonrigid diagnose``'s 3D diagnosis: the tracked bundle and the report."""
+    from dataclasses import replace
+
+    from refine.bundle.from_tracks import ModelSkeleton
+    from refine.bundle.io import read_bundle, write_bundle
+    from refine.cli.track import track
+    from refine.cli.track_range import RangeOptions
+    from refine.solid.write import diagnose_and_write
+
+    model = ModelSkeleton(law="neo-hookean", E=1.0, nu=nu, noise_std=noise)  # kind "solid" from --range
+    track(frames.images, out / "B", ranges=RangeOptions(frames.ranges, camera, frames.mesh), model=model,
+          validate_fraction=1 / 3, seed=seed, quiet=True)
+    b = read_bundle(out / "B")
+    F = np.zeros((len(frames.forces), 1, 3))
+    F[:, 0, 2] = frames.forces
+    write_bundle(out / "B", replace(b, observations=replace(b.observations, forces=Forces(("back",), F))))
+    return read_bundle(out / "B"), diagnose_and_write(out / "B", out / "out", quiet=True)[1]
+
+
+@pytest.mark.slow  # a 3D solve, rendering, tracking and the 3D diagnosis: minutes on 2 cores
+def test_rendered_cup_holder_through_track_range_and_diagnose(tmp_path):
+    from refine.synthetic.cup import CupGeometry, random_hole
+    from refine.synthetic.cup_views import CupScene, cup_camera, write_cup_frames
+
+    hole = random_hole(CupGeometry(), 2)
+    camera = cup_camera("orthographic", centre_px=(130.2, 120.4))  # the whole bottom in view
+    scene = CupScene(hole=hole, camera=camera, shape=(240, 260), depth_noise=0.02, nu=0.4)
+    frames = write_cup_frames(tmp_path / "frames", scene, forces=(1.0, 2.0, 3.0), h=1.2, seed=2)
+    bundle, rep = track_and_diagnose(frames, camera, tmp_path, noise=0.01, nu=0.4, seed=2)
+    assert bundle.experiment.kind == "solid" and bundle.observations.n_points > 150
+    # benchmarks/diagnose3d.py's e2e row is this case: centre 0.48 % of the diameter, area -3.5 %
+    # (its standard error 8 %), 352 s at load 13
+    assert rep["cause"] == "hole", rep
+    f = rep["findings"][0]
+    assert np.hypot(f["centroid"][0] - hole.cx, f["centroid"][1] - hole.cy) < 0.02 * 22.0, (f, hole)
+    assert f["area"] == pytest.approx(hole.area, rel=0.1), (f, hole)

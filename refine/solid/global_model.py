@@ -22,8 +22,8 @@ import jaxfem as jf
 from refine.bundle.experiment import MeshDomain
 from refine.bundle.io import Bundle, write_bundle
 from refine.bundle.observations import Observations
+from refine.bundle.roles import point_spacing
 from refine.diagnosis.shapes import Hole
-from refine.exceptions import ObservationError
 from refine.solid.cup import CupShape, bottom_points
 from refine.solid.loaded import LoadedModel
 
@@ -62,16 +62,31 @@ def write_global(bundle: Bundle, shape: CupShape, hole: Hole | None, out: str | 
 
 def held_by_fixture(obs: Observations, shape: CupShape, tol: float) -> Observations:
     """The observations with only the ``boundary`` points off the bottom face (those the fixture
-    holds) left as boundary; the bottom's boundary points become ``guide`` points.
-
-    Raises:
-        ObservationError: fewer than 3 such points (nothing holds the global model)."""
+    holds) left as boundary; the bottom's boundary points become ``guide`` points. A bundle seen
+    from below only (no boundary point off the bottom: ``nonrigid track --range`` of the bottom)
+    gets the fixture's hold instead: the rim held still (:func:`rim_fixture`)."""
     on = bottom_points(shape, obs.reference, tol)
     roles = np.where((obs.roles == "boundary") & on, "guide", obs.roles)
     if ((roles == "boundary").sum()) < 3:
-        raise ObservationError("the global model needs at least 3 boundary points off the bottom face (where the "
-                               "fixture holds the cup, e.g. its rim)")
+        return rim_fixture(replace(obs, roles=roles), shape)
     return replace(obs, roles=roles)
+
+
+def rim_fixture(obs: Observations, shape: CupShape) -> Observations:
+    """``obs`` and the fixture's points (``boundary``, no motion in any frame, ids after the
+    largest): three rings on the rim (z = height, mesh frame) at the point spacing of the bottom's
+    points. The fixture holds the rim as the synthetic data's solve does (:mod:`refine.synthetic.cup`)."""
+    s = point_spacing(obs.reference)
+    ring = []
+    for r in shape.r_in + np.array([0.1, 0.5, 0.9]) * (shape.r_out - shape.r_in):
+        t = np.linspace(0, 2 * np.pi, max(12, int(2 * np.pi * r / s)) + 1)[:-1]
+        ring.append(np.c_[r * np.cos(t), r * np.sin(t), np.full(len(t), shape.height)])
+    X = np.vstack(ring) + shape.offset
+    n = len(X)
+    ids = int(obs.ids.max(initial=0)) + 1 + np.arange(n)
+    U = np.zeros((obs.n_frames, n, obs.dim))
+    return Observations(np.r_[obs.ids, ids], np.vstack([obs.reference, X]), np.r_[obs.roles, np.full(n, "boundary")],
+                        np.concatenate([obs.displacements, U], axis=1), forces=obs.forces)
 
 
 def global_check(bundle: Bundle, shape: CupShape, force, meshes: dict, tol: float,
@@ -81,7 +96,7 @@ def global_check(bundle: Bundle, shape: CupShape, force, meshes: dict, tol: floa
     ``validate`` points (all, the bottom's, the wall's) and its seconds."""
     obs = held_by_fixture(bundle.observations, shape, tol)
     on = bottom_points(shape, obs.reference, tol)
-    validate = obs.roles == "validate"
+    validate = obs.roles == "validate"  # the fixture's points are boundary ones
     out = {}
     for name, mesh in meshes.items():
         t0 = time.perf_counter()

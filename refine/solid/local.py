@@ -23,7 +23,7 @@ from refine.bundle.roles import point_spacing
 from refine.diagnosis.fitted import NotApplicable
 from refine.diagnosis.holes import HoleShape, hole_hypothesis
 from refine.model.objective import Compiled
-from refine.model.parametrize import ShapeGeometry
+from refine.model.parametrize import Combined, ShapeGeometry, UniformParameter
 from refine.solid.cup import CupShape
 from refine.solid.loaded import LoadedModel
 from refine.solid.morph import ExtrudedMorph
@@ -93,10 +93,12 @@ class SolidHole(HoleShape):
     (or global, ``local`` a :class:`Whole`) model with the hole cut, its centre, axes and
     orientation fitted through an extruded morph
     (:class:`~refine.solid.morph.ExtrudedMorph`), remeshed at fitted shapes by
-    :func:`refine.diagnosis.fitted.refit`."""
+    :func:`refine.diagnosis.fitted.refit`. ``free_modulus``: a uniform modulus is fitted too (the
+    last unknown; between half and twice the experiment's E)."""
 
     local: Local
     hole: jf.Ellipse
+    free_modulus: bool = False
     remeshable = True
 
     @property
@@ -108,8 +110,16 @@ class SolidHole(HoleShape):
         sp = model.spacing
         param = ShapeGeometry(ExtrudedMorph.of(slab), self.hole.params[None], scale=0.5 * sp, rotate=True,
                               mesh=slab.mesh, outside=self.local.obs.reference[:, :2], min_axis=0.1 * sp)
+        if self.free_modulus:
+            E = float(self.local.experiment.E)
+            param = Combined((param, UniformParameter("E", E, 0.5 * E, 2.0 * E)))
         return Compiled(model, param), None
+
+    def shapes_at(self, compiled: Compiled, z):
+        if self.free_modulus:
+            return super().shapes_at(SimpleNamespace(param=compiled.param.parts[0]), np.asarray(z)[:-1])
+        return super().shapes_at(compiled, z)
 
     def at(self, shapes, element: str = "tet10") -> SolidHole:
         s = shapes[0]
-        return SolidHole(self.local, jf.Ellipse(*s.centre, *s.axes, s.angle))
+        return SolidHole(self.local, jf.Ellipse(*s.centre, *s.axes, s.angle), self.free_modulus)

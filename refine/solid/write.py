@@ -39,3 +39,19 @@ def diagnose_and_write(bundle: Bundle | str | Path, out: str | Path, cfg: SolidC
         log(f"finding: {rep['cause']}" + (f" at {[round(v, 2) for v in f['centroid']]}, area {f['area']:.2f}"
                                          if f else "") + f"; global model in {root}")
     return d, rep
+
+
+def write_paraview(d: SolidDiagnosis, folder: str | Path) -> dict:
+    """ParaView time series of the diagnosis' models (:func:`refine.model.paraview.write_model_series`:
+    nodal displacement, per-cell strain and modulus, one file per frame): ``local_initial`` (the
+    local model without a hole), ``local_refined`` and ``global_refined`` (with the found hole,
+    where one was found). Returns ``{name: .pvd path}``. Each costs a solve of its model's frames."""
+    from refine.model.paraview import write_model_series
+
+    fits = {"local_initial": d.base}
+    if d.found:
+        fits["local_refined"] = d.chosen
+        if d.whole is not None:
+            fits["global_refined"] = d.whole
+    return {name: write_model_series(folder, name, f.model, f.theta, f.model.solve_frames(f.theta))
+            for name, f in fits.items()}

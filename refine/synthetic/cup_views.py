@@ -159,3 +159,30 @@ def crossing_errors(reference: np.ndarray, displacements: np.ndarray, truth: np.
             out["rms_uz"].append(float(np.sqrt(np.mean(du ** 2))))
             out["lost"].append(int((~ok).sum()))
     return out
+
+
+@dataclass(frozen=True)
+class CupFrames:
+    """A rendered compressed cup holder on disk (:func:`write_cup_frames`): intensity and range
+    images (frame 0 the reference), the modeller's mesh (no hole), the total squeeze forces ``(N,)``
+    per deformed frame, and the truth (:func:`painted_crossings`, ``(n_frames + 1, m, 3)`` mm)."""
+
+    images: list
+    ranges: list
+    mesh: object
+    forces: tuple
+    truth: np.ndarray
+
+
+def write_cup_frames(directory, scene: CupScene, forces=(1.0, 2.0, 3.0), h: float = 1.2, h_model: float = 2.0,
+                     seed: int = 0) -> CupFrames:
+    """Solve ``scene`` under ``forces`` on a tet10 mesh of size ``h`` (mm), render every frame
+    (noise from ``seed``) and write the images, range images and the modeller's mesh without the
+    hole at ``h_model`` (``mesh.vtu``) into ``directory``: the input of ``nonrigid track --range``."""
+    from pathlib import Path
+
+    cup, U = compressed_cup(scene, forces, h)
+    images, ranges = write_frames(render_cup(scene, cup, U, seed=seed), directory)
+    mesh = Path(directory) / "mesh.vtu"
+    jf.write_vtu(mesh, jf.cup_holder(scene.r_in, scene.r_out, scene.height, scene.bottom, h_model).mesh)
+    return CupFrames(images, ranges, mesh, tuple(float(f) for f in forces), painted_crossings(scene, cup, U))
