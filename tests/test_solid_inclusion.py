@@ -164,6 +164,19 @@ def test_a_solid_body_without_a_cavity_is_diagnosed_for_an_inclusion(tmp_path, t
         body_model(no_validate, InclusionConfig())
 
 
+def test_the_command_lines_solid_path_sends_a_block_to_the_inclusion_diagnosis(tmp_path, tiny, monkeypatch):
+    from refine.bundle.io import read_bundle, write_bundle
+    from refine.solid import inclusion_diagnosis, write
+
+    (tmp_path / "b").mkdir()
+    jf.write_vtu(tmp_path / "b" / "mesh.vtu", tiny[1])
+    bundle = read_bundle(write_bundle(tmp_path / "b", tiny[0]))
+    calls = []
+    monkeypatch.setattr(inclusion_diagnosis, "diagnose_and_write", lambda b, out, quiet=False: calls.append(out) or ("d", {}))
+    assert write.diagnose_and_write(bundle, tmp_path / "out", quiet=True) == ("d", {})
+    assert calls == [tmp_path / "out"]
+
+
 def diagnosed(tmp_path, cause, seed):
     from refine.bundle.io import read_bundle
     from refine.solid import diagnose_solid, report

@@ -150,7 +150,7 @@ def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) 
     """Diagnose a cup holder's bottom (see the module); a body without a cavity (its mesh fills its
     convex hull: a block) for an ellipsoidal inclusion instead
     (:func:`refine.solid.inclusion_diagnosis.diagnose_inclusion`)."""
-    if _fills_hull(bundle):
+    if without_cavity(bundle):
         return diagnose_inclusion(bundle, log=log)
     t0 = time.perf_counter()
     shape, local, _ = local_recipe(bundle, cfg)
@@ -192,7 +192,7 @@ def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) 
     return SolidDiagnosis(shape, local, base, null, tried, best, chosen, seconds, whole)
 
 
-def _fills_hull(bundle: Bundle) -> bool:
+def without_cavity(bundle: Bundle) -> bool:
     """Whether a solid bundle's mesh file fills its convex hull (no cavity; False where the bundle
     is not a solid one with a mesh: :func:`local_recipe` names what is wrong)."""
     domain, root = bundle.experiment.domain, "" if bundle.root is None else f"{bundle.root}/"

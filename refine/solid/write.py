@@ -7,8 +7,9 @@ import json
 from pathlib import Path
 
 from refine.bundle.io import Bundle, read_bundle
-from refine.solid.diagnose import SolidConfig, SolidDiagnosis, diagnose_solid, report, squeeze_force
+from refine.solid.diagnose import SolidConfig, SolidDiagnosis, without_cavity, diagnose_solid, report, squeeze_force
 from refine.solid.global_model import global_check, global_mesh, write_global
+from refine.solid import inclusion_diagnosis
 
 
 def diagnose_and_write(bundle: Bundle | str | Path, out: str | Path, cfg: SolidConfig = SolidConfig(),
@@ -20,6 +21,8 @@ def diagnose_and_write(bundle: Bundle | str | Path, out: str | Path, cfg: SolidC
     diagnosis and the report."""
     if isinstance(bundle, (str, Path)):
         bundle = read_bundle(bundle)
+    if without_cavity(bundle):  # a body without a cavity: the inclusion diagnosis writes its own report
+        return inclusion_diagnosis.diagnose_and_write(bundle, out, quiet=quiet)
     log = (lambda m: None) if quiet else print
     d = diagnose_solid(bundle, cfg, log=log)
     rep = report(d)
