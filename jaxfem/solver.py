@@ -18,19 +18,19 @@ final loads, so the load path does not enter the derivative.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import partial
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from . import _config  # noqa: F401
-from .assembly import Assembler, make_pattern, matvec
+from . import padding
+from .assembly import make_pattern
 from .exceptions import SolverError
-from .kinematics import reduce
-from .linsolve import make_linear_solver
-from .newton import REASONS, NewtonOptions, external_force, newton_solve
+from .linsolve import HostSolver, make_linear_solver
+from .newton import REASONS, NewtonOptions
 from .problem import LOAD_KEYS, Problem
+from .program import program
 
 
 @dataclass(frozen=True, eq=False)
@@ -60,7 +60,12 @@ class Solution:
 
 
 class Solver:
-    """Nonlinear static solver for one :class:`Problem` (pattern and compilation done once).
+    """Nonlinear static solver for one :class:`Problem` (pattern once; its programs are shared).
+
+    The compiled programs (:mod:`jaxfem.program`) belong to the kind of problem (element, law,
+    kinematics, linear solver kind, options); this solver's mesh arrays are their arguments,
+    padded to bucket sizes (:mod:`jaxfem.padding`), so a second solver of a mesh of about the same
+    size compiles nothing.
 
     Args:
         problem: the problem.
@@ -74,12 +79,11 @@ class Solver:
         self.options = options or NewtonOptions()
         mesh = problem.mesh
         self.pattern = pat = make_pattern(mesh)
-        self.law = reduce(problem.material.energy, problem.kinematics)
-        self.assembler = Assembler(mesh.element, self.law)
         free = problem.free_mask
         keep = free[pat.rows] & free[pat.cols]
         diag_fixed = np.zeros(pat.nnz)
         diag_fixed[pat.diag[~free]] = 1.0
+        # the real sizes, for callers that assemble themselves (series, post-processing)
         self.arrays = {
             "cells": jnp.asarray(mesh.cells, jnp.int32), "edofs": jnp.asarray(pat.edofs),
             "slots": jnp.asarray(pat.slots), "rows": jnp.asarray(pat.rows), "cols": jnp.asarray(pat.cols),
@@ -89,12 +93,16 @@ class Solver:
         }
         self.linear_solver, self._lin = make_linear_solver(linear_solver, pat, mesh.dim)
         self._facet_element = mesh.el.facet
-        self._newton = jax.jit(partial(
-            newton_solve, asm=self.assembler, lin=self._lin, nnz=pat.nnz, opts=self.options,
-            facet_element=self._facet_element, finite=problem.material.finite))
-        self._equilibrium = self._make_equilibrium()
-        # compiled once: an eager jax.grad would otherwise run the implicit rule op by op (~1 s)
-        self._displacement = jax.jit(self._equilibrium)
+        self.program = program(mesh.element, problem.material, problem.kinematics, self._lin, self.options,
+                               self._facet_element)
+        self.law, self.assembler = self.program.asm.law, self.program.asm
+        self.sizes = padding.sizes(mesh.n_cells, mesh.n_nodes, mesh.dim, pat.nnz, len(problem.fixed),
+                                   pad=self._lin.pads)
+        padded = padding.padded_arrays(self.sizes, mesh.cells, pat, problem.fixed, free)
+        padded["tfacets"] = problem.traction_facets.astype(np.int32)
+        if isinstance(self._lin, HostSolver):
+            padded["host"] = np.int32(self._lin.host_id)
+        self.padded_arrays = {k: jnp.asarray(v) for k, v in padded.items()}
 
     # ------------------------------------------------------------------ parameters
     def params(self, **kw) -> dict:
@@ -108,70 +116,28 @@ class Solver:
     # ------------------------------------------------------------------ residual and tangent
     def residual(self, u, theta):
         """Out-of-balance force R_int(u) - f_ext, ``(n_dofs,)`` (on fixed dofs: minus the reactions' opposite)."""
-        p, X, t = self._split(theta)
-        dim = X.shape[1]
-        Rint = self.assembler.residual(u.reshape(-1, dim), X, p, t, self.arrays)
-        return Rint - external_force(theta, theta, self.arrays, self._facet_element, self.problem.n_dofs)
+        return self.program.residual(jnp.asarray(u).reshape(-1), theta, self.arrays)
 
     def tangent_values(self, u, theta):
         """Tangent matrix values on the pattern, ``(nnz,)`` (unconstrained)."""
-        p, X, t = self._split(theta)
-        _, vals, _ = self.assembler.residual_and_tangent(u.reshape(-1, X.shape[1]), X, p, t, self.arrays,
-                                                      self.pattern.nnz)
-        return vals
+        return self.program.tangent_values(jnp.asarray(u).reshape(-1), theta, self.arrays)
 
     def _constrained(self, vals):
-        return vals * self.arrays["keep"] + self.arrays["diag_fixed"]
+        return self.program.constrained(vals, self.arrays)
 
-    # ------------------------------------------------------------------ the equilibrium map
-    def _make_equilibrium(self):
-        """The differentiable map theta -> u: Newton (not differentiated) for the value, the
-        implicit function theorem for every derivative. Newton's last pass evaluated the tangent
-        at the converged state; the derivative solves with it (``tangent_at``: those values, and
-        for higher derivatives the derivative of the tangent, traced only when asked for)."""
-        arrays = self.arrays
+    # ------------------------------------------------------------------ padding
+    def _pad(self, theta, u0, loads0):
+        s = self.sizes
+        theta = padding.pad_theta(theta, s)
+        xp = jnp if isinstance(u0, jax.core.Tracer) else np
+        u0 = xp.pad(xp.asarray(u0, np.float64).reshape(-1), (0, s.n_dofs_p - s.n_dofs))
+        loads0 = padding.pad_theta(loads0, s, tangent=True)
+        return theta, u0, loads0
 
-        @jax.custom_jvp
-        def tangent_at(u, theta, vals):
-            return vals
-
-        @tangent_at.defjvp
-        def tangent_at_jvp(primals, tangents):
-            u, theta, vals = primals
-            du, dtheta, _ = tangents
-            # the primal through the rule again: a derivative of this one (a third derivative of
-            # u) must see the tangent matrix move too, not the constant values Newton left
-            return tangent_at(u, theta, vals), jax.jvp(self.tangent_values, (u, theta), (du, dtheta))[1]
-
-        @jax.custom_jvp
-        def implicit(theta, u, vals):
-            return u
-
-        @implicit.defjvp
-        def implicit_jvp(primals, tangents):
-            theta, u, vals = primals
-            dtheta = tangents[0]
-            u = implicit(theta, u, vals)  # the nested derivatives of u come through this rule again
-            free, fixed = arrays["free"], arrays["fixed"]
-
-            def free_residual(th):
-                uu = u.at[fixed].set(th["u_D"], unique_indices=True)  # prescribed values enter through the constrained dofs
-                return self.residual(uu, th) * free
-
-            _, dG = jax.jvp(free_residual, (theta,), (dtheta,))
-            du_D = dtheta["u_D"]
-            rhs = -dG + jnp.zeros_like(u).at[fixed].set(du_D, unique_indices=True)
-            M = self._constrained(tangent_at(u, theta, vals))
-            mv = lambda x: matvec(M, arrays["rows"], arrays["cols"], x)  # noqa: E731
-            du = jax.lax.custom_linear_solve(mv, rhs, lambda _, b: self._lin(jax.lax.stop_gradient(M), b, arrays),
-                                             symmetric=True)
-            return u, du
-
-        def equilibrium(theta, u0, loads0):
-            u, _, vals = self._newton(jax.lax.stop_gradient(theta), u0, loads0, arrays)
-            return implicit(theta, u, vals)
-
-        return equilibrium
+    def _unpad(self, u):
+        if isinstance(u, jax.core.Tracer):
+            return u[..., : self.sizes.n_dofs]
+        return jnp.asarray(np.asarray(u)[..., : self.sizes.n_dofs])  # no device op to compile per size
 
     def _start(self, theta, start):
         n = self.problem.n_dofs
@@ -192,12 +158,14 @@ class Solver:
         """
         u0, loads0 = self._start(theta, start)
         u0, loads0 = jax.lax.stop_gradient((u0, loads0))
-        return self._displacement(theta, u0, loads0).reshape(-1, self.problem.mesh.dim)
+        theta, u0, loads0 = self._pad(theta, u0, loads0)
+        u = self.program.displacement(theta, u0, loads0, self.padded_arrays)
+        return self._unpad(u).reshape(-1, self.problem.mesh.dim)
 
     def solve(self, theta, start=None) -> Solution:
         """Solve and return a :class:`Solution`; raise :class:`SolverError` if Newton fails."""
-        u0, loads0 = self._start(theta, start)
-        u, info, _ = self._newton(theta, u0, loads0, self.arrays)
+        u, info, _ = self._solve_padded(theta, start)
+        u = self._unpad(u)
         info = jax.device_get(info)  # one transfer for all counters
         status = int(info["status"])
         if status != 0:
@@ -216,6 +184,31 @@ class Solver:
                 step=step, load_factor=s, reason=REASONS[status])
         return Solution(u.reshape(-1, self.problem.mesh.dim), theta, {k: np.asarray(v) for k, v in info.items()},
                         self)
+
+    def _solve_padded(self, theta, start):
+        u0, loads0 = self._start(theta, start)
+        return self.program.newton(*self._pad(theta, u0, loads0), self.padded_arrays)
+
+    def solve_with_tangents(self, theta, directions, start=None):
+        """The equilibrium and its derivatives along ``k`` parameter directions, by the implicit
+        function theorem at the converged state (one factorisation, one back-substitution per
+        direction); no error is raised (NaN where the solve failed: :meth:`solve` says why).
+
+        Args:
+            theta: parameter pytree (:meth:`params`).
+            directions: a pytree like ``theta`` with a leading axis ``k`` (zeros where a parameter
+                does not move).
+            start: as in :meth:`displacement`.
+        Returns:
+            ``(u (n_nodes, dim), du (k, n_nodes, dim), info)``.
+        """
+        dim = self.problem.mesh.dim
+        u, info, vals = self._solve_padded(theta, start)
+        th = padding.pad_theta(theta, self.sizes)
+        dirs = padding.pad_theta(directions, self.sizes, tangent=True, axis=1)
+        du = self.program.tangents(th, u, vals, dirs, self.padded_arrays)
+        k = jax.tree.leaves(directions)[0].shape[0]
+        return self._unpad(u).reshape(-1, dim), self._unpad(du).reshape(k, -1, dim), info
 
     def reactions(self, u, theta, nodes=None):
         """Reaction forces: the total force ``(dim,)`` that the constraints exert on ``nodes``

@@ -12,6 +12,7 @@ class KLU(LinearSolver):
     name = "klu"
     rank = 2
     requires = "klujax"
+    pads = False  # klujax refuses repeated entries
 
     def __call__(self, values, rhs, arrays):
         import klujax

@@ -112,32 +112,66 @@ class Objective:
 
 
 class Compiled:
-    """A model and parametrisation with its prediction and Jacobian compiled once, together, for
-    all points: fits on different point sets (fit, held-out, all guide points) and scoring then
-    reuse the same compiled code. ``evaluate(z) -> (prediction, jacobian)`` with shapes
+    """A model and parametrisation whose prediction and Jacobian are computed together, for all
+    points: fits on different point sets (fit, held-out, all guide points) and scoring then
+    reuse the same evaluation. ``evaluate(z) -> (prediction, jacobian)`` with shapes
     ``(frames, points, dim)`` and ``(frames, points, dim, k)`` (forward mode: one tangent solve
     per unknown and frame at the converged state, next to the forward solve); ``predict`` and
     ``jacobian`` are its halves.
 
-    One program, not two: compiling the prediction apart from its Jacobian costs about as much
-    again, while the tangent solves add little to a solve (one back-substitution per unknown)."""
+    The solves run on the solver's shared programs (:mod:`jaxfem.program`: Newton, then the
+    tangents along the k parameter directions), which every model of about the same mesh size,
+    element and law reuses: a hypothesis remeshed at its fitted shapes compiles no solve again.
+    What is compiled per instance is small: the parametrisation and its Jacobian
+    (``theta(z)``, ``dtheta/dz``), and per model the points' interpolation and its derivative."""
 
     def __init__(self, model: MeasuredModel, param, theta=None):
         self.model, self.param = model, param
         self.theta = model.params() if theta is None else theta
-        def f(z):  # the prediction twice, traced once: (f(z), f(z)) put two forward solves in the program
-            y = model.predict(param.apply(self.theta, z))
-            return y, y
 
-        self._evaluate = jax.jit(jax.jacfwd(f, has_aux=True))
+        def apply(z):
+            th = param.apply(self.theta, z)
+            return th, jax.jacfwd(param.apply, argnums=1)(self.theta, z)
+
+        self._apply = jax.jit(apply)
+        if not model.shares_programs:  # a model that solves its frames its own way: one program per model
+            def f(z):
+                y = model.predict(param.apply(self.theta, z))
+                return y, y
+
+            self._evaluate = jax.jit(jax.jacfwd(f, has_aux=True))
         self._last = None
+
+    def _solve(self, z):
+        """``(U, dU)``: nodal displacements ``(frames, n_nodes, dim)`` and their derivatives
+        ``(k, frames, n_nodes, dim)`` at ``z``, frame after frame from the one before; and ``theta``,
+        ``dX (k, n_nodes, dim)``."""
+        model = self.model
+        theta, T = self._apply(jnp.asarray(z))
+        k = int(np.size(z))
+        dirs = {key: jnp.moveaxis(v, -1, 0) for key, v in T.items()}
+        dirs["u_D"] = np.zeros((k, len(model.problem.fixed)))  # the drive does not depend on z
+        B, start = model.measured_boundary(), model.frame_starts(theta)
+        U, dU = [], []
+        for f in range(model.obs.n_frames):
+            u_D = model.drives[f].matrix @ B[f]
+            u, du, _ = model.solver.solve_with_tangents({**theta, "u_D": u_D}, dirs, start=start)
+            start = (np.asarray(u).reshape(-1), {**start[1], "u_D": u_D})
+            U.append(u)
+            dU.append(du)
+        return jnp.stack(U), jnp.stack(dU, 1), theta, dirs["X"]
 
     def evaluate(self, z) -> tuple[Float[np.ndarray, "frames n_points dim"],
                                    Float[np.ndarray, "frames n_points dim k"]]:
         z = np.asarray(z, float)
         if self._last is None or not np.array_equal(self._last[0], z):
-            J, pred = self._evaluate(jnp.asarray(z))
-            self._last = (z.copy(), np.asarray(pred), np.asarray(J))
+            if self.model.shares_programs:
+                U, dU, theta, dX = self._solve(z)
+                pred, J = self.model.points_jvp(U, dU, theta["X"], dX)
+                self._last = (z.copy(), np.asarray(pred), np.moveaxis(np.asarray(J), 0, -1))
+            else:
+                J, pred = self._evaluate(jnp.asarray(z))
+                self._last = (z.copy(), np.asarray(pred), np.asarray(J))
         return self._last[1], self._last[2]
 
     def predict(self, z) -> Float[np.ndarray, "frames n_points dim"]:

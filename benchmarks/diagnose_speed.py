@@ -1,0 +1,108 @@
+"""Where a diagnosis's seconds go: one benchmarks/diagnose.py case diagnosed in this process, with
+the number of XLA compilations and their CPU-side seconds (``jax.monitoring``), the process's CPU
+and wall seconds, the load average and the result (cause, centroid, ratio or area errors).
+
+    python benchmarks/diagnose_speed.py --case 5/0.02/stiffer-region/0 --label after
+    python benchmarks/diagnose_speed.py --case 5/0.02/hole/0 --cache /tmp/jaxcache --label cache-warm
+
+Each run appends one row to ``--rows`` (default results/diagnose_speed_rows.jsonl) and rewrites
+``--out`` (results/diagnose_speed.json) from all rows, with a ``targets`` section (issue 22 item 2:
+a ~300-point bundle in under 48 s wall). See benchmarks/README.md, "diagnose_speed.py".
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+OUT = HERE / "results"
+TARGET_WALL_S = 48.0
+
+
+def _cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def _commit() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, capture_output=True,
+                              text=True).stdout.strip()
+    except OSError:
+        return "?"
+
+
+def run(case_key: str, label: str, cache: str | None, workers: int) -> dict:
+    """Diagnose one case (``SPACING/NOISE/CAUSE/K``) and return its row."""
+    import jax
+
+    compiles = {"n": 0, "seconds": 0.0}
+
+    def listen(event, duration, **kw):
+        if event.endswith("backend_compile_duration"):
+            compiles["n"] += 1
+            compiles["seconds"] += duration
+
+    jax.monitoring.register_event_duration_secs_listener(listen)
+    if cache:
+        from jaxfem import compilation_cache
+
+        compilation_cache(cache)
+    from diagnose import CAUSES, score
+    from _diagnose_oracle import _case_bundle
+    from refine.diagnosis import DiagnoseConfig, diagnose
+
+    spacing, noise, cause, k = case_key.split("/")
+    seed = 1000 * int(float(spacing)) + 100 * CAUSES.index(cause) + int(k)
+    case = {"spacing": float(spacing), "noise": float(noise), "cause": cause, "k": int(k), "seed": seed, "frames": 4}
+    truth, bundle = _case_bundle(case)
+    load0 = os.getloadavg()[0]
+    c0, w0 = _cpu(), time.perf_counter()
+    d = diagnose(bundle, config=DiagnoseConfig(workers=workers), log=lambda m: None)
+    cpu, wall = _cpu() - c0, time.perf_counter() - w0
+    s = score(truth, d)
+    return {"label": label, "code": _commit(), "case": case_key, "points": int(bundle.observations.n_points),
+            "workers": workers, "cache": bool(cache), "wall": round(wall, 1), "cpu": round(cpu, 1),
+            "compiles": compiles["n"], "compile_seconds": round(compiles["seconds"], 1),
+            "load": [round(load0, 2), round(os.getloadavg()[0], 2)], "found": s["found"], "passed": s["passed"],
+            "centroid": s["centroid_error"], "ratio": s["ratio_error"], "area": s["area_error"], "gain": s["gain"],
+            "chosen": d.chosen.describe()}
+
+
+def write(rows: list[dict], out: Path) -> dict:
+    after = [r for r in rows if r["label"] != "before"]
+    best = min((r["wall"] for r in after), default=None)
+    result = {"benchmark": "diagnose speed (issue 22 item 2)", "rows": rows,
+              "targets": {"300-point bundle under 48 s wall": {
+                  "target_s": TARGET_WALL_S, "best_wall_s": best,
+                  "pass": best is not None and best < TARGET_WALL_S}}}
+    out.write_text(json.dumps(result, indent=1))
+    return result
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--case", default="5/0.02/stiffer-region/0", help="SPACING/NOISE/CAUSE/K of benchmarks/diagnose.py")
+    p.add_argument("--label", default="after", help="what code this row measures (e.g. before, after)")
+    p.add_argument("--cache", default=None, help="JAX persistent compilation cache folder (jaxfem.compilation_cache)")
+    p.add_argument("--workers", type=int, default=2, help="DiagnoseConfig.workers (the command line's default: 2)")
+    p.add_argument("--rows", type=Path, default=OUT / "diagnose_speed_rows.jsonl")
+    p.add_argument("--out", type=Path, default=OUT / "diagnose_speed.json")
+    a = p.parse_args()
+    row = run(a.case, a.label, a.cache, a.workers)
+    print(json.dumps(row))
+    with open(a.rows, "a") as fh:
+        fh.write(json.dumps(row) + "\n")
+    write([json.loads(line) for line in a.rows.read_text().splitlines() if line.strip()], a.out)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,148 @@
+"""The compiled programs of the solve, shared by every :class:`~jaxfem.solver.Solver` of one kind.
+
+A program is made for what the solve's code depends on: the element, the material law under its
+kinematics, the linear solver's kind and the Newton options. The mesh (coordinates through the
+parameters, connectivity, sparsity pattern, constraints) comes as arguments, padded to a few
+bucket sizes (:mod:`jaxfem.padding`), so the models of one diagnosis (its hypotheses, remeshes and
+fits) compile each program once per bucket instead of once per mesh (5-10 CPU s each, whatever
+the mesh size, when the mesh arrays were constants of the program).
+
+Each program's pieces are pure functions of ``(theta, ..., arrays)``:
+
+- :attr:`Program.newton`: Newton with load stepping (:func:`jaxfem.newton.newton_solve`);
+- :attr:`Program.displacement`: the differentiable equilibrium ``theta -> u``: Newton for the
+  value, the implicit function theorem for every derivative (a ``custom_jvp`` whose tangent is one
+  linear solve with the tangent matrix at u*, through ``lax.custom_linear_solve`` so that JAX can
+  transpose it: forward mode costs one solve per direction, reverse mode one adjoint solve);
+- :attr:`Program.tangents`: the same tangents for a batch of parameter directions at a converged
+  state, for a caller that solved already (a Jacobian by forward mode, one back-substitution per
+  direction after one factorisation).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache, partial
+
+import jax
+import jax.numpy as jnp
+
+from .assembly import Assembler, matvec
+from .kinematics import reduce
+from .newton import NewtonOptions, external_force, newton_solve
+
+#: parameters that are not per-cell material values
+NOT_MATERIAL = ("X", "thickness", "u_D", "f", "traction")
+
+
+@lru_cache(maxsize=None)
+def reduced_law(material, kinematics: str):
+    """The material's energy under ``kinematics`` (one object per pair, so programs can be shared)."""
+    return reduce(material.energy, kinematics)
+
+
+def split(theta):
+    """``(per-cell material parameters, X, thickness)`` of a parameter pytree."""
+    return {k: theta[k] for k in theta if k not in NOT_MATERIAL}, theta["X"], theta["thickness"]
+
+
+class Program:
+    """The jitted pieces of the solve for one element, law, kinematics, linear solver kind and
+    Newton options (see the module doc); made by :func:`program`, never directly."""
+
+    def __init__(self, asm: Assembler, lin, opts: NewtonOptions, facet_element: str, finite: bool):
+        self.asm, self.lin, self.facet_element = asm, lin, facet_element
+        self._newton = partial(newton_solve, asm=asm, lin=lin, opts=opts, facet_element=facet_element,
+                               finite=finite)
+        self.newton = jax.jit(self._newton)
+        self._implicit = self._make_implicit()
+        self.displacement = jax.jit(self._equilibrium)
+        self.tangents = jax.jit(self._tangents)
+
+    # ------------------------------------------------------------------ residual and tangent
+    def residual(self, u, theta, arrays):
+        """Out-of-balance force R_int(u) - f_ext, ``(n_dofs,)``."""
+        p, X, t = split(theta)
+        dim = X.shape[1]
+        Rint = self.asm.residual(u.reshape(-1, dim), X, p, t, arrays)
+        return Rint - external_force(theta, theta, arrays, self.facet_element, u.size)
+
+    def tangent_values(self, u, theta, arrays):
+        """Tangent matrix values on the pattern, ``(nnz,)`` (unconstrained)."""
+        p, X, t = split(theta)
+        return self.asm.residual_and_tangent(u.reshape(-1, X.shape[1]), X, p, t, arrays)[1]
+
+    @staticmethod
+    def constrained(vals, arrays):
+        """The matrix with Dirichlet (and padding) rows and columns replaced by the identity."""
+        return vals * arrays["keep"] + arrays["diag_fixed"]
+
+    # ------------------------------------------------------------------ the equilibrium map
+    def _make_implicit(self):
+        """``implicit(theta, u, vals, arrays) -> u`` whose derivative is the implicit function
+        theorem's. Newton's last pass evaluated the tangent at the converged state; the derivative
+        solves with it (``tangent_at``: those values, and for higher derivatives the derivative of
+        the tangent, traced only when asked for)."""
+
+        @jax.custom_jvp
+        def tangent_at(u, theta, vals, arrays):
+            return vals
+
+        @tangent_at.defjvp
+        def tangent_at_jvp(primals, tangents):
+            u, theta, vals, arrays = primals
+            du, dtheta = tangents[:2]
+            # the primal through the rule again: a derivative of this one (a third derivative of
+            # u) must see the tangent matrix move too, not the constant values Newton left
+            dvals = jax.jvp(lambda uu, th: self.tangent_values(uu, th, arrays), (u, theta), (du, dtheta))[1]
+            return tangent_at(u, theta, vals, arrays), dvals
+
+        @jax.custom_jvp
+        def implicit(theta, u, vals, arrays):
+            return u
+
+        @implicit.defjvp
+        def implicit_jvp(primals, tangents):
+            theta, u, vals, arrays = primals
+            dtheta = tangents[0]
+            u = implicit(theta, u, vals, arrays)  # the nested derivatives of u come through this rule again
+            M = self.constrained(tangent_at(u, theta, vals, arrays), arrays)
+            return u, self._solve_tangent(theta, u, M, dtheta, arrays)
+
+        return implicit
+
+    def _solve_tangent(self, theta, u, M, dtheta, arrays):
+        """du with K du = -dG/dtheta dtheta on the free dofs and du = du_D on the prescribed ones."""
+        free, fixed = arrays["free"], arrays["fixed"]
+
+        def free_residual(th):
+            uu = u.at[fixed].set(th["u_D"], unique_indices=True)  # prescribed values enter through the constrained dofs
+            return self.residual(uu, th, arrays) * free
+
+        _, dG = jax.jvp(free_residual, (theta,), (dtheta,))
+        rhs = -dG + jnp.zeros_like(u).at[fixed].set(dtheta["u_D"], unique_indices=True)
+        mv = lambda x: matvec(M, arrays["rows"], arrays["cols"], x)  # noqa: E731
+        return jax.lax.custom_linear_solve(mv, rhs, lambda _, b: self.lin(jax.lax.stop_gradient(M), b, arrays),
+                                           symmetric=True)
+
+    def _equilibrium(self, theta, u0, loads0, arrays):
+        u, _, vals = self._newton(jax.lax.stop_gradient(theta), u0, loads0, arrays)
+        return self._implicit(theta, u, vals, arrays)
+
+    def _tangents(self, theta, u, vals, dthetas, arrays):
+        """``(k, n_dofs)``: du for each of the ``k`` directions ``dthetas`` (a pytree like
+        ``theta`` with a leading axis k) at the converged ``u`` with tangent values ``vals``."""
+        M = self.constrained(vals, arrays)
+        return jax.vmap(lambda d: self._solve_tangent(theta, u, M, d, arrays))(dthetas)
+
+
+_PROGRAMS: dict = {}
+
+
+def program(element: str, material, kinematics: str, lin, opts: NewtonOptions, facet_element: str) -> Program:
+    """The shared :class:`Program` for this element, law, kinematics, linear solver kind
+    (:meth:`~jaxfem.linsolve.LinearSolver.program_key`) and options; made on first use."""
+    key = (element, material, kinematics, lin.program_key(), opts, facet_element)
+    if key not in _PROGRAMS:
+        law = reduced_law(material, kinematics)
+        _PROGRAMS[key] = Program(Assembler(element, law), lin, opts, facet_element, material.finite)
+    return _PROGRAMS[key]
