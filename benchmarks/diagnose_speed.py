@@ -25,6 +25,9 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 OUT = HERE / "results"
 TARGET_WALL_S = 48.0
+#: a compilation longer than this (wall seconds) counts as a program (the solve's programs take
+#: 2-10 s each; an array operation run eagerly compiles in milliseconds)
+LARGE_COMPILE_S = 1.0
 
 
 def _cpu() -> float:
@@ -35,7 +38,7 @@ def _cpu() -> float:
 def _commit() -> str:
     try:
         return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, capture_output=True,
-                              text=True).stdout.strip()
+                              text=True).stdout.strip() or "?"
     except OSError:
         return "?"
 
@@ -44,12 +47,15 @@ def run(case_key: str, label: str, cache: str | None, workers: int) -> dict:
     """Diagnose one case (``SPACING/NOISE/CAUSE/K``) and return its row."""
     import jax
 
-    compiles = {"n": 0, "seconds": 0.0}
+    compiles = {"n": 0, "seconds": 0.0, "large": 0, "large_seconds": 0.0}
 
     def listen(event, duration, **kw):
         if event.endswith("backend_compile_duration"):
             compiles["n"] += 1
             compiles["seconds"] += duration
+            if duration > LARGE_COMPILE_S:
+                compiles["large"] += 1
+                compiles["large_seconds"] += duration
 
     jax.monitoring.register_event_duration_secs_listener(listen)
     if cache:
@@ -72,6 +78,7 @@ def run(case_key: str, label: str, cache: str | None, workers: int) -> dict:
     return {"label": label, "code": _commit(), "case": case_key, "points": int(bundle.observations.n_points),
             "workers": workers, "cache": bool(cache), "wall": round(wall, 1), "cpu": round(cpu, 1),
             "compiles": compiles["n"], "compile_seconds": round(compiles["seconds"], 1),
+            "large_compiles": compiles["large"], "large_compile_seconds": round(compiles["large_seconds"], 1),
             "load": [round(load0, 2), round(os.getloadavg()[0], 2)], "found": s["found"], "passed": s["passed"],
             "centroid": s["centroid_error"], "ratio": s["ratio_error"], "area": s["area_error"], "gain": s["gain"],
             "chosen": d.chosen.describe()}

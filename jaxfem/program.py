@@ -144,5 +144,5 @@ def program(element: str, material, kinematics: str, lin, opts: NewtonOptions, f
     key = (element, material, kinematics, lin.program_key(), opts, facet_element)
     if key not in _PROGRAMS:
         law = reduced_law(material, kinematics)
-        _PROGRAMS[key] = Program(Assembler(element, law), lin, opts, facet_element, material.finite)
+        _PROGRAMS[key] = Program(Assembler(element, law), lin.shared(), opts, facet_element, material.finite)
     return _PROGRAMS[key]

@@ -1,6 +1,9 @@
 """The solver: one jitted nonlinear solve per problem, differentiable through its equilibrium.
 
-``Solver(problem)`` computes the sparsity pattern once and compiles once. Then
+``Solver(problem)`` computes the sparsity pattern once; its compiled programs are those of every
+problem of its kind (:mod:`jaxfem.program`), its mesh arrays their arguments, padded to bucket
+sizes (:mod:`jaxfem.padding`), so a solver of another mesh of about the same size compiles
+nothing. Then
 
 - :meth:`Solver.solve` runs Newton with load stepping and returns a :class:`Solution`, raising
   :class:`~jaxfem.exceptions.SolverError` (with the failing load step and the reason) on failure;
@@ -31,6 +34,10 @@ from .linsolve import HostSolver, make_linear_solver
 from .newton import REASONS, NewtonOptions
 from .problem import LOAD_KEYS, Problem
 from .program import program
+
+
+def _traced(tree) -> bool:
+    return any(isinstance(x, jax.core.Tracer) for x in jax.tree.leaves(tree))
 
 
 @dataclass(frozen=True, eq=False)
@@ -135,9 +142,12 @@ class Solver:
         return theta, u0, loads0
 
     def _unpad(self, u):
+        """The real dofs of padded displacements ``(..., n_dofs_p)`` as ``(..., n_nodes, dim)``."""
+        dim = self.problem.mesh.dim
         if isinstance(u, jax.core.Tracer):
-            return u[..., : self.sizes.n_dofs]
-        return jnp.asarray(np.asarray(u)[..., : self.sizes.n_dofs])  # no device op to compile per size
+            return u[..., : self.sizes.n_dofs].reshape(u.shape[:-1] + (-1, dim))
+        u = np.asarray(u)  # no device operation to compile per mesh size
+        return jax.device_put(u[..., : self.sizes.n_dofs].reshape(u.shape[:-1] + (-1, dim)))
 
     def _start(self, theta, start):
         n = self.problem.n_dofs
@@ -145,6 +155,8 @@ class Solver:
             zeros = {k: np.zeros(np.shape(theta[k])) for k in LOAD_KEYS}
             return np.zeros(n), zeros
         u0, loads0 = start
+        if not _traced(start):  # host arrays: no device operation to compile per mesh size
+            return np.asarray(u0, np.float64).reshape(n), {k: np.asarray(loads0[k], np.float64) for k in LOAD_KEYS}
         return jnp.asarray(u0).reshape(n), {k: jnp.asarray(loads0[k]) for k in LOAD_KEYS}
 
     def displacement(self, theta, start=None):
@@ -157,10 +169,10 @@ class Solver:
         Returns NaN where the solve failed (use :meth:`solve` for the error message).
         """
         u0, loads0 = self._start(theta, start)
-        u0, loads0 = jax.lax.stop_gradient((u0, loads0))
+        if _traced((u0, loads0)):
+            u0, loads0 = jax.lax.stop_gradient((u0, loads0))
         theta, u0, loads0 = self._pad(theta, u0, loads0)
-        u = self.program.displacement(theta, u0, loads0, self.padded_arrays)
-        return self._unpad(u).reshape(-1, self.problem.mesh.dim)
+        return self._unpad(self.program.displacement(theta, u0, loads0, self.padded_arrays))
 
     def solve(self, theta, start=None) -> Solution:
         """Solve and return a :class:`Solution`; raise :class:`SolverError` if Newton fails."""
@@ -182,7 +194,7 @@ class Solver:
                 f"{int(info['cutbacks'])} cutbacks): {why}. Try smaller load increments "
                 "(NewtonOptions.initial_step), more iterations, or check the boundary data.",
                 step=step, load_factor=s, reason=REASONS[status])
-        return Solution(u.reshape(-1, self.problem.mesh.dim), theta, {k: np.asarray(v) for k, v in info.items()},
+        return Solution(u, theta, {k: np.asarray(v) for k, v in info.items()},
                         self)
 
     def _solve_padded(self, theta, start):
@@ -202,13 +214,11 @@ class Solver:
         Returns:
             ``(u (n_nodes, dim), du (k, n_nodes, dim), info)``.
         """
-        dim = self.problem.mesh.dim
         u, info, vals = self._solve_padded(theta, start)
         th = padding.pad_theta(theta, self.sizes)
         dirs = padding.pad_theta(directions, self.sizes, tangent=True, axis=1)
         du = self.program.tangents(th, u, vals, dirs, self.padded_arrays)
-        k = jax.tree.leaves(directions)[0].shape[0]
-        return self._unpad(u).reshape(-1, dim), self._unpad(du).reshape(k, -1, dim), info
+        return self._unpad(u), self._unpad(du), info
 
     def reactions(self, u, theta, nodes=None):
         """Reaction forces: the total force ``(dim,)`` that the constraints exert on ``nodes``

@@ -52,6 +52,11 @@ class LinearSolver(ABC):
         with equal keys share programs (their matrices and patterns come as arguments)."""
         return (type(self),)
 
+    def shared(self):
+        """What a shared program calls, ``(values, rhs, arrays) -> x``: nothing of one pattern may
+        be kept in it (the program outlives this solver); by default the solver itself."""
+        return self
+
     @classmethod
     def installed(cls) -> bool:
         """Whether this solver works on this machine."""
@@ -84,8 +89,18 @@ class HostSolver(LinearSolver):
     def __call__(self, values, rhs, arrays):
         out = jax.ShapeDtypeStruct(rhs.shape, rhs.dtype)
         if "host" in arrays:  # a shared program: which solver is an argument, not part of the program
-            return jax.pure_callback(_host_solve, out, arrays["host"], values, rhs, vmap_method="sequential")
+            return host_call(values, rhs, arrays)
         return jax.pure_callback(self._cache, out, values, rhs, vmap_method="sequential")
+
+
+    def shared(self):
+        return host_call
+
+
+def host_call(values, rhs, arrays):
+    """A host solver's solve in a shared program: the solver is ``arrays["host"]``."""
+    out = jax.ShapeDtypeStruct(rhs.shape, rhs.dtype)
+    return jax.pure_callback(_host_solve, out, arrays["host"], values, rhs, vmap_method="sequential")
 
 
 #: the host solvers alive, by ``host_id`` (a shared program names its solver by this argument)

@@ -1,0 +1,136 @@
+"""One compiled program per bucket: solvers and models of different meshes of about the same size
+reuse the solve's programs (jaxfem.program, jaxfem.padding), with the same results as a solve at
+the real sizes. Small sheets (about 120 cells), their loads drawn under a seed."""
+
+import jax
+import numpy as np
+
+import jaxfem as jf
+from jaxfem import padding
+from refine.bundle.experiment import Experiment, RectangleDomain
+from refine.bundle.observations import Observations
+from refine.diagnosis.regions import region_model
+from refine.model.measured import MeasuredModel
+
+
+class Compiles:
+    """Counts XLA compilations while active."""
+
+    def __init__(self):
+        self.n, self.on = 0, False
+        jax.monitoring.register_event_duration_secs_listener(self._listen)
+
+    def _listen(self, event, duration, **kw):
+        if self.on and event.endswith("backend_compile_duration"):
+            self.n += 1
+
+    def __enter__(self):
+        self.n, self.on = 0, True
+        return self
+
+    def __exit__(self, *exc):
+        self.on = False
+
+
+COMPILES = Compiles()
+
+
+def _sheet(nx, ny, rng, linear_solver="superlu"):
+    mesh = jf.rectangle(0, 0, 100, 60, nx, ny)
+    fixed = np.concatenate([jf.dofs(mesh, mesh.side("left")), jf.dofs(mesh, mesh.side("right"))])
+    problem = jf.Problem(mesh, "neo-hookean", "plane-stress", fixed=fixed)
+    stretch, shear = rng.uniform(5, 15), rng.uniform(-3, 3)
+    pull = problem.prescribe(lambda X: np.where(X[:, :1] > 50, [stretch, shear], 0.0))
+    E = rng.uniform(50, 100, mesh.n_cells)  # a random modulus per cell
+    return jf.Solver(problem, linear_solver), problem.params(E=E, nu=0.3, thickness=1.0, u_D=pull)
+
+
+def test_two_meshes_of_one_bucket_share_the_solve_and_match_the_real_sizes():
+    rng = np.random.default_rng(7)
+    a, theta_a = _sheet(10, 6, rng)
+    b, theta_b = _sheet(9, 7, rng)
+    assert a.problem.mesh.n_cells != b.problem.mesh.n_cells and a.sizes != b.sizes
+    assert (a.sizes.n_cells_p, a.sizes.n_nodes_p, a.sizes.nnz_p, a.sizes.n_fixed_p) == \
+        (b.sizes.n_cells_p, b.sizes.n_nodes_p, b.sizes.nnz_p, b.sizes.n_fixed_p)
+    assert a.program is b.program
+    u_a = a.solve(theta_a).u
+    with COMPILES as c:
+        sol = b.solve(theta_b)
+    assert c.n == 0, f"the second mesh of the bucket compiled {c.n} programs"
+    assert a.program.newton._cache_size() == 1
+    # the padded solve is the solve at the real sizes (the dense solver on an unpadded system)
+    for solver, theta, u in ((a, theta_a, u_a), (b, theta_b, sol.u)):
+        ref = jf.Solver(solver.problem, "dense")
+        s = solver.sizes
+        ref.sizes = padding.sizes(s.n_cells, s.n_nodes, s.dim, s.nnz, s.n_fixed, pad=False)
+        ref.padded_arrays = {**ref.padded_arrays, **_unpadded(ref)}
+        want = ref.solve(theta).u
+        np.testing.assert_allclose(u, want, atol=1e-9 * np.abs(want).max())
+    # tangents along random directions: those of the differentiable map (implicit function theorem)
+    d = {k: np.zeros((2,) + np.shape(v)) for k, v in theta_b.items()}
+    d["E"] = rng.normal(0, 5.0, d["E"].shape)
+    d["X"][:, :, 1] = rng.normal(0, 0.1, d["X"].shape[:2]) * (b.problem.free_mask.reshape(-1, 2)[:, 1])
+    _, du, _ = b.solve_with_tangents(theta_b, d)
+    jvp = jax.jit(lambda th, dd: jax.jvp(b.displacement, (th,), (dd,))[1])
+    for i in range(2):
+        jv = jvp(theta_b, {k: v[i] for k, v in d.items()})
+        np.testing.assert_allclose(du[i], jv, atol=1e-8 * np.abs(jv).max())
+        assert np.abs(jv).max() > 1e-6
+
+
+def _unpadded(solver):
+    """The solver's arrays at its real sizes (no padding cells, dofs or entries)."""
+    p = solver.problem
+    arr = padding.padded_arrays(solver.sizes, p.mesh.cells, solver.pattern, p.fixed, p.free_mask)
+    return {k: jax.numpy.asarray(v) for k, v in arr.items()}
+
+
+def test_bucket_sizes():
+    assert [padding.bucket(n) for n in (1, 16, 17, 20, 21, 128, 129)] == [16, 16, 20, 20, 23, 128, 153]
+    for n in np.random.default_rng(3).integers(17, 10**6, 50):
+        b = padding.bucket(int(n))
+        assert n <= b < 1.19 * n + 1
+
+
+def _sheet_bundle(rng):
+    """A 40 x 30 mm sheet tracked on a 5 mm grid (edge points drive it), stretched and sheared."""
+    X, Y = np.meshgrid(np.arange(0.0, 40.1, 5.0), np.arange(0.0, 30.1, 5.0))
+    pts = np.stack([X.ravel(), Y.ravel()], 1)
+    edge = (pts[:, 0] == 0) | (pts[:, 0] == 40) | (pts[:, 1] == 0) | (pts[:, 1] == 30)
+    a = rng.uniform(0.005, 0.02, 2)
+    u = np.stack([a[0] * pts[:, 0], a[1] * pts[:, 1]], 1)
+    disp = np.stack([0.5 * u, u]) + rng.normal(0, 0.002, (2, *pts.shape))
+    ex = Experiment("pulled", "plane-stress", RectangleDomain(0.0, 0.0, 40.0, 30.0), "neo-hookean", 1.0, 0.3,
+                    noise_std=0.002)
+    return ex, Observations(np.arange(len(pts)), pts, np.where(edge, "boundary", "guide"), disp)
+
+
+def test_two_region_hypotheses_of_one_bucket_compile_one_solve():
+    """Two region models (meshes that follow different ellipses) of one bucket: the second one's
+    prediction and Jacobian compile no solve of its own, and equal those of the whole chain
+    differentiated in one program (the former Compiled)."""
+    from refine.model.objective import Compiled
+
+    rng = np.random.default_rng(11)
+    ex, obs = _sheet_bundle(rng)
+    base = MeasuredModel(ex, obs, h=4.0)
+    c = rng.uniform([15, 12], [25, 18])
+    models = [region_model(base, [jf.Ellipse(c[0] + dx, c[1], a, 4.0, 0.3)], 2.5) for dx, a in ((0.0, 5.0), (1.3, 6.0))]
+    (m1, p1), (m2, p2) = models
+    assert m1.mesh.n_cells != m2.mesh.n_cells, (m1.mesh.n_cells, m2.mesh.n_cells)
+    assert m1.solver.program is m2.solver.program
+    z = np.array([np.log(2.0), 0.1, -0.05, 0.05, 0.02, 0.0])
+    Compiled(m1, p1).evaluate(z)
+    prog = m1.solver.program
+    assert prog.newton._cache_size() == 1 and prog.tangents._cache_size() == 1
+    second = Compiled(m2, p2)
+    pred, J = second.evaluate(z)
+    assert prog.newton._cache_size() == 1 and prog.tangents._cache_size() == 1, "the second mesh recompiled"
+
+    def f(zz):
+        y = m2.predict(p2.apply(m2.params(), zz))
+        return y, y
+
+    J_ref, pred_ref = jax.jit(jax.jacfwd(f, has_aux=True))(z)
+    np.testing.assert_allclose(pred, pred_ref, atol=1e-10 * np.abs(pred_ref).max())
+    np.testing.assert_allclose(J, J_ref, atol=1e-7 * np.abs(J_ref).max())
