@@ -153,3 +153,16 @@ def pad_theta(theta: dict, s: Sizes, tangent: bool = False, axis: int = 0) -> di
         else:
             out[k] = v
     return out
+
+
+def unpad_theta(theta: dict, s: Sizes) -> dict:
+    """The real entries of a padded parameter pytree (or of its cotangent)."""
+    n = {"X": s.n_nodes, "u_D": s.n_fixed, "f": s.n_dofs}
+    out = {}
+    for k, v in theta.items():
+        v = np.asarray(v)
+        if k == "traction":
+            out[k] = v
+        else:
+            out[k] = v[: n.get(k, s.n_cells)]
+    return out

@@ -91,13 +91,12 @@ class Solver:
         diag_fixed = np.zeros(pat.nnz)
         diag_fixed[pat.diag[~free]] = 1.0
         # the real sizes, for callers that assemble themselves (series, post-processing)
-        self.arrays = {
-            "cells": jnp.asarray(mesh.cells, jnp.int32), "edofs": jnp.asarray(pat.edofs),
-            "slots": jnp.asarray(pat.slots), "rows": jnp.asarray(pat.rows), "cols": jnp.asarray(pat.cols),
-            "diag": jnp.asarray(pat.diag), "fixed": jnp.asarray(problem.fixed, jnp.int32),
-            "free": jnp.asarray(free, jnp.float64), "keep": jnp.asarray(keep, jnp.float64),
-            "diag_fixed": jnp.asarray(diag_fixed), "tfacets": jnp.asarray(problem.traction_facets, jnp.int32),
-        }
+        # (device_put, not jnp.asarray: that compiles a small program per array shape)
+        self.arrays = jax.device_put({
+            "cells": mesh.cells.astype(np.int32), "edofs": pat.edofs, "slots": pat.slots, "rows": pat.rows,
+            "cols": pat.cols, "diag": pat.diag, "fixed": problem.fixed.astype(np.int32),
+            "free": free.astype(np.float64), "keep": keep.astype(np.float64), "diag_fixed": diag_fixed,
+            "tfacets": problem.traction_facets.astype(np.int32)})
         self.linear_solver, self._lin = make_linear_solver(linear_solver, pat, mesh.dim)
         self._facet_element = mesh.el.facet
         self.program = program(mesh.element, problem.material, problem.kinematics, self._lin, self.options,
@@ -109,7 +108,7 @@ class Solver:
         padded["tfacets"] = problem.traction_facets.astype(np.int32)
         if isinstance(self._lin, HostSolver):
             padded["host"] = np.int32(self._lin.host_id)
-        self.padded_arrays = {k: jnp.asarray(v) for k, v in padded.items()}
+        self.padded_arrays = jax.device_put(padded)
 
     # ------------------------------------------------------------------ parameters
     def params(self, **kw) -> dict:
@@ -169,8 +168,9 @@ class Solver:
         Returns NaN where the solve failed (use :meth:`solve` for the error message).
         """
         u0, loads0 = self._start(theta, start)
-        if _traced((u0, loads0)):
-            u0, loads0 = jax.lax.stop_gradient((u0, loads0))
+        if not _traced((theta, u0, loads0)):  # nothing to differentiate: Newton's program alone
+            return self._unpad(self.program.newton(*self._pad(theta, u0, loads0), self.padded_arrays)[0])
+        u0, loads0 = jax.lax.stop_gradient((u0, loads0))
         theta, u0, loads0 = self._pad(theta, u0, loads0)
         return self._unpad(self.program.displacement(theta, u0, loads0, self.padded_arrays))
 
@@ -219,6 +219,23 @@ class Solver:
         dirs = padding.pad_theta(directions, self.sizes, tangent=True, axis=1)
         du = self.program.tangents(th, u, vals, dirs, self.padded_arrays)
         return self._unpad(u), self._unpad(du), info
+
+    def solve_for_adjoint(self, theta, start=None):
+        """The equilibrium ``u (n_nodes, dim)`` (NaN where the solve failed; no error raised) and
+        what :meth:`adjoint` needs to differentiate a function of it (the converged state)."""
+        theta_p, u0, loads0 = self._pad(theta, *self._start(theta, start))
+        u, _, vals = self.program.newton(theta_p, u0, loads0, self.padded_arrays)
+        return self._unpad(u), (theta_p, u, vals)
+
+    def adjoint(self, state, g) -> dict:
+        """The gradient with respect to the parameters (a pytree like ``theta``) of a function of
+        the equilibrium whose gradient with respect to ``u`` is ``g (n_nodes, dim)``: one adjoint
+        solve (the implicit function theorem's transpose) at the ``state`` of
+        :meth:`solve_for_adjoint`."""
+        theta_p, u, vals = state
+        s = self.sizes
+        g = np.pad(np.asarray(g, np.float64).reshape(-1), (0, s.n_dofs_p - s.n_dofs))
+        return padding.unpad_theta(self.program.adjoint(theta_p, u, vals, g, self.padded_arrays), s)
 
     def reactions(self, u, theta, nodes=None):
         """Reaction forces: the total force ``(dim,)`` that the constraints exert on ``nodes``

@@ -4,6 +4,7 @@ the real sizes. Small sheets (about 120 cells), their loads drawn under a seed."
 
 import jax
 import numpy as np
+import pytest
 
 import jaxfem as jf
 from jaxfem import padding
@@ -105,32 +106,87 @@ def _sheet_bundle(rng):
     return ex, Observations(np.arange(len(pts)), pts, np.where(edge, "boundary", "guide"), disp)
 
 
-def test_two_region_hypotheses_of_one_bucket_compile_one_solve():
-    """Two region models (meshes that follow different ellipses) of one bucket: the second one's
-    prediction and Jacobian compile no solve of its own, and equal those of the whole chain
-    differentiated in one program (the former Compiled)."""
-    from refine.model.objective import Compiled
-
-    rng = np.random.default_rng(11)
+def _region_models(rng):
     ex, obs = _sheet_bundle(rng)
     base = MeasuredModel(ex, obs, h=4.0)
     c = rng.uniform([15, 12], [25, 18])
-    models = [region_model(base, [jf.Ellipse(c[0] + dx, c[1], a, 4.0, 0.3)], 2.5) for dx, a in ((0.0, 5.0), (1.3, 6.0))]
-    (m1, p1), (m2, p2) = models
+    shapes = ((0.0, 5.0), (1.3, 6.0))
+    return [region_model(base, [jf.Ellipse(c[0] + dx, c[1], a, 4.0, 0.3)], 2.5) for dx, a in shapes]
+
+
+Z = np.array([np.log(2.0), 0.1, -0.05, 0.05, 0.02, 0.0])  # log ratio, then the ellipse's changes
+
+
+def test_two_region_hypotheses_of_one_bucket_compile_one_solve():
+    """Two region models (meshes that follow different ellipses) of one bucket: the second one's
+    prediction and Jacobian compile no solve of its own; the Jacobian is the prediction's
+    derivative (central differences along a random direction)."""
+    from refine.model.objective import Compiled
+
+    rng = np.random.default_rng(11)
+    (m1, p1), (m2, p2) = _region_models(rng)
     assert m1.mesh.n_cells != m2.mesh.n_cells, (m1.mesh.n_cells, m2.mesh.n_cells)
     assert m1.solver.program is m2.solver.program
-    z = np.array([np.log(2.0), 0.1, -0.05, 0.05, 0.02, 0.0])
-    Compiled(m1, p1).evaluate(z)
+    Compiled(m1, p1).evaluate(Z)
     prog = m1.solver.program
     assert prog.newton._cache_size() == 1 and prog.tangents._cache_size() == 1
     second = Compiled(m2, p2)
-    pred, J = second.evaluate(z)
+    pred, J = second.evaluate(Z)
     assert prog.newton._cache_size() == 1 and prog.tangents._cache_size() == 1, "the second mesh recompiled"
+    d, eps = rng.normal(size=Z.size), 1e-5
+    fd = (second.predict(Z + eps * d) - second.predict(Z - eps * d)) / (2 * eps)
+    np.testing.assert_allclose(J @ d, fd, atol=1e-5 * np.abs(fd).max())
+
+
+@pytest.mark.slow
+def test_shared_programs_equal_the_whole_chain_in_one_program():
+    """Compiled's prediction and Jacobian, a field's misfit gradient and the drive Jacobian on the
+    shared programs equal the whole chain differentiated by JAX in one program (as before)."""
+    from refine.model.objective import Compiled, Objective
+    from refine.model.parametrize import ModulusField
+
+    rng = np.random.default_rng(11)
+    _, (m2, p2) = _region_models(rng)
+    pred, J = Compiled(m2, p2).evaluate(Z)
 
     def f(zz):
         y = m2.predict(p2.apply(m2.params(), zz))
         return y, y
 
-    J_ref, pred_ref = jax.jit(jax.jacfwd(f, has_aux=True))(z)
+    J_ref, pred_ref = jax.jit(jax.jacfwd(f, has_aux=True))(Z)
     np.testing.assert_allclose(pred, pred_ref, atol=1e-10 * np.abs(pred_ref).max())
     np.testing.assert_allclose(J, J_ref, atol=1e-7 * np.abs(J_ref).max())
+    model = m2
+    objective = Objective(model, ModulusField(model.mesh, model.experiment.E, weight=1e-3))
+    z = rng.normal(0, 0.3, objective.param.size)
+    value, grad = objective.value_and_grad(z)
+    want_value, want_grad = jax.jit(jax.value_and_grad(objective.value))(z)
+    assert float(value) == pytest.approx(float(want_value), rel=1e-9)
+    np.testing.assert_allclose(grad, want_grad, atol=1e-7 * np.abs(want_grad).max())
+    theta = model.params()
+    got = model.boundary_jacobian(theta)
+    want = jax.jit(jax.jacfwd(lambda b: model.predict(theta, boundary=b)))(model.measured_boundary())
+    np.testing.assert_allclose(got, want, atol=1e-9 * np.abs(want).max())
+
+
+def test_field_gradient_and_drive_jacobian_on_the_shared_programs():
+    """A modulus field's misfit gradient (the adjoint on the shared programs) and the prediction's
+    derivatives in the driving boundary displacements, against central differences along random
+    directions."""
+    from refine.model.objective import Objective
+    from refine.model.parametrize import ModulusField
+
+    rng = np.random.default_rng(5)
+    ex, obs = _sheet_bundle(rng)
+    model = MeasuredModel(ex, obs, h=6.0)
+    objective = Objective(model, ModulusField(model.mesh, ex.E, weight=1e-3))
+    z = rng.normal(0, 0.3, objective.param.size)
+    value, grad = objective.value_and_grad(z)
+    d, eps = rng.normal(size=z.size), 1e-5
+    fd = (objective.value_and_grad(z + eps * d)[0] - objective.value_and_grad(z - eps * d)[0]) / (2 * eps)
+    assert float(np.dot(grad, d)) == pytest.approx(float(fd), rel=1e-5)
+    theta, B = model.params(), model.measured_boundary()
+    got = model.boundary_jacobian(theta)
+    dB = rng.normal(size=B.shape)
+    fd = (np.asarray(model.predict(theta, boundary=B + eps * dB)) - np.asarray(model.predict(theta, boundary=B - eps * dB))) / (2 * eps)
+    np.testing.assert_allclose(np.einsum("fpdgm,gm->fpd", got, dB), fd, atol=1e-5 * np.abs(fd).max())

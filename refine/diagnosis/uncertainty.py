@@ -103,13 +103,10 @@ def drive_sensitivity(fitted, points: Bool[np.ndarray, "n_points"], sigma: float
     flattened frame by frame) move by ``dB``, to first order, for a fit on ``points`` weighted
     by ``sigma`` (length unit). ``dr/dB`` by forward-mode derivatives of the prediction; NaN
     where ``J^T J`` is singular."""
-    import jax
-
     model = fitted.compiled.model
     res = Residuals.at(model.obs.displacements, points, sigma)
     J = res.jacobian(np.asarray(fitted.compiled.jacobian(fitted.z)))
-    theta = fitted.theta
-    dB = np.asarray(jax.jit(jax.jacfwd(lambda b: model.predict(theta, boundary=b)))(model.measured_boundary()))
+    dB = model.boundary_jacobian(fitted.theta)
     JB = res.jacobian(dB.reshape(dB.shape[:3] + (-1,)))  # (n, frames * n_boundary * dim)
     try:
         return np.linalg.solve(J.T @ J, J.T @ JB)

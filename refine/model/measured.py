@@ -270,6 +270,34 @@ class MeasuredModel:
         """Predicted displacements of every tracked point, ``(n_frames, n_points, dim)``."""
         return self.at_points(self.solve_frames(theta, frames, boundary), theta)
 
+    def boundary_jacobian(self, theta) -> np.ndarray:
+        """Derivatives of the prediction ``(n_frames, n_points, dim)`` with respect to the measured
+        boundary displacements ``(n_frames, n_boundary * dim)`` (:meth:`measured_boundary`), as
+        ``(n_frames, n_points, dim, n_frames, n_boundary * dim)``: zero between different frames
+        (each frame's equilibrium depends on its own drive only). On the solver's shared programs
+        (one tangent solve per boundary value and frame) where :attr:`shares_programs`; else by
+        forward mode through the model's own solve."""
+        B = self.measured_boundary()
+        if not self.shares_programs:
+            return np.asarray(jax.jit(jax.jacfwd(lambda b: self.predict(theta, boundary=b)))(B))
+        n_f, m = B.shape
+        zero = {k: np.zeros((m,) + np.shape(v)) for k, v in theta.items() if k != "u_D"}
+        start, U, dU = self.frame_starts(theta), [], []
+        for f in range(n_f):
+            D = self.drives[f].matrix  # (n_fixed, m): u_D = D @ B[f], so the directions are its columns
+            u_D = D @ B[f]
+            u, du, _ = self.solver.solve_with_tangents({**theta, "u_D": u_D}, {**zero, "u_D": D.T}, start=start)
+            start = (np.asarray(u).reshape(-1), {**start[1], "u_D": u_D})
+            U.append(u)
+            dU.append(du)
+        U, dU = jnp.stack(U), jnp.stack(dU, 1)  # (m, frames, n_nodes, dim)
+        _, dP = self.points_jvp(U, dU, theta["X"], jnp.zeros((m,) + np.shape(theta["X"])))
+        dP = np.moveaxis(np.asarray(dP), 0, -1)  # (frames, points, dim, m)
+        out = np.zeros(dP.shape[:3] + (n_f, m))
+        for f in range(n_f):
+            out[f, :, :, f] = dP[f]
+        return out
+
     @cached_property
     def points_jvp(self):
         """``(U, dU, X, dX) -> (at points, its derivatives)``, compiled once per model: the

@@ -101,8 +101,47 @@ class Objective:
 
     @cached_property
     def value_and_grad(self):
-        """``z -> (value, gradient)``, compiled (the gradient by one adjoint solve per frame)."""
+        """``z -> (value, gradient)`` (the gradient by one adjoint solve per frame): on the
+        solver's shared programs (:mod:`jaxfem.program`) where the model solves its frames as
+        :class:`~refine.model.MeasuredModel` does and the misfit is this class's, else one program
+        compiled per objective."""
+        if self.model.shares_programs and type(self).value is Objective.value \
+                and type(self).residuals is Objective.residuals:
+            return self._shared_value_and_grad
         return jax.jit(jax.value_and_grad(self.value))
+
+    @cached_property
+    def _pieces(self):
+        """The compiled pieces of :meth:`_shared_value_and_grad` that belong to this objective
+        (small: no solve in them): the parametrisation with its pullback, and the misfit of the
+        nodal displacements with its gradient in them and in the reference nodes."""
+        def misfit(U, X, z):
+            r = self.residuals_of(self.model.at_points(U, {"X": X}))
+            return 0.5 * jnp.sum(r * r) + self.param.regularization(z)
+
+        apply = jax.jit(lambda z: jax.vjp(lambda zz: self.param.apply(self.theta, zz), z))
+        return apply, jax.jit(jax.value_and_grad(misfit, argnums=(0, 1, 2)))
+
+    def _shared_value_and_grad(self, z):
+        apply, misfit = self._pieces
+        z = jnp.asarray(z)
+        theta, pullback = apply(z)
+        model, B = self.model, self.model.measured_boundary()
+        start, U, states = model.frame_starts(theta), [], []
+        for f in range(model.obs.n_frames):
+            u_D = model.drives[f].matrix @ B[f]
+            u, state = model.solver.solve_for_adjoint({**theta, "u_D": u_D}, start=start)
+            start = (np.asarray(u).reshape(-1), {**start[1], "u_D": u_D})
+            U.append(u)
+            states.append(state)
+        value, (gU, gX, gz) = misfit(jnp.stack(U), theta["X"], z)
+        g_theta = {k: np.zeros(np.shape(v)) for k, v in theta.items()}
+        g_theta["X"] = np.asarray(gX, float).copy()
+        for f, state in enumerate(states):
+            for k, v in model.solver.adjoint(state, gU[f]).items():
+                g_theta[k] = g_theta[k] + v
+        g_theta["u_D"] = np.zeros(np.shape(theta["u_D"]))  # the drive does not depend on z
+        return value, pullback(jax.tree.map(jnp.asarray, g_theta))[0] + gz
 
     def paper_error(self, z) -> float:
         """The paper's eq. (1): sum of distances between predicted and measured positions."""
