@@ -70,6 +70,7 @@ def run(case_key: str, label: str, cache: str | None, workers: int) -> dict:
     seed = 1000 * int(float(spacing)) + 100 * CAUSES.index(cause) + int(k)
     case = {"spacing": float(spacing), "noise": float(noise), "cause": cause, "k": int(k), "seed": seed, "frames": 4}
     truth, bundle = _case_bundle(case)
+    compiles.update(n=0, seconds=0.0, large=0, large_seconds=0.0)  # the diagnosis's, not the bundle's
     load0 = os.getloadavg()[0]
     c0, w0 = _cpu(), time.perf_counter()
     d = diagnose(bundle, config=DiagnoseConfig(workers=workers), log=lambda m: None)

@@ -166,3 +166,14 @@ def unpad_theta(theta: dict, s: Sizes) -> dict:
         else:
             out[k] = v[: n.get(k, s.n_cells)]
     return out
+
+
+#: directions are solved in batches of this many (one program for any number of them)
+BATCH = 8
+
+
+def pad_batch(tree, k: int, batch: int = BATCH):
+    """A pytree of ``k`` directions (leading axis) padded with zeros to a multiple of ``batch``
+    (host numpy)."""
+    n = -(-k // batch) * batch
+    return jax.tree.map(lambda v: np.pad(np.asarray(v, np.float64), [(0, n - k)] + [(0, 0)] * (np.ndim(v) - 1)), tree)

@@ -216,9 +216,11 @@ class Solver:
         """
         u, info, vals = self._solve_padded(theta, start)
         th = padding.pad_theta(theta, self.sizes)
-        dirs = padding.pad_theta(directions, self.sizes, tangent=True, axis=1)
-        du = self.program.tangents(th, u, vals, dirs, self.padded_arrays)
-        return self._unpad(u), self._unpad(du), info
+        k = np.shape(jax.tree.leaves(directions)[0])[0]
+        dirs = padding.pad_theta(padding.pad_batch(directions, k), self.sizes, tangent=True, axis=1)
+        du = [self.program.tangents(th, u, vals, jax.tree.map(lambda v: v[i: i + padding.BATCH], dirs),
+                                    self.padded_arrays) for i in range(0, k, padding.BATCH)]
+        return self._unpad(u), self._unpad(np.concatenate(du)[:k]), info
 
     def solve_for_adjoint(self, theta, start=None):
         """The equilibrium ``u (n_nodes, dim)`` (NaN where the solve failed; no error raised) and

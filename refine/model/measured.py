@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxfem as jf
+from jaxfem.padding import BATCH, pad_batch
 
 from refine.exceptions import ObservationError
 from refine.bundle.experiment import Experiment, FromPointsDomain, MeshDomain, RectangleDomain
@@ -290,13 +291,23 @@ class MeasuredModel:
             start = (np.asarray(u).reshape(-1), {**start[1], "u_D": u_D})
             U.append(u)
             dU.append(du)
-        U, dU = jnp.stack(U), jnp.stack(dU, 1)  # (m, frames, n_nodes, dim)
-        _, dP = self.points_jvp(U, dU, theta["X"], jnp.zeros((m,) + np.shape(theta["X"])))
-        dP = np.moveaxis(np.asarray(dP), 0, -1)  # (frames, points, dim, m)
+        dU = np.stack(dU, 1)  # (m, frames, n_nodes, dim)
+        _, dP = self.at_points_and_derivatives(np.stack(U), dU, theta["X"], np.zeros((m,) + np.shape(theta["X"])))
+        dP = np.moveaxis(dP, 0, -1)  # (frames, points, dim, m)
         out = np.zeros(dP.shape[:3] + (n_f, m))
         for f in range(n_f):
             out[f, :, :, f] = dP[f]
         return out
+
+    def at_points_and_derivatives(self, U, dU, X, dX):
+        """:meth:`at_points` of ``U (n_frames, n_nodes, dim)`` and its derivatives along ``k``
+        directions ``dU (k, n_frames, n_nodes, dim)``, ``dX (k, n_nodes, dim)`` (host numpy),
+        ``(n_frames, n_points, dim)`` and ``(k, n_frames, n_points, dim)``; by :attr:`points_jvp`
+        in batches of ``jaxfem.padding.BATCH`` directions (one program for any k)."""
+        k = len(dU)
+        dU, dX = pad_batch(dU, k), pad_batch(dX, k)
+        out = [self.points_jvp(U, dU[i: i + BATCH], X, dX[i: i + BATCH]) for i in range(0, len(dU), BATCH)]
+        return np.asarray(out[0][0]), np.concatenate([np.asarray(d) for _, d in out])[:k]
 
     @cached_property
     def points_jvp(self):

@@ -124,7 +124,7 @@ class Objective:
 
     def _shared_value_and_grad(self, z):
         apply, misfit = self._pieces
-        z = jnp.asarray(z)
+        z = np.asarray(z, float)
         theta, pullback = apply(z)
         model, B = self.model, self.model.measured_boundary()
         start, U, states = model.frame_starts(theta), [], []
@@ -134,7 +134,7 @@ class Objective:
             start = (np.asarray(u).reshape(-1), {**start[1], "u_D": u_D})
             U.append(u)
             states.append(state)
-        value, (gU, gX, gz) = misfit(jnp.stack(U), theta["X"], z)
+        value, (gU, gX, gz) = misfit(np.stack(U), theta["X"], z)
         g_theta = {k: np.zeros(np.shape(v)) for k, v in theta.items()}
         g_theta["X"] = np.asarray(gX, float).copy()
         for f, state in enumerate(states):
@@ -186,9 +186,9 @@ class Compiled:
         ``(k, frames, n_nodes, dim)`` at ``z``, frame after frame from the one before; and ``theta``,
         ``dX (k, n_nodes, dim)``."""
         model = self.model
-        theta, T = self._apply(jnp.asarray(z))
+        theta, T = self._apply(np.asarray(z, float))
         k = int(np.size(z))
-        dirs = {key: jnp.moveaxis(v, -1, 0) for key, v in T.items()}
+        dirs = {key: np.moveaxis(np.asarray(v), -1, 0) for key, v in T.items()}
         dirs["u_D"] = np.zeros((k, len(model.problem.fixed)))  # the drive does not depend on z
         B, start = model.measured_boundary(), model.frame_starts(theta)
         U, dU = [], []
@@ -198,7 +198,7 @@ class Compiled:
             start = (np.asarray(u).reshape(-1), {**start[1], "u_D": u_D})
             U.append(u)
             dU.append(du)
-        return jnp.stack(U), jnp.stack(dU, 1), theta, dirs["X"]
+        return np.stack(U), np.stack(dU, 1), theta, np.asarray(dirs["X"])
 
     def evaluate(self, z) -> tuple[Float[np.ndarray, "frames n_points dim"],
                                    Float[np.ndarray, "frames n_points dim k"]]:
@@ -206,8 +206,8 @@ class Compiled:
         if self._last is None or not np.array_equal(self._last[0], z):
             if self.model.shares_programs:
                 U, dU, theta, dX = self._solve(z)
-                pred, J = self.model.points_jvp(U, dU, theta["X"], dX)
-                self._last = (z.copy(), np.asarray(pred), np.moveaxis(np.asarray(J), 0, -1))
+                pred, J = self.model.at_points_and_derivatives(U, dU, theta["X"], dX)
+                self._last = (z.copy(), pred, np.moveaxis(J, 0, -1))
             else:
                 J, pred = self._evaluate(jnp.asarray(z))
                 self._last = (z.copy(), np.asarray(pred), np.asarray(J))
