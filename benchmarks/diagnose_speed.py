@@ -43,7 +43,7 @@ def _commit() -> str:
         return "?"
 
 
-def run(case_key: str, label: str, cache: str | None, workers: int) -> dict:
+def run(case_key: str, label: str, cache: str | None, workers: int, linear_solver: str = "auto") -> dict:
     """Diagnose one case (``SPACING/NOISE/CAUSE/K``) and return its row."""
     import jax
 
@@ -73,11 +73,11 @@ def run(case_key: str, label: str, cache: str | None, workers: int) -> dict:
     compiles.update(n=0, seconds=0.0, large=0, large_seconds=0.0)  # the diagnosis's, not the bundle's
     load0 = os.getloadavg()[0]
     c0, w0 = _cpu(), time.perf_counter()
-    d = diagnose(bundle, config=DiagnoseConfig(workers=workers), log=lambda m: None)
+    d = diagnose(bundle, config=DiagnoseConfig(workers=workers, linear_solver=linear_solver), log=lambda m: None)
     cpu, wall = _cpu() - c0, time.perf_counter() - w0
     s = score(truth, d)
     return {"label": label, "code": _commit(), "case": case_key, "points": int(bundle.observations.n_points),
-            "workers": workers, "cache": bool(cache), "wall": round(wall, 1), "cpu": round(cpu, 1),
+            "workers": workers, "linear_solver": linear_solver, "cache": bool(cache), "wall": round(wall, 1), "cpu": round(cpu, 1),
             "compiles": compiles["n"], "compile_seconds": round(compiles["seconds"], 1),
             "large_compiles": compiles["large"], "large_compile_seconds": round(compiles["large_seconds"], 1),
             "load": [round(load0, 2), round(os.getloadavg()[0], 2)], "found": s["found"], "passed": s["passed"],
@@ -102,10 +102,11 @@ def main():
     p.add_argument("--label", default="after", help="what code this row measures (e.g. before, after)")
     p.add_argument("--cache", default=None, help="JAX persistent compilation cache folder (jaxfem.compilation_cache)")
     p.add_argument("--workers", type=int, default=2, help="DiagnoseConfig.workers (the command line's default: 2)")
+    p.add_argument("--linear-solver", default="auto", help="DiagnoseConfig.linear_solver")
     p.add_argument("--rows", type=Path, default=OUT / "diagnose_speed_rows.jsonl")
     p.add_argument("--out", type=Path, default=OUT / "diagnose_speed.json")
     a = p.parse_args()
-    row = run(a.case, a.label, a.cache, a.workers)
+    row = run(a.case, a.label, a.cache, a.workers, a.linear_solver)
     print(json.dumps(row))
     with open(a.rows, "a") as fh:
         fh.write(json.dumps(row) + "\n")

@@ -14,8 +14,8 @@ What the padding adds does nothing:
   rows and columns of the matrix are the identity (a diagonal entry each, added to the pattern
   after its real entries), so their displacement stays zero;
 - padding prescribed dofs are distinct padding dofs held at zero;
-- padding matrix entries repeat the last padding dof's diagonal with the value zero (a solver
-  that needs unique entries, KLU, is not padded: see ``LinearSolver.pads``).
+- padding matrix entries are zeros between padding dofs, each at a place of its own (KLU refuses
+  repeated entries), in a block that no real dof touches.
 
 The real entries come first in every padded array, so slicing recovers them.
 """
@@ -80,7 +80,12 @@ def sizes(n_cells: int, n_nodes: int, dim: int, nnz: int, n_fixed: int, pad: boo
     n_fixed_p = bucket(n_fixed)
     extra_nodes = -(-(n_fixed_p - n_fixed) // dim) + 1
     n_nodes_p = bucket(n_nodes + extra_nodes)
-    nnz_p = bucket(nnz + (n_nodes_p - n_nodes) * dim)
+    while True:  # enough padding dofs for the padding entries to have places of their own
+        pad = (n_nodes_p - n_nodes) * dim
+        nnz_p = bucket(nnz + pad)
+        if pad * (pad - 1) >= nnz_p - nnz - pad:
+            break
+        n_nodes_p = bucket(n_nodes_p + 1)
     return Sizes(n_cells, n_nodes, dim, nnz, n_fixed, bucket(n_cells), n_nodes_p, nnz_p, n_fixed_p)
 
 
@@ -97,9 +102,12 @@ def padded_arrays(s: Sizes, cells: np.ndarray, pattern: Pattern, fixed: np.ndarr
     n, n_p, nnz, nnz_p = s.n_dofs, s.n_dofs_p, s.nnz, s.nnz_p
     pad_dofs = np.arange(n, n_p)
     extra = nnz_p - nnz - len(pad_dofs)
-    rows = np.concatenate([pattern.rows, pad_dofs, np.full(extra, n_p - 1)]).astype(np.int32)
-    cols = rows.copy()
-    cols[:nnz] = pattern.cols
+    i, j = np.triu_indices(len(pad_dofs), 1)
+    half = -(-extra // 2)
+    fill_r = np.stack([i[:half], j[:half]], 1).ravel()[:extra] + n  # (i, j) then (j, i): a pattern of its own
+    fill_c = np.stack([j[:half], i[:half]], 1).ravel()[:extra] + n
+    rows = np.concatenate([pattern.rows, pad_dofs, fill_r]).astype(np.int32)
+    cols = np.concatenate([pattern.cols, pad_dofs, fill_c]).astype(np.int32)
     diag = np.concatenate([pattern.diag, nnz + np.arange(len(pad_dofs))]).astype(np.int32)
     free_p = np.zeros(n_p, bool)
     free_p[:n] = free

@@ -40,8 +40,8 @@ class LinearSolver(ABC):
     name: ClassVar[str]
     rank: ClassVar[int] = 100
     requires: ClassVar[str | None] = None
-    #: whether it takes a padded matrix (:mod:`jaxfem.padding`: repeated zero entries on a
-    #: padding dof's diagonal); KLU needs unique entries and is given the real sizes
+    #: whether it takes a padded matrix (:mod:`jaxfem.padding`: an identity block of padding dofs
+    #: with structural zeros); a solver that cannot is given the real sizes
     pads: ClassVar[bool] = True
 
     def __init__(self, pattern: Pattern):

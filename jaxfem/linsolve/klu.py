@@ -12,7 +12,6 @@ class KLU(LinearSolver):
     name = "klu"
     rank = 2
     requires = "klujax"
-    pads = False  # klujax refuses repeated entries
 
     def __call__(self, values, rhs, arrays):
         import klujax
