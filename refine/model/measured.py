@@ -208,7 +208,7 @@ class MeasuredModel:
         """
         B = self.measured_boundary() if boundary is None else boundary
         if self.shares_programs and not _traced(theta, B):  # frame by frame on the solver's shared program
-            return jnp.asarray(self._solve_eager(theta, np.asarray(B), frames))
+            return jax.device_put(self._solve_eager(theta, np.asarray(B), frames))
         B = jnp.asarray(B)
         if frames is None:
             return self._solve_all(theta, B)
