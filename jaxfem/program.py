@@ -21,6 +21,7 @@ Each program's pieces are pure functions of ``(theta, ..., arrays)``:
 
 from __future__ import annotations
 
+import threading
 from functools import lru_cache, partial
 
 import jax
@@ -51,6 +52,10 @@ class Program:
 
     def __init__(self, asm: Assembler, lin, opts: NewtonOptions, facet_element: str, finite: bool):
         self.asm, self.lin, self.facet_element = asm, lin, facet_element
+        # one call of a shared executable at a time, waited for with the GIL released: a thread
+        # that waits inside XLA for a busy executable holds the GIL, which the running one's host
+        # solver callback needs (a diagnosis's two workers hung so, all threads waiting)
+        self.lock = threading.Lock()
         self._newton = partial(newton_solve, asm=asm, lin=lin, opts=opts, facet_element=facet_element,
                                finite=finite)
         self.newton = jax.jit(self._newton)
