@@ -73,20 +73,25 @@ def make_pattern(mesh: Mesh) -> Pattern:
 
 
 # ====================================================================== element kinematics
-def shape_gradients(X, cells, el: Element):
+def shape_gradients(X, cells, el: Element, mask=None):
     """Reference-configuration shape gradients and integration weights.
 
     Args:
         X: nodal reference coordinates ``(n_nodes, dim)`` (differentiable).
         cells: ``(n_cells, n_per_cell)``.
+        mask: optional ``(n_cells,)``, 1 for a cell and 0 for a padding cell (:mod:`jaxfem.padding`),
+            whose reference Jacobian is taken as the identity and whose volume as zero.
     Returns:
         ``dNdX (n_cells, n_qp, n_per_cell, dim)`` and ``dV (n_cells, n_qp)``: quadrature weight
         times Jacobian determinant (reference area or volume per point).
     """
     Xe = X[cells]
     J0 = jnp.einsum("cki,qkj->cqij", Xe, el.dN)
+    if mask is not None:
+        J0 = jnp.where(mask[:, None, None, None] > 0, J0, jnp.eye(J0.shape[-1]))
     dNdX = jnp.einsum("qkj,cqji->cqki", el.dN, inv(J0))
-    return dNdX, det(J0) * el.weights
+    dV = det(J0) * el.weights
+    return dNdX, dV if mask is None else dV * mask[:, None]
 
 
 def deformation_gradients(u, cells, dNdX):
@@ -169,8 +174,8 @@ class Assembler:
         F = deformation_gradients(u, cells, dNdX)
         return jnp.sum(_per_qp(self.law.energy, F, p) * dV * t[:, None])
 
-    def _forces(self, u, X, p, t, cells, state=None):
-        dNdX, dV = shape_gradients(X, cells, self.el)
+    def _forces(self, u, X, p, t, cells, state=None, mask=None):
+        dNdX, dV = shape_gradients(X, cells, self.el, mask)
         F = deformation_gradients(u, cells, dNdX)
         P, state = _per_qp_state(self.law.stress_state, F, p, state)
         return jnp.einsum("cqiK,cqaK,cq->cai", P, dNdX, dV * t[:, None]).reshape(len(cells), -1), F, state
@@ -181,7 +186,7 @@ class Assembler:
 
     def residual(self, u, X, p, t, arrays):
         """Internal force vector, ``(n_dofs,)``."""
-        Re = self.element_residuals(u, X, p, t, arrays["cells"])
+        Re = self._forces(u, X, p, t, arrays["cells"], mask=arrays.get("cell_mask"))[0]
         return jnp.zeros(u.size, u.dtype).at[arrays["edofs"].ravel()].add(Re.ravel())
 
     def residual_and_min_det(self, u, X, p, t, arrays, state=None):
@@ -191,15 +196,15 @@ class Assembler:
         ``state (n_cells, n_qp)`` is where the material's inner iteration starts (the out-of-plane
         stretch under plane stress; ``None``: its own estimate), and the state returned is where
         it converged, for the next call at a nearby ``u``."""
-        Re, F, state = self._forces(u, X, p, t, arrays["cells"], state)
+        Re, F, state = self._forces(u, X, p, t, arrays["cells"], state, arrays.get("cell_mask"))
         R = jnp.zeros(u.size, u.dtype).at[arrays["edofs"].ravel()].add(Re.ravel())
         return R, jnp.min(det(F)), state
 
-    def residual_and_tangent(self, u, X, p, t, arrays, nnz: int, state=None):
+    def residual_and_tangent(self, u, X, p, t, arrays, nnz: int | None = None, state=None):
         """Internal force vector ``(n_dofs,)``, tangent values on the pattern ``(nnz,)`` and the
         material state (see :meth:`residual_and_min_det`)."""
         cells = arrays["cells"]
-        dNdX, dV = shape_gradients(X, cells, self.el)
+        dNdX, dV = shape_gradients(X, cells, self.el, arrays.get("cell_mask"))
         F = deformation_gradients(u, cells, dNdX)
         P, A, state = _per_qp_state(self.law.stress_and_tangent_state, F, p, state)
         dim = u.shape[1]
@@ -208,12 +213,14 @@ class Assembler:
         A = A.reshape(A.shape[:2] + (dim, dim, dim, dim))  # (c, q, j, L, i, K) = dP_iK / dF_jL
         Ke = element_matrices(dNdX, A, w)
         R = jnp.zeros(u.size, u.dtype).at[arrays["edofs"].ravel()].add(Re.ravel())
+        nnz = arrays["rows"].shape[0] if nnz is None else nnz
         vals = jnp.zeros(nnz, u.dtype).at[arrays["slots"]].add(Ke.ravel())
         return R, vals, state
 
-    def min_jacobian(self, u, X, cells):
-        """Smallest det F over all quadrature points (<= 0 means an inverted element)."""
-        dNdX, _ = shape_gradients(X, cells, self.el)
+    def min_jacobian(self, u, X, cells, mask=None):
+        """Smallest det F over all quadrature points (<= 0 means an inverted element); ``mask``
+        as in :func:`shape_gradients`."""
+        dNdX, _ = shape_gradients(X, cells, self.el, mask)
         return jnp.min(det(deformation_gradients(u, cells, dNdX)))
 
 

@@ -87,7 +87,7 @@ def external_force(theta, loads, arrays, facet_element, n_dofs):
     return f
 
 
-def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOptions, facet_element, finite):
+def newton_solve(theta, u0, loads0, arrays, *, asm, lin, opts: NewtonOptions, facet_element, finite, nnz=None):
     """Solve R(u; theta) = f_ext(theta) from the equilibrium ``u0`` of the loads ``loads0``.
 
     Args:
@@ -102,6 +102,7 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
     """
     dim = theta["X"].shape[1]
     n = u0.shape[0]
+    nnz = arrays["rows"].shape[0] if nnz is None else nnz
     free, fixed = arrays["free"], arrays["fixed"]
     p = {k: theta[k] for k in theta if k not in ("X", "thickness", "u_D", "f", "traction")}
     X, t = theta["X"], theta["thickness"]
@@ -127,7 +128,8 @@ def newton_solve(theta, u0, loads0, arrays, *, asm, lin, nnz, opts: NewtonOption
         return vals * arrays["keep"] + arrays["diag_fixed"]
 
     def min_det(u):
-        return asm.min_jacobian(u.reshape(-1, dim), X, arrays["cells"]) if finite else jnp.array(1.0)
+        return (asm.min_jacobian(u.reshape(-1, dim), X, arrays["cells"], arrays.get("cell_mask")) if finite
+                else jnp.array(1.0))
 
     def norms(R, loads):
         f_ext = external_force(theta, loads, arrays, facet_element, n)

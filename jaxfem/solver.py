@@ -1,6 +1,9 @@
 """The solver: one jitted nonlinear solve per problem, differentiable through its equilibrium.
 
-``Solver(problem)`` computes the sparsity pattern once and compiles once. Then
+``Solver(problem)`` computes the sparsity pattern once; its compiled programs are those of every
+problem of its kind (:mod:`jaxfem.program`), its mesh arrays their arguments, padded to bucket
+sizes (:mod:`jaxfem.padding`), so a solver of another mesh of about the same size compiles
+nothing. Then
 
 - :meth:`Solver.solve` runs Newton with load stepping and returns a :class:`Solution`, raising
   :class:`~jaxfem.exceptions.SolverError` (with the failing load step and the reason) on failure;
@@ -18,19 +21,23 @@ final loads, so the load path does not enter the derivative.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import partial
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from . import _config  # noqa: F401
-from .assembly import Assembler, make_pattern, matvec
+from . import padding
+from .assembly import make_pattern
 from .exceptions import SolverError
-from .kinematics import reduce
-from .linsolve import make_linear_solver
-from .newton import REASONS, NewtonOptions, external_force, newton_solve
+from .linsolve import HostSolver, make_linear_solver
+from .newton import REASONS, NewtonOptions
 from .problem import LOAD_KEYS, Problem
+from .program import program
+
+
+def _traced(tree) -> bool:
+    return any(isinstance(x, jax.core.Tracer) for x in jax.tree.leaves(tree))
 
 
 @dataclass(frozen=True, eq=False)
@@ -60,7 +67,12 @@ class Solution:
 
 
 class Solver:
-    """Nonlinear static solver for one :class:`Problem` (pattern and compilation done once).
+    """Nonlinear static solver for one :class:`Problem` (pattern once; its programs are shared).
+
+    The compiled programs (:mod:`jaxfem.program`) belong to the kind of problem (element, law,
+    kinematics, linear solver kind, options); this solver's mesh arrays are their arguments,
+    padded to bucket sizes (:mod:`jaxfem.padding`), so a second solver of a mesh of about the same
+    size compiles nothing.
 
     Args:
         problem: the problem.
@@ -74,27 +86,29 @@ class Solver:
         self.options = options or NewtonOptions()
         mesh = problem.mesh
         self.pattern = pat = make_pattern(mesh)
-        self.law = reduce(problem.material.energy, problem.kinematics)
-        self.assembler = Assembler(mesh.element, self.law)
         free = problem.free_mask
         keep = free[pat.rows] & free[pat.cols]
         diag_fixed = np.zeros(pat.nnz)
         diag_fixed[pat.diag[~free]] = 1.0
-        self.arrays = {
-            "cells": jnp.asarray(mesh.cells, jnp.int32), "edofs": jnp.asarray(pat.edofs),
-            "slots": jnp.asarray(pat.slots), "rows": jnp.asarray(pat.rows), "cols": jnp.asarray(pat.cols),
-            "diag": jnp.asarray(pat.diag), "fixed": jnp.asarray(problem.fixed, jnp.int32),
-            "free": jnp.asarray(free, jnp.float64), "keep": jnp.asarray(keep, jnp.float64),
-            "diag_fixed": jnp.asarray(diag_fixed), "tfacets": jnp.asarray(problem.traction_facets, jnp.int32),
-        }
+        # the real sizes, for callers that assemble themselves (series, post-processing)
+        # (device_put, not jnp.asarray: that compiles a small program per array shape)
+        self.arrays = jax.device_put({
+            "cells": mesh.cells.astype(np.int32), "edofs": pat.edofs, "slots": pat.slots, "rows": pat.rows,
+            "cols": pat.cols, "diag": pat.diag, "fixed": problem.fixed.astype(np.int32),
+            "free": free.astype(np.float64), "keep": keep.astype(np.float64), "diag_fixed": diag_fixed,
+            "tfacets": problem.traction_facets.astype(np.int32)})
         self.linear_solver, self._lin = make_linear_solver(linear_solver, pat, mesh.dim)
         self._facet_element = mesh.el.facet
-        self._newton = jax.jit(partial(
-            newton_solve, asm=self.assembler, lin=self._lin, nnz=pat.nnz, opts=self.options,
-            facet_element=self._facet_element, finite=problem.material.finite))
-        self._equilibrium = self._make_equilibrium()
-        # compiled once: an eager jax.grad would otherwise run the implicit rule op by op (~1 s)
-        self._displacement = jax.jit(self._equilibrium)
+        self.program = program(mesh.element, problem.material, problem.kinematics, self._lin, self.options,
+                               self._facet_element)
+        self.law, self.assembler = self.program.asm.law, self.program.asm
+        self.sizes = padding.sizes(mesh.n_cells, mesh.n_nodes, mesh.dim, pat.nnz, len(problem.fixed),
+                                   pad=self._lin.pads)
+        padded = padding.padded_arrays(self.sizes, mesh.cells, pat, problem.fixed, free)
+        padded["tfacets"] = problem.traction_facets.astype(np.int32)
+        if isinstance(self._lin, HostSolver):
+            padded["host"] = np.int32(self._lin.host_id)
+        self.padded_arrays = jax.device_put(padded)
 
     # ------------------------------------------------------------------ parameters
     def params(self, **kw) -> dict:
@@ -108,70 +122,31 @@ class Solver:
     # ------------------------------------------------------------------ residual and tangent
     def residual(self, u, theta):
         """Out-of-balance force R_int(u) - f_ext, ``(n_dofs,)`` (on fixed dofs: minus the reactions' opposite)."""
-        p, X, t = self._split(theta)
-        dim = X.shape[1]
-        Rint = self.assembler.residual(u.reshape(-1, dim), X, p, t, self.arrays)
-        return Rint - external_force(theta, theta, self.arrays, self._facet_element, self.problem.n_dofs)
+        return self.program.residual(jnp.asarray(u).reshape(-1), theta, self.arrays)
 
     def tangent_values(self, u, theta):
         """Tangent matrix values on the pattern, ``(nnz,)`` (unconstrained)."""
-        p, X, t = self._split(theta)
-        _, vals, _ = self.assembler.residual_and_tangent(u.reshape(-1, X.shape[1]), X, p, t, self.arrays,
-                                                      self.pattern.nnz)
-        return vals
+        return self.program.tangent_values(jnp.asarray(u).reshape(-1), theta, self.arrays)
 
     def _constrained(self, vals):
-        return vals * self.arrays["keep"] + self.arrays["diag_fixed"]
+        return self.program.constrained(vals, self.arrays)
 
-    # ------------------------------------------------------------------ the equilibrium map
-    def _make_equilibrium(self):
-        """The differentiable map theta -> u: Newton (not differentiated) for the value, the
-        implicit function theorem for every derivative. Newton's last pass evaluated the tangent
-        at the converged state; the derivative solves with it (``tangent_at``: those values, and
-        for higher derivatives the derivative of the tangent, traced only when asked for)."""
-        arrays = self.arrays
+    # ------------------------------------------------------------------ padding
+    def _pad(self, theta, u0, loads0):
+        s = self.sizes
+        theta = padding.pad_theta(theta, s)
+        xp = jnp if isinstance(u0, jax.core.Tracer) else np
+        u0 = xp.pad(xp.asarray(u0, np.float64).reshape(-1), (0, s.n_dofs_p - s.n_dofs))
+        loads0 = padding.pad_theta(loads0, s, tangent=True)
+        return theta, u0, loads0
 
-        @jax.custom_jvp
-        def tangent_at(u, theta, vals):
-            return vals
-
-        @tangent_at.defjvp
-        def tangent_at_jvp(primals, tangents):
-            u, theta, vals = primals
-            du, dtheta, _ = tangents
-            # the primal through the rule again: a derivative of this one (a third derivative of
-            # u) must see the tangent matrix move too, not the constant values Newton left
-            return tangent_at(u, theta, vals), jax.jvp(self.tangent_values, (u, theta), (du, dtheta))[1]
-
-        @jax.custom_jvp
-        def implicit(theta, u, vals):
-            return u
-
-        @implicit.defjvp
-        def implicit_jvp(primals, tangents):
-            theta, u, vals = primals
-            dtheta = tangents[0]
-            u = implicit(theta, u, vals)  # the nested derivatives of u come through this rule again
-            free, fixed = arrays["free"], arrays["fixed"]
-
-            def free_residual(th):
-                uu = u.at[fixed].set(th["u_D"], unique_indices=True)  # prescribed values enter through the constrained dofs
-                return self.residual(uu, th) * free
-
-            _, dG = jax.jvp(free_residual, (theta,), (dtheta,))
-            du_D = dtheta["u_D"]
-            rhs = -dG + jnp.zeros_like(u).at[fixed].set(du_D, unique_indices=True)
-            M = self._constrained(tangent_at(u, theta, vals))
-            mv = lambda x: matvec(M, arrays["rows"], arrays["cols"], x)  # noqa: E731
-            du = jax.lax.custom_linear_solve(mv, rhs, lambda _, b: self._lin(jax.lax.stop_gradient(M), b, arrays),
-                                             symmetric=True)
-            return u, du
-
-        def equilibrium(theta, u0, loads0):
-            u, _, vals = self._newton(jax.lax.stop_gradient(theta), u0, loads0, arrays)
-            return implicit(theta, u, vals)
-
-        return equilibrium
+    def _unpad(self, u):
+        """The real dofs of padded displacements ``(..., n_dofs_p)`` as ``(..., n_nodes, dim)``."""
+        dim = self.problem.mesh.dim
+        if isinstance(u, jax.core.Tracer):
+            return u[..., : self.sizes.n_dofs].reshape(u.shape[:-1] + (-1, dim))
+        u = np.asarray(u)  # no device operation to compile per mesh size
+        return jax.device_put(u[..., : self.sizes.n_dofs].reshape(u.shape[:-1] + (-1, dim)))
 
     def _start(self, theta, start):
         n = self.problem.n_dofs
@@ -179,6 +154,8 @@ class Solver:
             zeros = {k: np.zeros(np.shape(theta[k])) for k in LOAD_KEYS}
             return np.zeros(n), zeros
         u0, loads0 = start
+        if not _traced(start):  # host arrays: no device operation to compile per mesh size
+            return np.asarray(u0, np.float64).reshape(n), {k: np.asarray(loads0[k], np.float64) for k in LOAD_KEYS}
         return jnp.asarray(u0).reshape(n), {k: jnp.asarray(loads0[k]) for k in LOAD_KEYS}
 
     def displacement(self, theta, start=None):
@@ -191,13 +168,17 @@ class Solver:
         Returns NaN where the solve failed (use :meth:`solve` for the error message).
         """
         u0, loads0 = self._start(theta, start)
+        if not _traced((theta, u0, loads0)):  # nothing to differentiate: Newton's program alone
+            with self.program.lock:
+                return self._unpad(self.program.newton(*self._pad(theta, u0, loads0), self.padded_arrays)[0])
         u0, loads0 = jax.lax.stop_gradient((u0, loads0))
-        return self._displacement(theta, u0, loads0).reshape(-1, self.problem.mesh.dim)
+        theta, u0, loads0 = self._pad(theta, u0, loads0)
+        return self._unpad(self.program.displacement(theta, u0, loads0, self.padded_arrays))
 
     def solve(self, theta, start=None) -> Solution:
         """Solve and return a :class:`Solution`; raise :class:`SolverError` if Newton fails."""
-        u0, loads0 = self._start(theta, start)
-        u, info, _ = self._newton(theta, u0, loads0, self.arrays)
+        u, info, _ = self._solve_padded(theta, start)
+        u = self._unpad(u)
         info = jax.device_get(info)  # one transfer for all counters
         status = int(info["status"])
         if status != 0:
@@ -214,8 +195,54 @@ class Solver:
                 f"{int(info['cutbacks'])} cutbacks): {why}. Try smaller load increments "
                 "(NewtonOptions.initial_step), more iterations, or check the boundary data.",
                 step=step, load_factor=s, reason=REASONS[status])
-        return Solution(u.reshape(-1, self.problem.mesh.dim), theta, {k: np.asarray(v) for k, v in info.items()},
+        return Solution(u, theta, {k: np.asarray(v) for k, v in info.items()},
                         self)
+
+    def _solve_padded(self, theta, start):
+        u0, loads0 = self._start(theta, start)
+        with self.program.lock:
+            return jax.block_until_ready(self.program.newton(*self._pad(theta, u0, loads0), self.padded_arrays))
+
+    def solve_with_tangents(self, theta, directions, start=None):
+        """The equilibrium and its derivatives along ``k`` parameter directions, by the implicit
+        function theorem at the converged state (one factorisation, one back-substitution per
+        direction); no error is raised (NaN where the solve failed: :meth:`solve` says why).
+
+        Args:
+            theta: parameter pytree (:meth:`params`).
+            directions: a pytree like ``theta`` with a leading axis ``k`` (zeros where a parameter
+                does not move).
+            start: as in :meth:`displacement`.
+        Returns:
+            ``(u (n_nodes, dim), du (k, n_nodes, dim), info)``.
+        """
+        u, info, vals = self._solve_padded(theta, start)
+        th = padding.pad_theta(theta, self.sizes)
+        k = np.shape(jax.tree.leaves(directions)[0])[0]
+        dirs = padding.pad_theta(padding.pad_batch(directions, k), self.sizes, tangent=True, axis=1)
+        with self.program.lock:
+            du = [np.asarray(self.program.tangents(th, u, vals, jax.tree.map(lambda v: v[i: i + padding.BATCH], dirs),
+                                                   self.padded_arrays)) for i in range(0, k, padding.BATCH)]
+        return self._unpad(u), self._unpad(np.concatenate(du)[:k]), info
+
+    def solve_for_adjoint(self, theta, start=None):
+        """The equilibrium ``u (n_nodes, dim)`` (NaN where the solve failed; no error raised) and
+        what :meth:`adjoint` needs to differentiate a function of it (the converged state)."""
+        theta_p, u0, loads0 = self._pad(theta, *self._start(theta, start))
+        with self.program.lock:
+            u, _, vals = jax.block_until_ready(self.program.newton(theta_p, u0, loads0, self.padded_arrays))
+        return self._unpad(u), (theta_p, u, vals)
+
+    def adjoint(self, state, g) -> dict:
+        """The gradient with respect to the parameters (a pytree like ``theta``) of a function of
+        the equilibrium whose gradient with respect to ``u`` is ``g (n_nodes, dim)``: one adjoint
+        solve (the implicit function theorem's transpose) at the ``state`` of
+        :meth:`solve_for_adjoint`."""
+        theta_p, u, vals = state
+        s = self.sizes
+        g = np.pad(np.asarray(g, np.float64).reshape(-1), (0, s.n_dofs_p - s.n_dofs))
+        with self.program.lock:
+            return padding.unpad_theta(self.program.adjoint(theta_p, u, vals, g, self.padded_arrays), s)
 
     def reactions(self, u, theta, nodes=None):
         """Reaction forces: the total force ``(dim,)`` that the constraints exert on ``nodes``

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import itertools
 from abc import ABC, abstractmethod
 import threading
 import weakref
@@ -39,9 +40,22 @@ class LinearSolver(ABC):
     name: ClassVar[str]
     rank: ClassVar[int] = 100
     requires: ClassVar[str | None] = None
+    #: whether it takes a padded matrix (:mod:`jaxfem.padding`: an identity block of padding dofs
+    #: with structural zeros); a solver that cannot is given the real sizes
+    pads: ClassVar[bool] = True
 
     def __init__(self, pattern: Pattern):
         self.pattern = pattern
+
+    def program_key(self) -> tuple:
+        """What a compiled program that calls this solver depends on besides array shapes: solvers
+        with equal keys share programs (their matrices and patterns come as arguments)."""
+        return (type(self),)
+
+    def shared(self):
+        """What a shared program calls, ``(values, rhs, arrays) -> x``: nothing of one pattern may
+        be kept in it (the program outlives this solver); by default the solver itself."""
+        return self
 
     @classmethod
     def installed(cls) -> bool:
@@ -65,6 +79,8 @@ class HostSolver(LinearSolver):
     def __init__(self, pattern: Pattern):
         super().__init__(pattern)
         self._cache = _FactorCache(self.factor, one_thread=self.one_thread)
+        self.host_id = next(_HOST_IDS)
+        _HOSTS[self.host_id] = self
 
     @abstractmethod
     def factor(self, values: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
@@ -72,7 +88,34 @@ class HostSolver(LinearSolver):
 
     def __call__(self, values, rhs, arrays):
         out = jax.ShapeDtypeStruct(rhs.shape, rhs.dtype)
+        if "host" in arrays:  # a shared program: which solver is an argument, not part of the program
+            return host_call(values, rhs, arrays)
         return jax.pure_callback(self._cache, out, values, rhs, vmap_method="sequential")
+
+
+    def shared(self):
+        return host_call
+
+
+def host_call(values, rhs, arrays):
+    """A host solver's solve in a shared program: the solver is ``arrays["host"]``."""
+    out = jax.ShapeDtypeStruct(rhs.shape, rhs.dtype)
+    return jax.pure_callback(_host_solve, out, arrays["host"], values, rhs, vmap_method="sequential")
+
+
+#: the host solvers alive, by ``host_id`` (a shared program names its solver by this argument)
+_HOSTS: "weakref.WeakValueDictionary[int, HostSolver]" = weakref.WeakValueDictionary()
+_HOST_IDS = itertools.count(1)
+
+
+def _host_solve(host_id, values, rhs):
+    """The solve of a padded system (:mod:`jaxfem.padding`) by the host solver ``host_id``: its
+    real entries and unknowns come first; the padding rows are the identity."""
+    solver = _HOSTS[int(host_id)]
+    n, nnz = solver.pattern.n_dofs, solver.pattern.nnz
+    x = np.array(rhs, dtype=np.float64)
+    x[:n] = solver._cache(np.asarray(values)[:nnz], x[:n])
+    return x
 
 
 def csr(pattern: Pattern, vals) -> sp.csr_matrix:

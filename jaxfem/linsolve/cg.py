@@ -25,6 +25,9 @@ class CG(LinearSolver):
         self.tol = tol
         self.maxiter = maxiter or 10 * pattern.n_dofs
 
+    def program_key(self) -> tuple:
+        return (type(self), self.tol, self.maxiter)
+
     def __call__(self, values, rhs, arrays):
         d = values[arrays["diag"]]
         A = lambda x: matvec(values, arrays["rows"], arrays["cols"], x)  # noqa: E731

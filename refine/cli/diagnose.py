@@ -53,6 +53,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                               "in experiment.toml, then these options.")
     p.add_argument("bundle")
     p.add_argument("--out", required=True, help="output directory (report.json, report.html, figures, paraview/)")
+    p.add_argument("--cache", default=None, metavar="DIR",
+                   help="keep compiled programs in DIR for later runs (jaxfem.compilation_cache; or set "
+                   "JAX_COMPILATION_CACHE_DIR); programs that call a host linear solver are not kept")
     settings = p.add_argument_group("settings of the diagnosis (override the bundle's [diagnose] table)")
     for flags, name, kw in OPTIONS:
         settings.add_argument(*flags, dest=name, default=argparse.SUPPRESS, **kw)
@@ -71,6 +74,10 @@ def settings_given(args: argparse.Namespace) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     """Carry out ``nonrigid diagnose`` (``args`` from the parser of :func:`add_parser`); 0 on success."""
+    if getattr(args, "cache", None):
+        import jaxfem
+
+        jaxfem.compilation_cache(args.cache)
     diagnose(args.bundle, args.out, config=settings_given(args))
     return 0
 

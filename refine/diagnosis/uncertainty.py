@@ -101,27 +101,37 @@ def drive_sensitivity(fitted, points: Bool[np.ndarray, "n_points"], sigma: float
     """``M = (J^T J)^-1 J^T dr/dB`` ``(k, n_frames * n_boundary * dim)``: the fitted unknowns z
     move by ``-M dB`` when the driving boundary displacements (:meth:`MeasuredModel.measured_boundary`,
     flattened frame by frame) move by ``dB``, to first order, for a fit on ``points`` weighted
-    by ``sigma`` (length unit). ``J^T dr/dB`` by reverse mode, one pull-back per unknown (an
-    adjoint solve per frame each; forward mode would take one tangent solve per boundary value,
-    a thousand and more for a 3D model); NaN where ``J^T J`` is singular."""
-    import jax
-    import jax.numpy as jnp
-
+    by ``sigma`` (length unit). ``J^T dr/dB`` on the solver's shared programs (one tangent solve
+    per boundary value and frame, :meth:`MeasuredModel.boundary_jacobian`) where the model shares
+    them (no compile of its own); else by reverse mode, one pull-back per unknown (an adjoint solve
+    per frame each; forward mode would take a tangent solve per boundary value, a thousand and more
+    for a 3D model); NaN where ``J^T J`` is singular."""
     model = fitted.compiled.model
     res = Residuals.at(model.obs.displacements, points, sigma)
     J = res.jacobian(np.asarray(fitted.compiled.jacobian(fitted.z)))
-    theta = fitted.theta
+    if model.shares_programs:
+        dB = model.boundary_jacobian(fitted.theta)
+        JtJB = J.T @ res.jacobian(dB.reshape(dB.shape[:3] + (-1,)))  # (k, frames * n_boundary * dim)
+    else:
+        JtJB = _pulled_boundary(model, res, fitted.theta, J)
+    try:
+        return np.linalg.solve(J.T @ J, JtJB)
+    except np.linalg.LinAlgError:
+        return np.full(JtJB.shape, np.nan)
+
+
+def _pulled_boundary(model, res, theta, J) -> np.ndarray:
+    """``J^T dr/dB`` ``(k, n_frames * n_boundary * dim)`` by reverse mode through the model's own
+    solve: one pull-back per column of ``J (n, k)``."""
+    import jax
+    import jax.numpy as jnp
 
     def pulled(b, cotangents):  # (k, n) -> (k, *b.shape): the rows of J^T dr/dB
         _, pull = jax.vjp(lambda bb: res.weighted(model.predict(theta, boundary=bb)), b)
         return jax.vmap(lambda c: pull(c)[0])(cotangents)
 
     JtJB = np.asarray(jax.jit(pulled)(jnp.asarray(model.measured_boundary()), jnp.asarray(J.T)))
-    JtJB = JtJB.reshape(J.shape[1], -1)  # (k, frames * n_boundary * dim)
-    try:
-        return np.linalg.solve(J.T @ J, JtJB)
-    except np.linalg.LinAlgError:
-        return np.full(JtJB.shape, np.nan)
+    return JtJB.reshape(J.shape[1], -1)
 
 
 def drive_covariance(fitted, points: Bool[np.ndarray, "n_points"], sigma: float,

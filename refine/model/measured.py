@@ -10,12 +10,14 @@ so any misfit between predicted and measured points can be minimised by gradient
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 import jaxfem as jf
+from jaxfem.padding import BATCH, pad_batch
 
 from refine.exceptions import ObservationError
 from refine.bundle.experiment import Experiment, FromPointsDomain, MeshDomain, RectangleDomain
@@ -24,6 +26,10 @@ from refine.model.boundary import outline_tolerance, place_points, place_surface
 from refine.bundle.roles import point_spacing
 from refine.bundle.observations import Observations
 from refine.model.known import cell_parameters, hole_geometry, known_inclusions, model_material
+
+
+def _traced(*trees) -> bool:
+    return any(isinstance(x, jax.core.Tracer) for x in jax.tree.leaves(trees))
 
 
 def grid_spacing(points: np.ndarray) -> float:
@@ -200,10 +206,37 @@ class MeasuredModel:
         frames, compiled once per model. ``boundary`` replaces the measured boundary displacements
         ``(n_frames, n_boundary * dim)`` (e.g. to propagate their noise).
         """
-        B = jnp.asarray(self.measured_boundary() if boundary is None else boundary)
+        B = self.measured_boundary() if boundary is None else boundary
+        if self.shares_programs and not _traced(theta, B):  # frame by frame on the solver's shared program
+            return jax.device_put(self._solve_eager(theta, np.asarray(B), frames))
+        B = jnp.asarray(B)
         if frames is None:
             return self._solve_all(theta, B)
         return self._solve_frames(theta, B, tuple(frames))
+
+    @property
+    def shares_programs(self) -> bool:
+        """Whether the frames are solved as here (a subclass that loads its frames otherwise, e.g.
+        :class:`refine.solid.LoadedModel`, is solved by its own ``_solve_frames``, compiled per
+        model); then concrete parameters are solved frame by frame on the solver's shared
+        programs (:mod:`jaxfem.program`), which compiles nothing per model."""
+        return type(self)._solve_frames is MeasuredModel._solve_frames
+
+    def frame_starts(self, theta):
+        """Where each frame's solve starts: ``(u0 (n_dofs,), loads0)``, the undeformed state of the
+        first frame's loads other than ``u_D``; later frames start from the one before."""
+        return np.zeros(self.problem.n_dofs), {"u_D": np.zeros(len(self.problem.fixed)), "f": theta["f"],
+                                               "traction": theta["traction"]}
+
+    def _solve_eager(self, theta, B, frames=None):
+        frames = range(self.obs.n_frames) if frames is None else frames
+        start, out = self.frame_starts(theta), []
+        for f in frames:
+            u_D = self.drives[f].matrix @ B[f]
+            u = np.asarray(self.solver.displacement({**theta, "u_D": u_D}, start=start))
+            start = (u.reshape(-1), {**start[1], "u_D": u_D})
+            out.append(u)
+        return np.stack(out)
 
     def _solve_frames(self, theta, B, frames=None):
         frames = tuple(range(self.obs.n_frames)) if frames is None else frames
@@ -237,6 +270,57 @@ class MeasuredModel:
     def predict(self, theta, frames=None, boundary=None):
         """Predicted displacements of every tracked point, ``(n_frames, n_points, dim)``."""
         return self.at_points(self.solve_frames(theta, frames, boundary), theta)
+
+    def boundary_jacobian(self, theta) -> np.ndarray:
+        """Derivatives of the prediction ``(n_frames, n_points, dim)`` with respect to the measured
+        boundary displacements ``(n_frames, n_boundary * dim)`` (:meth:`measured_boundary`), as
+        ``(n_frames, n_points, dim, n_frames, n_boundary * dim)``: zero between different frames
+        (each frame's equilibrium depends on its own drive only). On the solver's shared programs
+        (one tangent solve per boundary value and frame) where :attr:`shares_programs`; else by
+        forward mode through the model's own solve."""
+        B = self.measured_boundary()
+        if not self.shares_programs:
+            return np.asarray(jax.jit(jax.jacfwd(lambda b: self.predict(theta, boundary=b)))(B))
+        n_f, m = B.shape
+        zero = {k: np.zeros((m,) + np.shape(v)) for k, v in theta.items() if k != "u_D"}
+        start, U, dU = self.frame_starts(theta), [], []
+        for f in range(n_f):
+            D = self.drives[f].matrix  # (n_fixed, m): u_D = D @ B[f], so the directions are its columns
+            u_D = D @ B[f]
+            u, du, _ = self.solver.solve_with_tangents({**theta, "u_D": u_D}, {**zero, "u_D": D.T}, start=start)
+            start = (np.asarray(u).reshape(-1), {**start[1], "u_D": u_D})
+            U.append(u)
+            dU.append(du)
+        dU = np.stack(dU, 1)  # (m, frames, n_nodes, dim)
+        _, dP = self.at_points_and_derivatives(np.stack(U), dU, theta["X"], np.zeros((m,) + np.shape(theta["X"])))
+        dP = np.moveaxis(dP, 0, -1)  # (frames, points, dim, m)
+        out = np.zeros(dP.shape[:3] + (n_f, m))
+        for f in range(n_f):
+            out[f, :, :, f] = dP[f]
+        return out
+
+    def at_points_and_derivatives(self, U, dU, X, dX):
+        """:meth:`at_points` of ``U (n_frames, n_nodes, dim)`` and its derivatives along ``k``
+        directions ``dU (k, n_frames, n_nodes, dim)``, ``dX (k, n_nodes, dim)`` (host numpy),
+        ``(n_frames, n_points, dim)`` and ``(k, n_frames, n_points, dim)``; by :attr:`points_jvp`
+        in batches of ``jaxfem.padding.BATCH`` directions (one program for any k)."""
+        k = len(dU)
+        dU, dX = pad_batch(dU, k), pad_batch(dX, k)
+        out = [self.points_jvp(U, dU[i: i + BATCH], X, dX[i: i + BATCH]) for i in range(0, len(dU), BATCH)]
+        return np.asarray(out[0][0]), np.concatenate([np.asarray(d) for _, d in out])[:k]
+
+    @cached_property
+    def points_jvp(self):
+        """``(U, dU, X, dX) -> (at points, its derivatives)``, compiled once per model: the
+        nodal displacements ``U (n_frames, n_nodes, dim)`` at every tracked point (:meth:`at_points`)
+        and its derivatives along ``k`` directions ``dU (k, n_frames, n_nodes, dim)``, ``dX (k,
+        n_nodes, dim)`` of the displacements and the reference nodes (a morph moves the points'
+        cells), ``(k, n_frames, n_points, dim)``."""
+        def f(U, dU, X, dX):
+            at = lambda U, X: self.at_points(U, {"X": X})  # noqa: E731
+            pred = at(U, X)
+            return pred, jax.vmap(lambda a, b: jax.jvp(at, (U, X), (a, b))[1])(dU, dX)
+        return jax.jit(f)
 
     def at_points(self, U, theta):
         """Nodal displacements ``U (n_frames, n_nodes, dim)`` (from :meth:`solve_frames`) at every

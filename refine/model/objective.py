@@ -101,8 +101,47 @@ class Objective:
 
     @cached_property
     def value_and_grad(self):
-        """``z -> (value, gradient)``, compiled (the gradient by one adjoint solve per frame)."""
+        """``z -> (value, gradient)`` (the gradient by one adjoint solve per frame): on the
+        solver's shared programs (:mod:`jaxfem.program`) where the model solves its frames as
+        :class:`~refine.model.MeasuredModel` does and the misfit is this class's, else one program
+        compiled per objective."""
+        if self.model.shares_programs and type(self).value is Objective.value \
+                and type(self).residuals is Objective.residuals:
+            return self._shared_value_and_grad
         return jax.jit(jax.value_and_grad(self.value))
+
+    @cached_property
+    def _pieces(self):
+        """The compiled pieces of :meth:`_shared_value_and_grad` that belong to this objective
+        (small: no solve in them): the parametrisation with its pullback, and the misfit of the
+        nodal displacements with its gradient in them and in the reference nodes."""
+        def misfit(U, X, z):
+            r = self.residuals_of(self.model.at_points(U, {"X": X}))
+            return 0.5 * jnp.sum(r * r) + self.param.regularization(z)
+
+        apply = jax.jit(lambda z: jax.vjp(lambda zz: self.param.apply(self.theta, zz), z))
+        return apply, jax.jit(jax.value_and_grad(misfit, argnums=(0, 1, 2)))
+
+    def _shared_value_and_grad(self, z):
+        apply, misfit = self._pieces
+        z = np.asarray(z, float)
+        theta, pullback = apply(z)
+        model, B = self.model, self.model.measured_boundary()
+        start, U, states = model.frame_starts(theta), [], []
+        for f in range(model.obs.n_frames):
+            u_D = model.drives[f].matrix @ B[f]
+            u, state = model.solver.solve_for_adjoint({**theta, "u_D": u_D}, start=start)
+            start = (np.asarray(u).reshape(-1), {**start[1], "u_D": u_D})
+            U.append(u)
+            states.append(state)
+        value, (gU, gX, gz) = misfit(np.stack(U), theta["X"], z)
+        g_theta = {k: np.zeros(np.shape(v)) for k, v in theta.items()}
+        g_theta["X"] = np.asarray(gX, float).copy()
+        for f, state in enumerate(states):
+            for k, v in model.solver.adjoint(state, gU[f]).items():
+                g_theta[k] = g_theta[k] + v
+        g_theta["u_D"] = np.zeros(np.shape(theta["u_D"]))  # the drive does not depend on z
+        return value, pullback(jax.tree.map(jnp.asarray, g_theta))[0] + gz
 
     def paper_error(self, z) -> float:
         """The paper's eq. (1): sum of distances between predicted and measured positions."""
@@ -112,32 +151,66 @@ class Objective:
 
 
 class Compiled:
-    """A model and parametrisation with its prediction and Jacobian compiled once, together, for
-    all points: fits on different point sets (fit, held-out, all guide points) and scoring then
-    reuse the same compiled code. ``evaluate(z) -> (prediction, jacobian)`` with shapes
+    """A model and parametrisation whose prediction and Jacobian are computed together, for all
+    points: fits on different point sets (fit, held-out, all guide points) and scoring then
+    reuse the same evaluation. ``evaluate(z) -> (prediction, jacobian)`` with shapes
     ``(frames, points, dim)`` and ``(frames, points, dim, k)`` (forward mode: one tangent solve
     per unknown and frame at the converged state, next to the forward solve); ``predict`` and
     ``jacobian`` are its halves.
 
-    One program, not two: compiling the prediction apart from its Jacobian costs about as much
-    again, while the tangent solves add little to a solve (one back-substitution per unknown)."""
+    The solves run on the solver's shared programs (:mod:`jaxfem.program`: Newton, then the
+    tangents along the k parameter directions), which every model of about the same mesh size,
+    element and law reuses: a hypothesis remeshed at its fitted shapes compiles no solve again.
+    What is compiled per instance is small: the parametrisation and its Jacobian
+    (``theta(z)``, ``dtheta/dz``), and per model the points' interpolation and its derivative."""
 
     def __init__(self, model: MeasuredModel, param, theta=None):
         self.model, self.param = model, param
         self.theta = model.params() if theta is None else theta
-        def f(z):  # the prediction twice, traced once: (f(z), f(z)) put two forward solves in the program
-            y = model.predict(param.apply(self.theta, z))
-            return y, y
 
-        self._evaluate = jax.jit(jax.jacfwd(f, has_aux=True))
+        def apply(z):
+            th = param.apply(self.theta, z)
+            return th, jax.jacfwd(param.apply, argnums=1)(self.theta, z)
+
+        self._apply = jax.jit(apply)
+        if not model.shares_programs:  # a model that solves its frames its own way: one program per model
+            def f(z):
+                y = model.predict(param.apply(self.theta, z))
+                return y, y
+
+            self._evaluate = jax.jit(jax.jacfwd(f, has_aux=True))
         self._last = None
+
+    def _solve(self, z):
+        """``(U, dU)``: nodal displacements ``(frames, n_nodes, dim)`` and their derivatives
+        ``(k, frames, n_nodes, dim)`` at ``z``, frame after frame from the one before; and ``theta``,
+        ``dX (k, n_nodes, dim)``."""
+        model = self.model
+        theta, T = self._apply(np.asarray(z, float))
+        k = int(np.size(z))
+        dirs = {key: np.moveaxis(np.asarray(v), -1, 0) for key, v in T.items()}
+        dirs["u_D"] = np.zeros((k, len(model.problem.fixed)))  # the drive does not depend on z
+        B, start = model.measured_boundary(), model.frame_starts(theta)
+        U, dU = [], []
+        for f in range(model.obs.n_frames):
+            u_D = model.drives[f].matrix @ B[f]
+            u, du, _ = model.solver.solve_with_tangents({**theta, "u_D": u_D}, dirs, start=start)
+            start = (np.asarray(u).reshape(-1), {**start[1], "u_D": u_D})
+            U.append(u)
+            dU.append(du)
+        return np.stack(U), np.stack(dU, 1), theta, np.asarray(dirs["X"])
 
     def evaluate(self, z) -> tuple[Float[np.ndarray, "frames n_points dim"],
                                    Float[np.ndarray, "frames n_points dim k"]]:
         z = np.asarray(z, float)
         if self._last is None or not np.array_equal(self._last[0], z):
-            J, pred = self._evaluate(jnp.asarray(z))
-            self._last = (z.copy(), np.asarray(pred), np.asarray(J))
+            if self.model.shares_programs:
+                U, dU, theta, dX = self._solve(z)
+                pred, J = self.model.at_points_and_derivatives(U, dU, theta["X"], dX)
+                self._last = (z.copy(), pred, np.moveaxis(J, 0, -1))
+            else:
+                J, pred = self._evaluate(jnp.asarray(z))
+                self._last = (z.copy(), np.asarray(pred), np.asarray(J))
         return self._last[1], self._last[2]
 
     def predict(self, z) -> Float[np.ndarray, "frames n_points dim"]:

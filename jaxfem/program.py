@@ -1,0 +1,177 @@
+"""The compiled programs of the solve, shared by every :class:`~jaxfem.solver.Solver` of one kind.
+
+A program is made for what the solve's code depends on: the element, the material law under its
+kinematics, the linear solver's kind and the Newton options. The mesh (coordinates through the
+parameters, connectivity, sparsity pattern, constraints) comes as arguments, padded to a few
+bucket sizes (:mod:`jaxfem.padding`), so the models of one diagnosis (its hypotheses, remeshes and
+fits) compile each program once per bucket instead of once per mesh (5-10 CPU s each, whatever
+the mesh size, when the mesh arrays were constants of the program).
+
+Each program's pieces are pure functions of ``(theta, ..., arrays)``:
+
+- :attr:`Program.newton`: Newton with load stepping (:func:`jaxfem.newton.newton_solve`);
+- :attr:`Program.displacement`: the differentiable equilibrium ``theta -> u``: Newton for the
+  value, the implicit function theorem for every derivative (a ``custom_jvp`` whose tangent is one
+  linear solve with the tangent matrix at u*, through ``lax.custom_linear_solve`` so that JAX can
+  transpose it: forward mode costs one solve per direction, reverse mode one adjoint solve);
+- :attr:`Program.tangents`: the same tangents for a batch of parameter directions at a converged
+  state, for a caller that solved already (a Jacobian by forward mode, one back-substitution per
+  direction after one factorisation).
+"""
+
+from __future__ import annotations
+
+import threading
+from functools import lru_cache, partial
+
+import jax
+import jax.numpy as jnp
+
+from .assembly import Assembler, matvec
+from .kinematics import reduce
+from .newton import NewtonOptions, external_force, newton_solve
+
+#: parameters that are not per-cell material values
+NOT_MATERIAL = ("X", "thickness", "u_D", "f", "traction")
+
+
+@lru_cache(maxsize=None)
+def reduced_law(material, kinematics: str):
+    """The material's energy under ``kinematics`` (one object per pair, so programs can be shared)."""
+    return reduce(material.energy, kinematics)
+
+
+def split(theta):
+    """``(per-cell material parameters, X, thickness)`` of a parameter pytree."""
+    return {k: theta[k] for k in theta if k not in NOT_MATERIAL}, theta["X"], theta["thickness"]
+
+
+class Program:
+    """The jitted pieces of the solve for one element, law, kinematics, linear solver kind and
+    Newton options (see the module doc); made by :func:`program`, never directly."""
+
+    def __init__(self, asm: Assembler, lin, opts: NewtonOptions, facet_element: str, finite: bool):
+        self.asm, self.lin, self.facet_element = asm, lin, facet_element
+        # one call of a shared executable at a time, waited for with the GIL released: a thread
+        # that waits inside XLA for a busy executable holds the GIL, which the running one's host
+        # solver callback needs (a diagnosis's two workers hung so, all threads waiting)
+        self.lock = threading.Lock()
+        self._newton = partial(newton_solve, asm=asm, lin=lin, opts=opts, facet_element=facet_element,
+                               finite=finite)
+        self.newton = jax.jit(self._newton)
+        self._implicit = self._make_implicit()
+        self.displacement = jax.jit(self._equilibrium)
+        self.tangents = jax.jit(self._tangents)
+        self.adjoint = jax.jit(self._adjoint)
+
+    # ------------------------------------------------------------------ residual and tangent
+    def residual(self, u, theta, arrays):
+        """Out-of-balance force R_int(u) - f_ext, ``(n_dofs,)``."""
+        p, X, t = split(theta)
+        dim = X.shape[1]
+        Rint = self.asm.residual(u.reshape(-1, dim), X, p, t, arrays)
+        return Rint - external_force(theta, theta, arrays, self.facet_element, u.size)
+
+    def tangent_values(self, u, theta, arrays):
+        """Tangent matrix values on the pattern, ``(nnz,)`` (unconstrained)."""
+        p, X, t = split(theta)
+        return self.asm.residual_and_tangent(u.reshape(-1, X.shape[1]), X, p, t, arrays)[1]
+
+    @staticmethod
+    def constrained(vals, arrays):
+        """The matrix with Dirichlet (and padding) rows and columns replaced by the identity."""
+        return vals * arrays["keep"] + arrays["diag_fixed"]
+
+    # ------------------------------------------------------------------ the equilibrium map
+    def _make_implicit(self):
+        """``implicit(theta, u, vals, arrays) -> u`` whose derivative is the implicit function
+        theorem's. Newton's last pass evaluated the tangent at the converged state; the derivative
+        solves with it (``tangent_at``: those values, and for higher derivatives the derivative of
+        the tangent, traced only when asked for)."""
+
+        @jax.custom_jvp
+        def tangent_at(u, theta, vals, arrays):
+            return vals
+
+        @tangent_at.defjvp
+        def tangent_at_jvp(primals, tangents):
+            u, theta, vals, arrays = primals
+            du, dtheta = tangents[:2]
+            # the primal through the rule again: a derivative of this one (a third derivative of
+            # u) must see the tangent matrix move too, not the constant values Newton left
+            dvals = jax.jvp(lambda uu, th: self.tangent_values(uu, th, arrays), (u, theta), (du, dtheta))[1]
+            return tangent_at(u, theta, vals, arrays), dvals
+
+        @jax.custom_jvp
+        def implicit(theta, u, vals, arrays):
+            return u
+
+        @implicit.defjvp
+        def implicit_jvp(primals, tangents):
+            theta, u, vals, arrays = primals
+            dtheta = tangents[0]
+            u = implicit(theta, u, vals, arrays)  # the nested derivatives of u come through this rule again
+            M = self.constrained(tangent_at(u, theta, vals, arrays), arrays)
+            return u, self._solve_tangent(theta, u, M, dtheta, arrays)
+
+        return implicit
+
+    def _solve_tangent(self, theta, u, M, dtheta, arrays):
+        """du with K du = -dG/dtheta dtheta on the free dofs and du = du_D on the prescribed ones."""
+        free, fixed = arrays["free"], arrays["fixed"]
+
+        def free_residual(th):
+            uu = u.at[fixed].set(th["u_D"], unique_indices=True)  # prescribed values enter through the constrained dofs
+            return self.residual(uu, th, arrays) * free
+
+        _, dG = jax.jvp(free_residual, (theta,), (dtheta,))
+        rhs = -dG + jnp.zeros_like(u).at[fixed].set(dtheta["u_D"], unique_indices=True)
+        mv = lambda x: matvec(M, arrays["rows"], arrays["cols"], x)  # noqa: E731
+        return jax.lax.custom_linear_solve(mv, rhs, lambda _, b: self.lin(jax.lax.stop_gradient(M), b, arrays),
+                                           symmetric=True)
+
+    def _equilibrium(self, theta, u0, loads0, arrays):
+        u, _, vals = self._newton(jax.lax.stop_gradient(theta), u0, loads0, arrays)
+        return self._implicit(theta, u, vals, arrays)
+
+    def _tangents(self, theta, u, vals, dthetas, arrays):
+        """``(k, n_dofs)``: du for each of the ``k`` directions ``dthetas`` (a pytree like
+        ``theta`` with a leading axis k) at the converged ``u`` with tangent values ``vals``."""
+        M = self.constrained(vals, arrays)
+        return jax.vmap(lambda d: self._solve_tangent(theta, u, M, d, arrays))(dthetas)
+
+
+    def _adjoint(self, theta, u, vals, g, arrays):
+        """The parameters' cotangent (a pytree like ``theta``) of the cotangent ``g (n_dofs,)`` of
+        the converged ``u``: one adjoint solve (the transpose of :meth:`_solve_tangent`)."""
+        return jax.vjp(lambda th: self._implicit(th, u, vals, arrays), theta)[1](g)[0]
+
+
+_PROGRAMS: dict = {}
+
+
+def program(element: str, material, kinematics: str, lin, opts: NewtonOptions, facet_element: str) -> Program:
+    """The shared :class:`Program` for this element, law, kinematics, linear solver kind
+    (:meth:`~jaxfem.linsolve.LinearSolver.program_key`) and options; made on first use."""
+    key = (element, material, kinematics, lin.program_key(), opts, facet_element)
+    if key not in _PROGRAMS:
+        law = reduced_law(material, kinematics)
+        _PROGRAMS[key] = Program(Assembler(element, law), lin.shared(), opts, facet_element, material.finite)
+    return _PROGRAMS[key]
+
+
+def compilation_cache(path, min_compile_seconds: float = 1.0) -> None:
+    """Keep compiled programs in the folder ``path`` (JAX's persistent compilation cache), so that
+    a later process (the same diagnosis run again, a benchmark, another bundle of the same mesh
+    sizes) loads them instead of compiling; only programs that took ``min_compile_seconds`` or
+    more to compile are written. The environment variable ``JAX_COMPILATION_CACHE_DIR`` does the
+    same without code.
+
+    JAX does not keep a program that calls back into Python: those of the host linear solvers
+    (``"pardiso"``, ``"superlu"``, ``"cholmod"``) are compiled in every process; with ``"klu"``
+    (2D), ``"dense"`` or ``"cg"`` every program of the solve is kept."""
+    from pathlib import Path
+
+    Path(path).mkdir(parents=True, exist_ok=True)
+    jax.config.update("jax_compilation_cache_dir", str(path))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", float(min_compile_seconds))

@@ -1,0 +1,210 @@
+"""One compiled program per bucket: solvers and models of different meshes of about the same size
+reuse the solve's programs (jaxfem.program, jaxfem.padding), with the same results as a solve at
+the real sizes. Small sheets (about 120 cells), their loads drawn under a seed."""
+
+import jax
+import numpy as np
+import pytest
+
+import jaxfem as jf
+from jaxfem import padding
+from refine.bundle.experiment import Experiment, RectangleDomain
+from refine.bundle.observations import Observations
+from refine.diagnosis.regions import region_model
+from refine.model.measured import MeasuredModel
+
+
+class Compiles:
+    """Counts XLA compilations while active."""
+
+    def __init__(self):
+        self.n, self.on = 0, False
+        jax.monitoring.register_event_duration_secs_listener(self._listen)
+
+    def _listen(self, event, duration, **kw):
+        if self.on and event.endswith("backend_compile_duration"):
+            self.n += 1
+
+    def __enter__(self):
+        self.n, self.on = 0, True
+        return self
+
+    def __exit__(self, *exc):
+        self.on = False
+
+
+COMPILES = Compiles()
+
+
+def _sheet(nx, ny, rng, linear_solver="superlu"):
+    mesh = jf.rectangle(0, 0, 100, 60, nx, ny)
+    fixed = np.concatenate([jf.dofs(mesh, mesh.side("left")), jf.dofs(mesh, mesh.side("right"))])
+    problem = jf.Problem(mesh, "neo-hookean", "plane-stress", fixed=fixed)
+    stretch, shear = rng.uniform(5, 15), rng.uniform(-3, 3)
+    pull = problem.prescribe(lambda X: np.where(X[:, :1] > 50, [stretch, shear], 0.0))
+    E = rng.uniform(50, 100, mesh.n_cells)  # a random modulus per cell
+    return jf.Solver(problem, linear_solver), problem.params(E=E, nu=0.3, thickness=1.0, u_D=pull)
+
+
+def _two_sheets(rng):
+    a, theta_a = _sheet(10, 6, rng)
+    b, theta_b = _sheet(9, 7, rng)
+    return (a, theta_a), (b, theta_b)
+
+
+def test_two_meshes_of_one_bucket_share_the_solve():
+    """The second mesh of a bucket compiles nothing (no recompilation for another mesh of about
+    the same size, nor for other parameter values)."""
+    (a, theta_a), (b, theta_b) = _two_sheets(np.random.default_rng(7))
+    assert a.problem.mesh.n_cells != b.problem.mesh.n_cells and a.sizes != b.sizes
+    assert (a.sizes.n_cells_p, a.sizes.n_nodes_p, a.sizes.nnz_p, a.sizes.n_fixed_p) == \
+        (b.sizes.n_cells_p, b.sizes.n_nodes_p, b.sizes.nnz_p, b.sizes.n_fixed_p)
+    assert a.program is b.program
+    u_a = a.solve(theta_a).u
+    with COMPILES as c:
+        u_b = b.solve(theta_b).u
+        b.solve({**theta_b, "E": 2.0 * np.asarray(theta_b["E"])})
+    assert c.n == 0, f"the second mesh of the bucket compiled {c.n} programs"
+    assert a.program.newton._cache_size() == 1
+    for solver, u in ((a, u_a), (b, u_b)):  # the prescribed motion is met, the body is not torn
+        fixed = solver.problem.fixed
+        assert np.all(np.isfinite(u)) and np.abs(np.asarray(u).reshape(-1)[fixed]).max() > 1.0
+
+
+@pytest.mark.slow
+def test_padded_solves_equal_the_real_sizes_and_their_tangents_the_jvp():
+    """The padded solve is the solve at the real sizes (the dense solver on an unpadded system);
+    the tangents along random directions are those of the differentiable map."""
+    rng = np.random.default_rng(7)
+    (a, theta_a), (b, theta_b) = _two_sheets(rng)
+    for solver, theta in ((a, theta_a), (b, theta_b)):
+        u = solver.solve(theta).u
+        ref = jf.Solver(solver.problem, "dense")
+        s = solver.sizes
+        ref.sizes = padding.sizes(s.n_cells, s.n_nodes, s.dim, s.nnz, s.n_fixed, pad=False)
+        ref.padded_arrays = {**ref.padded_arrays, **_unpadded(ref)}
+        want = ref.solve(theta).u
+        np.testing.assert_allclose(u, want, atol=1e-9 * np.abs(want).max())
+    d = {k: np.zeros((2,) + np.shape(v)) for k, v in theta_b.items()}
+    d["E"] = rng.normal(0, 5.0, d["E"].shape)
+    d["X"][:, :, 1] = rng.normal(0, 0.1, d["X"].shape[:2]) * (b.problem.free_mask.reshape(-1, 2)[:, 1])
+    _, du, _ = b.solve_with_tangents(theta_b, d)
+    jvp = jax.jit(lambda th, dd: jax.jvp(b.displacement, (th,), (dd,))[1])
+    for i in range(2):
+        jv = jvp(theta_b, {k: v[i] for k, v in d.items()})
+        np.testing.assert_allclose(du[i], jv, atol=1e-8 * np.abs(jv).max())
+        assert np.abs(jv).max() > 1e-6
+
+
+def _unpadded(solver):
+    """The solver's arrays at its real sizes (no padding cells, dofs or entries)."""
+    p = solver.problem
+    arr = padding.padded_arrays(solver.sizes, p.mesh.cells, solver.pattern, p.fixed, p.free_mask)
+    return {k: jax.numpy.asarray(v) for k, v in arr.items()}
+
+
+def test_bucket_sizes():
+    assert [padding.bucket(n) for n in (1, 16, 17, 20, 21, 128, 129)] == [16, 16, 20, 20, 23, 128, 153]
+    for n in np.random.default_rng(3).integers(17, 10**6, 50):
+        b = padding.bucket(int(n))
+        assert n <= b < 1.19 * n + 1
+
+
+def _sheet_bundle(rng):
+    """A 40 x 30 mm sheet tracked on a 5 mm grid (edge points drive it), stretched and sheared."""
+    X, Y = np.meshgrid(np.arange(0.0, 40.1, 5.0), np.arange(0.0, 30.1, 5.0))
+    pts = np.stack([X.ravel(), Y.ravel()], 1)
+    edge = (pts[:, 0] == 0) | (pts[:, 0] == 40) | (pts[:, 1] == 0) | (pts[:, 1] == 30)
+    a = rng.uniform(0.005, 0.02, 2)
+    u = np.stack([a[0] * pts[:, 0], a[1] * pts[:, 1]], 1)
+    disp = np.stack([0.5 * u, u]) + rng.normal(0, 0.002, (2, *pts.shape))
+    ex = Experiment("pulled", "plane-stress", RectangleDomain(0.0, 0.0, 40.0, 30.0), "neo-hookean", 1.0, 0.3,
+                    noise_std=0.002)
+    return ex, Observations(np.arange(len(pts)), pts, np.where(edge, "boundary", "guide"), disp)
+
+
+def _region_models(rng):
+    ex, obs = _sheet_bundle(rng)
+    base = MeasuredModel(ex, obs, h=4.0)
+    c = rng.uniform([15, 12], [25, 18])
+    shapes = ((0.0, 5.0), (1.3, 6.0))
+    return [region_model(base, [jf.Ellipse(c[0] + dx, c[1], a, 4.0, 0.3)], 2.5) for dx, a in shapes]
+
+
+Z = np.array([np.log(2.0), 0.1, -0.05, 0.05, 0.02, 0.0])  # log ratio, then the ellipse's changes
+
+
+def test_two_region_hypotheses_of_one_bucket_compile_one_solve():
+    """Two region models (meshes that follow different ellipses) of one bucket: the second one's
+    prediction and Jacobian compile no solve of its own; the Jacobian is the prediction's
+    derivative (central differences along a random direction)."""
+    from refine.model.objective import Compiled
+
+    rng = np.random.default_rng(11)
+    (m1, p1), (m2, p2) = _region_models(rng)
+    assert m1.mesh.n_cells != m2.mesh.n_cells, (m1.mesh.n_cells, m2.mesh.n_cells)
+    assert m1.solver.program is m2.solver.program
+    Compiled(m1, p1).evaluate(Z)
+    prog = m1.solver.program
+    assert prog.newton._cache_size() == 1 and prog.tangents._cache_size() == 1
+    second = Compiled(m2, p2)
+    pred, J = second.evaluate(Z)
+    assert prog.newton._cache_size() == 1 and prog.tangents._cache_size() == 1, "the second mesh recompiled"
+    d, eps = rng.normal(size=Z.size), 1e-5
+    fd = (second.predict(Z + eps * d) - second.predict(Z - eps * d)) / (2 * eps)
+    np.testing.assert_allclose(J @ d, fd, atol=1e-5 * np.abs(fd).max())
+
+
+@pytest.mark.slow
+def test_shared_programs_equal_the_whole_chain_in_one_program():
+    """Compiled's prediction and Jacobian, a field's misfit gradient and the drive Jacobian on the
+    shared programs equal the whole chain differentiated by JAX in one program (as before)."""
+    from refine.model.objective import Compiled, Objective
+    from refine.model.parametrize import ModulusField
+
+    rng = np.random.default_rng(11)
+    _, (m2, p2) = _region_models(rng)
+    pred, J = Compiled(m2, p2).evaluate(Z)
+
+    def f(zz):
+        y = m2.predict(p2.apply(m2.params(), zz))
+        return y, y
+
+    J_ref, pred_ref = jax.jit(jax.jacfwd(f, has_aux=True))(Z)
+    np.testing.assert_allclose(pred, pred_ref, atol=1e-10 * np.abs(pred_ref).max())
+    np.testing.assert_allclose(J, J_ref, atol=1e-7 * np.abs(J_ref).max())
+    model = m2
+    objective = Objective(model, ModulusField(model.mesh, model.experiment.E, weight=1e-3))
+    z = rng.normal(0, 0.3, objective.param.size)
+    value, grad = objective.value_and_grad(z)
+    want_value, want_grad = jax.jit(jax.value_and_grad(objective.value))(z)
+    assert float(value) == pytest.approx(float(want_value), rel=1e-9)
+    np.testing.assert_allclose(grad, want_grad, atol=1e-7 * np.abs(want_grad).max())
+    theta = model.params()
+    got = model.boundary_jacobian(theta)
+    want = jax.jit(jax.jacfwd(lambda b: model.predict(theta, boundary=b)))(model.measured_boundary())
+    np.testing.assert_allclose(got, want, atol=1e-9 * np.abs(want).max())
+
+
+@pytest.mark.slow
+def test_field_gradient_and_drive_jacobian_on_the_shared_programs():
+    """A modulus field's misfit gradient (the adjoint on the shared programs) and the prediction's
+    derivatives in the driving boundary displacements, against central differences along random
+    directions."""
+    from refine.model.objective import Objective
+    from refine.model.parametrize import ModulusField
+
+    rng = np.random.default_rng(5)
+    ex, obs = _sheet_bundle(rng)
+    model = MeasuredModel(ex, obs, h=6.0)
+    objective = Objective(model, ModulusField(model.mesh, ex.E, weight=1e-3))
+    z = rng.normal(0, 0.3, objective.param.size)
+    value, grad = objective.value_and_grad(z)
+    d, eps = rng.normal(size=z.size), 1e-5
+    fd = (objective.value_and_grad(z + eps * d)[0] - objective.value_and_grad(z - eps * d)[0]) / (2 * eps)
+    assert float(np.dot(grad, d)) == pytest.approx(float(fd), rel=1e-5)
+    theta, B = model.params(), model.measured_boundary()
+    got = model.boundary_jacobian(theta)
+    dB = rng.normal(size=B.shape)
+    fd = (np.asarray(model.predict(theta, boundary=B + eps * dB)) - np.asarray(model.predict(theta, boundary=B - eps * dB))) / (2 * eps)
+    np.testing.assert_allclose(np.einsum("fpdgm,gm->fpd", got, dB), fd, atol=1e-5 * np.abs(fd).max())
