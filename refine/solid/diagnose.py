@@ -27,15 +27,15 @@ from refine.bundle.io import Bundle
 from refine.bundle.observations import Observations
 from refine.bundle.roles import point_spacing
 from refine.diagnosis.candidates import missing_point_regions, strain_regions
-from refine.diagnosis.fitted import Fitted, NotApplicable, baseline, fit, refit
-from refine.diagnosis.noise import estimate_noise, null_test, propagated_noise
+from refine.diagnosis.fitted import Fitted, NotApplicable, fit, refit
+from refine.diagnosis.noise import estimate_noise
 from refine.diagnosis.shapes import Hole
 from refine.diagnosis.uncertainty import shape_errors
 from refine.exceptions import ObservationError
-from refine.measures import Residuals
 from refine.solid.cup import CupShape, bottom_points, check_closed, cup_shape
 from refine.solid.global_model import held_by_fixture
 from refine.solid.inclusion_diagnosis import InclusionDiagnosis, diagnose_inclusion, fills_hull, inclusion_report
+from refine.solid.initial import checked_baseline
 from refine.solid.local import Local, SolidHole, Whole
 
 
@@ -158,12 +158,7 @@ def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) 
     guide, validate = obs.roles == "guide", obs.roles == "validate"
     sigma = bundle.experiment.noise_std or estimate_noise(obs)
     model, _ = local.model()
-    base = baseline(model, guide, validate, sigma)
-    if not np.isfinite(base.chi2_fit):
-        model.raise_solve_failure(model.params())
-    at = Residuals.at(obs.displacements, guide, sigma)
-    null = null_test(at.difference(base.predicted), at.valid, sigma, 0.0,
-                     propagated_noise(model, model.params(), sigma, guide, samples=8))
+    base, null = checked_baseline(model, obs, sigma)
     seconds = {"initial": time.perf_counter() - t0}
     log(f"local model: {model.mesh.n_cells} cells, {len(obs.ids)} bottom points; misfit {null.ratio:.2f} x the "
         f"noise's (p = {null.p_value:.2g})")

@@ -20,13 +20,13 @@ import numpy as np
 import jaxfem as jf
 
 from refine.bundle.io import Bundle
-from refine.diagnosis.fitted import Fitted, baseline, covariance, fit
-from refine.diagnosis.noise import estimate_noise, null_test, propagated_noise
+from refine.diagnosis.fitted import Fitted, covariance, fit
+from refine.diagnosis.noise import estimate_noise
 from refine.diagnosis.uncertainty import drive_covariance
 from refine.exceptions import ObservationError
-from refine.measures import Residuals
 from refine.model.measured import MeasuredModel
 from refine.solid.field import Field, modulus_field
+from refine.solid.initial import checked_baseline
 from refine.solid.inclusion import MAX_LOG_RATIO, Inclusion, ellipsoid_errors
 
 
@@ -100,12 +100,7 @@ def diagnose_inclusion(bundle: Bundle, cfg: InclusionConfig = InclusionConfig(),
     obs = model.obs
     guide, validate = obs.roles == "guide", obs.roles == "validate"
     sigma = bundle.experiment.noise_std or estimate_noise(obs)
-    base = baseline(model, guide, validate, sigma)
-    if not np.isfinite(base.chi2_fit):
-        model.raise_solve_failure(model.params())
-    at = Residuals.at(obs.displacements, guide, sigma)
-    null = null_test(at.difference(base.predicted), at.valid, sigma, 0.0,
-                     propagated_noise(model, model.params(), sigma, guide, samples=8))
+    base, null = checked_baseline(model, obs, sigma)
     seconds = {"initial": time.perf_counter() - t0}
     log(f"model: {model.mesh.n_cells} {model.mesh.element} cells, {len(obs.ids)} points; misfit {null.ratio:.2f} x "
         f"the noise's (p = {null.p_value:.2g})")
