@@ -61,11 +61,12 @@ def test_two_meshes_of_one_bucket_share_the_solve():
         (b.sizes.n_cells_p, b.sizes.n_nodes_p, b.sizes.nnz_p, b.sizes.n_fixed_p)
     assert a.program is b.program
     u_a = a.solve(theta_a).u
+    cached = a.program.newton._cache_size()  # other tests in this process may have filled other buckets
     with COMPILES as c:
         u_b = b.solve(theta_b).u
         b.solve({**theta_b, "E": 2.0 * np.asarray(theta_b["E"])})
     assert c.n == 0, f"the second mesh of the bucket compiled {c.n} programs"
-    assert a.program.newton._cache_size() == 1
+    assert a.program.newton._cache_size() == cached
     for solver, u in ((a, u_a), (b, u_b)):  # the prescribed motion is met, the body is not torn
         fixed = solver.problem.fixed
         assert np.all(np.isfinite(u)) and np.abs(np.asarray(u).reshape(-1)[fixed]).max() > 1.0
@@ -146,10 +147,10 @@ def test_two_region_hypotheses_of_one_bucket_compile_one_solve():
     assert m1.solver.program is m2.solver.program
     Compiled(m1, p1).evaluate(Z)
     prog = m1.solver.program
-    assert prog.newton._cache_size() == 1 and prog.tangents._cache_size() == 1
+    cached = prog.newton._cache_size(), prog.tangents._cache_size()  # other tests may have filled other buckets
     second = Compiled(m2, p2)
     pred, J = second.evaluate(Z)
-    assert prog.newton._cache_size() == 1 and prog.tangents._cache_size() == 1, "the second mesh recompiled"
+    assert (prog.newton._cache_size(), prog.tangents._cache_size()) == cached, "the second mesh recompiled"
     d, eps = rng.normal(size=Z.size), 1e-5
     fd = (second.predict(Z + eps * d) - second.predict(Z - eps * d)) / (2 * eps)
     np.testing.assert_allclose(J @ d, fd, atol=1e-5 * np.abs(fd).max())
