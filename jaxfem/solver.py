@@ -169,8 +169,9 @@ class Solver:
         """
         u0, loads0 = self._start(theta, start)
         if not _traced((theta, u0, loads0)):  # nothing to differentiate: Newton's program alone
-            with self.program.lock:
-                return self._unpad(self.program.newton(*self._pad(theta, u0, loads0), self.padded_arrays)[0])
+            with self.program.lock:  # wait inside the lock: a later np.asarray would wait holding the GIL
+                u = jax.block_until_ready(self.program.newton(*self._pad(theta, u0, loads0), self.padded_arrays)[0])
+            return self._unpad(u)
         u0, loads0 = jax.lax.stop_gradient((u0, loads0))
         theta, u0, loads0 = self._pad(theta, u0, loads0)
         return self._unpad(self.program.displacement(theta, u0, loads0, self.padded_arrays))
@@ -242,7 +243,8 @@ class Solver:
         s = self.sizes
         g = np.pad(np.asarray(g, np.float64).reshape(-1), (0, s.n_dofs_p - s.n_dofs))
         with self.program.lock:
-            return padding.unpad_theta(self.program.adjoint(theta_p, u, vals, g, self.padded_arrays), s)
+            grad = jax.block_until_ready(self.program.adjoint(theta_p, u, vals, g, self.padded_arrays))
+        return padding.unpad_theta(grad, s)
 
     def reactions(self, u, theta, nodes=None):
         """Reaction forces: the total force ``(dim,)`` that the constraints exert on ``nodes``
