@@ -16,19 +16,17 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import jaxfem as jf
-from jaxfem.hand import (PAPER, Body, Bone, Box, HandModel, Joint, Motion, Scar, Tissues, bone_displacements,
+from jaxfem.hand import (Body, Bone, Box, HandModel, Joint, Motion, Scar, Tissues, bone_displacements,
                          default_body, hand_mesh, plot_curves, reachable, run_motion, scar_cells, skin_area,
                          write_motion_series)
 from jaxfem.io import read_pvd
 from refine.threshold import strain_threshold
-
-COARSE = replace(PAPER, forearm=(48.0, 20.0, 28.0), palm=(48.0, 40.0, 26.0), wrist=(48.0, 16.0, 28.0), fingers=0,
-                 thumb_phalanges=(20.0, 20.0), thumb=(20.0, 22.0), thumb_at=10.0)
+from tests._hand_util import COARSE, coarse_hand
 
 
 @pytest.fixture(scope="module")
 def hand():
-    return hand_mesh(default_body(COARSE), 30.0, 4.5)
+    return coarse_hand()
 
 
 @pytest.fixture(scope="module")

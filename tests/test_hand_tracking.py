@@ -8,7 +8,6 @@ noise (refine.synthetic.hand_range) by the paper-size model, angles and pose dra
 A coarse hand (no fingers, ~900 tet10 elements, as tests/test_hand.py) keeps the fast tests at one
 compile; benchmarks/hand.py tracks the paper-size hand."""
 
-from dataclasses import replace
 
 import jax
 import jax.numpy as jnp
@@ -19,14 +18,12 @@ from jaxfem.hand import PAPER, HandModel, bone_displacements, default_body, hand
 from refine.exceptions import CorrespondenceError
 from refine.hand import HandTracker, TrackConfig, angle_errors, skin_strain_on
 from refine.synthetic.hand_range import hand_range_sequence, pose_matrix
-
-COARSE = replace(PAPER, forearm=(48.0, 20.0, 28.0), palm=(48.0, 40.0, 26.0), wrist=(48.0, 16.0, 28.0), fingers=0,
-                 thumb_phalanges=(20.0, 20.0), thumb=(20.0, 22.0), thumb_at=10.0)
+from tests._hand_util import coarse_hand
 
 
 @pytest.fixture(scope="module")
 def hand():
-    return hand_mesh(default_body(COARSE), 30.0, 4.5)
+    return coarse_hand()
 
 
 @pytest.fixture(scope="module")
@@ -78,7 +75,7 @@ def test_tracker_jacobian_passes_a_taylor_test(hand, tracker):
 def test_strain_map_carried_between_hand_meshes(hand):
     """A linear field of the facet centres on a finer hand's skin, carried onto the coarse skin,
     differs from the field at the coarse centres by at most the fine facets' size times its slope."""
-    fine = hand_mesh(default_body(COARSE), 15.0, 4.5)
+    fine = coarse_hand(15.0)
     g = np.random.default_rng(0).normal(size=3)
     field = lambda h: h.mesh.nodes[h.skin_facets[:, :3]].mean(1) @ g  # noqa: E731
     out = skin_strain_on(fine, field(fine), hand)
