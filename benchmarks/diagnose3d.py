@@ -83,16 +83,12 @@ def errors_of(row: dict, truth, g) -> None:
 
 def end_to_end(seed: int, args) -> dict:
     """Rendered images -> ``nonrigid track --range`` -> forces.csv -> the 3D diagnosis (see the module)."""
-    from dataclasses import replace
-
     from refine.bundle.from_tracks import ModelSkeleton
-    from refine.bundle.io import read_bundle, write_bundle
-    from refine.bundle.observations import Forces
     from refine.cli.track import track
     from refine.cli.track_range import RangeOptions
     from refine.solid.write import diagnose_and_write
     from refine.synthetic.cup import CupGeometry, random_hole
-    from refine.synthetic.cup_views import CupScene, cup_camera, write_cup_frames
+    from refine.synthetic.cup_views import CupScene, add_squeeze_forces, cup_camera, write_cup_frames
 
     g = CupGeometry()
     truth = random_hole(g, seed)
@@ -106,10 +102,7 @@ def end_to_end(seed: int, args) -> dict:
         model = ModelSkeleton(law=g.law, E=g.E, nu=g.nu, noise_std=args.noise)
         track(frames.images, tmp / "B", ranges=RangeOptions(frames.ranges, camera, frames.mesh), model=model,
               validate_fraction=1 / 3, seed=seed, quiet=True)
-        b = read_bundle(tmp / "B")
-        F = np.zeros((len(frames.forces), 1, 3))
-        F[:, 0, 2] = frames.forces
-        write_bundle(tmp / "B", replace(b, observations=replace(b.observations, forces=Forces(("back",), F))))
+        add_squeeze_forces(tmp / "B", frames.forces)
         t_track = time.perf_counter() - t0 - t_data
         d, rep = diagnose_and_write(tmp / "B", tmp / "out", quiet=True)
     row = {"seed": seed, "e2e": True, "hole": [float(v) for v in truth.params], "data_seconds": t_data,

@@ -101,6 +101,16 @@ def test_bad_input_is_named(tmp_path):
         hand_bundle(tmp_path, pts, nu=0.5)
 
 
+def test_a_tracked_bundle_takes_the_load_cells_forces(tmp_path):
+    from refine.bundle.io import read_bundle, write_bundle
+    from refine.synthetic.cup_views import add_squeeze_forces
+
+    root = write_bundle(tmp_path / "B", hand_bundle(tmp_path, floor_points(), forces=False))
+    add_squeeze_forces(root, (0.0, 2.5))
+    F = read_bundle(root).observations.forces
+    assert F.edges == ("back",) and np.allclose(F.values[:, 0], [[0, 0, 0], [0, 0, 2.5]])
+
+
 def run_cup(tmp_path, hole, seed):
     from refine.solid.write import diagnose_and_write
     from refine.synthetic.cup import CupGeometry, write_cup_bundle
@@ -139,21 +149,17 @@ def test_sound_cup_holder_gives_no_finding(tmp_path):
 def track_and_diagnose(frames, camera, out, noise: float, nu: float, seed: int):
     """``nonrigid track --range`` of rendered frames, the load cell's forces added as forces.csv
     (side ``back``), then ``nonrigid diagnose``'s 3D diagnosis: the tracked bundle and the report."""
-    from dataclasses import replace
-
     from refine.bundle.from_tracks import ModelSkeleton
-    from refine.bundle.io import read_bundle, write_bundle
+    from refine.bundle.io import read_bundle
     from refine.cli.track import track
     from refine.cli.track_range import RangeOptions
     from refine.solid.write import diagnose_and_write
+    from refine.synthetic.cup_views import add_squeeze_forces
 
     model = ModelSkeleton(law="neo-hookean", E=1.0, nu=nu, noise_std=noise)  # kind "solid" from --range
     track(frames.images, out / "B", ranges=RangeOptions(frames.ranges, camera, frames.mesh), model=model,
           validate_fraction=1 / 3, seed=seed, quiet=True)
-    b = read_bundle(out / "B")
-    F = np.zeros((len(frames.forces), 1, 3))
-    F[:, 0, 2] = frames.forces
-    write_bundle(out / "B", replace(b, observations=replace(b.observations, forces=Forces(("back",), F))))
+    add_squeeze_forces(out / "B", frames.forces)
     return read_bundle(out / "B"), diagnose_and_write(out / "B", out / "out", quiet=True)[1]
 
 

@@ -186,3 +186,18 @@ def write_cup_frames(directory, scene: CupScene, forces=(1.0, 2.0, 3.0), h: floa
     mesh = Path(directory) / "mesh.vtu"
     jf.write_vtu(mesh, jf.cup_holder(scene.r_in, scene.r_out, scene.height, scene.bottom, h_model).mesh)
     return CupFrames(images, ranges, mesh, tuple(float(f) for f in forces), painted_crossings(scene, cup, U))
+
+
+def add_squeeze_forces(root, forces) -> None:
+    """Write the load cell's total squeeze forces ``forces (N,)`` (N, upward, one per frame, frame 0
+    the reference) into the tracked bundle at ``root`` as forces.csv on the side ``back`` (the
+    bottom's outer face), as a user adds a measured force to what ``nonrigid track`` wrote."""
+    from dataclasses import replace
+
+    from refine.bundle.io import read_bundle, write_bundle
+    from refine.bundle.observations import Forces
+
+    b = read_bundle(root)
+    F = np.zeros((len(forces), 1, 3))
+    F[:, 0, 2] = forces
+    write_bundle(root, replace(b, observations=replace(b.observations, forces=Forces(("back",), F))))
