@@ -36,6 +36,7 @@ import jaxfem as jf
 from jaxfem.hand import HandModel
 
 from refine.correspond.geometry import boundary_facets, softmin, triangle_distances
+from refine.correspond.model import rotation
 from refine.exceptions import CorrespondenceError
 
 
@@ -89,9 +90,8 @@ class FrameFit:
 
 
 def _pose_apply(pose, x):
-    w = pose[:3]
-    K = jnp.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    return x @ jax.scipy.linalg.expm(K).T + pose[3:]
+    """``x (n, 3)`` moved by the pose ``(6,)``: rotation vector (radians), then translation (mm)."""
+    return x @ rotation(pose[:3]).T + pose[3:]
 
 
 class HandTracker:
