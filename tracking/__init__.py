@@ -12,7 +12,7 @@ nothing here knows of finite elements.
 
 from ._api import TRACKERS, make_tracker, track_images
 from ._errors import GridNotFoundError, ImageError, OptionError, RoiError, TrackingError
-from ._exports import ExportError, read_dice, read_displacement_csv, write_dice
+from ._exports import ExportError, read_dice, read_displacement_csv, regular_lattice, write_dice
 from ._grid_tracker import REFINERS, GridTracker
 from ._images import image_paths, load_images, natural_key, roi_mask
 from ._lost import LOST_REASONS
@@ -35,7 +35,7 @@ __all__ = [
     "render_pattern", "grid_truth", "deformed_points", "smooth_displacement", "creased_displacement", "scaled",
     "GridPattern", "SpecklePattern",
     "TrackingError", "ImageError", "RoiError", "GridNotFoundError", "OptionError",
-    "read_dice", "write_dice", "read_displacement_csv", "ExportError", "image_paths", "natural_key",
+    "read_dice", "regular_lattice", "write_dice", "read_displacement_csv", "ExportError", "image_paths", "natural_key",
     "Scene", "clamped_displacement", "LOST_REASONS", "pattern_mask", "material_outline",
     "Camera", "read_camera", "camera_from_table", "load_range_images", "range_paths", "range_cloud", "cell_pixels",
 ]

@@ -29,26 +29,37 @@ failed), MATCH (non-zero: not matched), STATUS_FLAG (kept in meta), GAMMA (match
 0 best: the tracks' quality is -GAMMA)."""
 
 
+def regular_lattice(points: np.ndarray, tol: float = 1e-3):
+    """The regular axis-aligned lattice ``(n, 2+)`` points lie on (a tracker's or a DIC code's
+    step): ``(origin (2,) x/y, step (2,) x/y, index (n, 2) (row from y, column from x))``, or None
+    where they lie on none (an axis with one value, or a point off a step by more than ``tol``
+    of it)."""
+    xy = np.asarray(points, dtype=np.float64)[:, :2]
+    origin, step, index = [], [], []
+    for axis in (0, 1):
+        values = np.unique(np.round(xy[:, axis], 9))
+        if values.size < 2:
+            return None
+        s = float(np.diff(values).min())
+        k = (xy[:, axis] - values[0]) / s
+        if not s > 0 or np.max(np.abs(k - np.rint(k))) > tol:
+            return None
+        origin.append(values[0])
+        step.append(s)
+        index.append(np.rint(k).astype(np.int64))
+    return np.array(origin), np.array(step), np.stack(index[::-1], axis=1)
+
+
 def lattice_index(reference: np.ndarray, tol: float = 1e-3) -> np.ndarray:
     """(n, 2) (row, column) of points that lie on a regular axis-aligned lattice (a DIC code's
-    step), -1 everywhere if they do not: the lattice's topology then gives the outline of the
-    measured region, holes and notches included, as for a tracker's own lattice."""
-    xy = np.asarray(reference, dtype=np.float64)
-    none = np.full((len(xy), 2), -1, dtype=np.int64)
-    if len(xy) < 4:
+    step, :func:`regular_lattice`), -1 everywhere if they do not or two share a site: the
+    lattice's topology then gives the outline of the measured region, holes and notches
+    included, as for a tracker's own lattice."""
+    none = np.full((len(reference), 2), -1, dtype=np.int64)
+    lattice = regular_lattice(reference, tol) if len(reference) >= 4 else None
+    if lattice is None:
         return none
-    index = []
-    for axis in (1, 0):  # rows from y, columns from x
-        values = np.unique(np.round(xy[:, axis], 9))
-        steps = np.diff(values)
-        if steps.size == 0:
-            return none
-        step = steps.min()
-        k = (xy[:, axis] - values[0]) / step
-        if not step > 0 or np.max(np.abs(k - np.rint(k))) > tol:
-            return none
-        index.append(np.rint(k).astype(np.int64))
-    out = np.stack(index, axis=1)
+    out = lattice[2]
     return out if len({tuple(r) for r in out}) == len(out) else none
 
 

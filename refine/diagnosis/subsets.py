@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, optimize
 
+from tracking import regular_lattice
+
 SAMPLES_PER_SIDE = 6
 """Samples along each side of a subset's square: a curve of radius R can dip between two samples
 ``s / SAMPLES_PER_SIDE`` apart by (s / SAMPLES_PER_SIDE)^2 / (8 R), 0.02 px for a 21-px subset
@@ -56,21 +58,10 @@ class Lattice:
 
 def lattice_of(points: np.ndarray, tol: float = 1e-3) -> Lattice | None:
     """The regular lattice the tracked ``points`` ``(n, 2)`` were correlated on (a tracker's or a
-    DIC code's step), or None where they lie on none (within ``tol`` of a step)."""
-    xy = np.asarray(points, float)[:, :2]
-    origin, step, index = [], [], []
-    for axis in (0, 1):
-        values = np.unique(np.round(xy[:, axis], 9))
-        if values.size < 2:
-            return None
-        s = float(np.diff(values).min())
-        k = (xy[:, axis] - values[0]) / s
-        if not s > 0 or np.max(np.abs(k - np.rint(k))) > tol:
-            return None
-        origin.append(values[0])
-        step.append(s)
-        index.append(np.rint(k).astype(int))
-    return Lattice(np.array(origin), np.array(step), np.stack(index[::-1], axis=1))
+    DIC code's step, :func:`tracking.regular_lattice`), or None where they lie on none (within
+    ``tol`` of a step)."""
+    lattice = regular_lattice(points, tol)
+    return None if lattice is None else Lattice(*lattice)
 
 
 def untracked_sites(lattice: Lattice) -> np.ndarray:
