@@ -47,3 +47,68 @@ def test_soft_balls_set_their_ratio_inside_and_nothing_far_away():
     np.testing.assert_allclose([*v["centre"], v["radius"], v["ratio"]], [*centre, radius, ratio])
     g = jax.grad(lambda zz: jnp.sum(balls.log_factor(zz) ** 2))(jnp.asarray(z))  # moves centre, radius and ratio
     assert np.all(np.isfinite(g)) and np.all(np.abs(np.asarray(g)) > 0)
+
+
+def _balls_2d(rng):
+    return SoftBalls(rng.uniform(0, 100, (200, 2)), 10.0, 1, width=2.5, scale=5.0)
+
+
+def test_refit_errors_add_the_discretisation_and_say_what_is_not_identified():
+    """A ball with a random centre, radius and ratio under a seed and a random Hessian: the
+    reported standard errors are the curvature's and the coarse refit's (over f - 1) in
+    quadrature; radius and ratio whose Hessian block is nearly singular (a trade-off) come back
+    as not identified (value None, the fitted number kept, the correlation and condition shown);
+    a well-conditioned block gives numbers."""
+    from refine.correspond.region_errors import IDENTIFIED_LOG_SE, described, statistical_covariance
+
+    rng = np.random.default_rng(7)
+    balls = _balls_2d(rng)
+    centre, radius, ratio = rng.uniform(30, 70, 2), rng.uniform(5, 12), rng.uniform(3, 9)
+    z = balls.z_of(centre[None], radius, ratio)
+    A = rng.normal(size=(4, 4))
+    H = A @ A.T + 4000.0 * np.eye(4)  # curvature per unknown: the centre known to ~0.1 mm
+    dz = rng.normal(0.0, 0.01, 4)
+    cov, scatter = statistical_covariance(H, misfit=50.0, n_points=100.0)
+    assert scatter == 1.0  # residuals within the noise: no inflation
+    good = described(balls, z, cov, dz, np.sqrt(2.0), H, scatter)[0]
+    expect = np.sqrt(np.diag(cov) + (dz / (np.sqrt(2.0) - 1.0)) ** 2)
+    np.testing.assert_allclose(good["centroid_se"], expect[:2] * balls.scale, rtol=1e-12)
+    np.testing.assert_allclose(good["radius_se"], radius * expect[2], rtol=1e-12)
+    assert good["identified"] == {"radius": True, "relative_elasticity": True}
+    np.testing.assert_allclose([good["radius"], good["relative_elasticity"]], [radius, ratio])
+    # log radius and log ratio traded off (a larger, softer ball alike): curvature small along r - k
+    v = np.array([1.0, -1.0]) / np.sqrt(2.0)
+    H2 = H.copy()
+    H2[2:, 2:] = 400.0 * np.eye(2) - (400.0 - 0.05) * np.outer(v, v)
+    cov2, scatter2 = statistical_covariance(H2, misfit=300.0, n_points=100.0)
+    assert scatter2 == 3.0  # residuals 3x the noise's chi-square: the covariance grows with them
+    bad = described(balls, z, cov2, None, None, H2, scatter2)[0]
+    assert bad["radius"] is None and bad["relative_elasticity"] is None
+    assert bad["log_se"]["radius"] > IDENTIFIED_LOG_SE and bad["trade_off"]["condition"] > 1e3
+    assert bad["trade_off"]["log_radius_log_ratio_correlation"] < -0.99 and "not both identified" in bad["note"]
+    np.testing.assert_allclose([bad["radius_fitted"], bad["relative_elasticity_fitted"]], [radius, ratio])
+    assert bad["se_parts"]["discretisation"] is None and np.all(np.isfinite(bad["centroid_se"]))
+
+
+def test_coarser_models_for_the_discretisation_estimate():
+    """A meshed 2D domain is meshed again sqrt(2) coarser; a given block is remade with fewer
+    bricks of the same element; a given mesh that does not fill its bounding box has none."""
+    from refine.bundle.experiment import Experiment, MeshDomain, RectangleDomain
+    from refine.correspond.model import CloudModel, Grips
+
+    sheet = CloudModel(Experiment(name="s", kind="plane-stress", domain=RectangleDomain(0, 0, 60, 30),
+                                  law="neo-hookean", E=10.0, nu=0.3, thickness=1.0), Grips(), h=7.5)
+    c = sheet.coarser()
+    assert c.h == np.sqrt(2.0) * 7.5 and c.cell_size() > 1.3 * sheet.cell_size() and sheet.coarser() is c
+    solid = Experiment(name="b", kind="solid", domain=MeshDomain("d.vtu"), law="neo-hookean", E=10.0, nu=0.3)
+    block = CloudModel(solid, Grips(), mesh=jf.box(0, 0, 0, 40, 20, 20, 8, 4, 4, element="tet4"))
+    cb = block.coarser()
+    assert cb.mesh.element == "tet4" and len(cb.mesh.cells) == 6 * 6 * 3 * 3
+    full = jf.box(0, 0, 0, 40, 20, 20, 4, 2, 2, element="tet4")
+    keep = full.centroids()[:, 0] < 30.0
+    keep |= full.centroids()[:, 2] < 10.0  # an L: the bounding box is not filled
+    used = np.unique(full.cells[keep])
+    renum = np.full(len(full.nodes), -1)
+    renum[used] = np.arange(len(used))
+    ell = jf.Mesh(full.nodes[used], renum[full.cells[keep]], "tet4")
+    assert CloudModel(solid, Grips(), mesh=ell).coarser() is None

@@ -84,6 +84,7 @@ class CloudModel:
         if not grips.clamped and not grips.gripped:
             raise CorrespondenceError("name at least one clamped or gripped side: a free body has rigid modes")
         self.experiment, self.grips, self.h = experiment, grips, float(h)
+        self._built = {"element": element, "linear_solver": linear_solver, "root": root, "meshed": mesh is None}
         self.mesh = mesh = domain_mesh(experiment, h, element, root=root) if mesh is None else mesh
         if mesh.dim != experiment.dim:
             raise CorrespondenceError(f"the mesh is {mesh.dim}D but model.kind {experiment.kind!r} is "
@@ -154,6 +155,33 @@ class CloudModel:
             return (jax.lax.stop_gradient(u.reshape(-1)), jax.lax.stop_gradient(u_D)), u
 
         return jax.lax.scan(step, jax.lax.stop_gradient(start), U_D)[1]
+
+    def cell_size(self) -> float:
+        """The mean cell's size (length): its area's or volume's root."""
+        return float(np.mean(self.mesh.volumes())) ** (1.0 / self.dim)
+
+    def coarser(self, factor: float = np.sqrt(2.0)) -> CloudModel | None:
+        """The same model on a mesh about ``factor`` times coarser (kept: built once), or None where
+        the mesh cannot be made again: a 2D domain is meshed at ``factor * h``; a given mesh only
+        where it fills its bounding box (a block: a structured box of the same element with
+        ``factor`` times fewer bricks along each axis). What a discretisation estimate refits on."""
+        cache = self.__dict__.setdefault("_coarser", {})
+        if factor in cache:
+            return cache[factor]
+        b, mesh = self._built, self.mesh
+        if b["meshed"]:
+            coarse = CloudModel(self.experiment, self.grips, factor * self.h, b["element"], b["linear_solver"],
+                                root=b["root"])
+        else:
+            lo, hi = mesh.nodes.min(axis=0), mesh.nodes.max(axis=0)
+            if self.dim != 3 or not np.isclose(mesh.volumes().sum(), np.prod(hi - lo), rtol=1e-9):
+                cache[factor] = None
+                return None
+            n = [max(1, int(round(L / (factor * self.cell_size() * 6 ** (1 / 3))))) for L in hi - lo]
+            coarse = CloudModel(self.experiment, self.grips, mesh=jf.box(*lo, *hi, *n, element=mesh.element),
+                                linear_solver=b["linear_solver"])
+        cache[factor] = coarse
+        return coarse
 
     def boundary_distances(self, points, x=None) -> np.ndarray:
         """Distances ``(n,)`` of points ``(n, dim)`` to the model's boundary (outline in 2D, surface

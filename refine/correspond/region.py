@@ -8,8 +8,9 @@ ball (a disc in 2D) of its own modulus, its centre, radius and ratio together wi
 grips by exact (adjoint) gradients, and keeps a region only where the misfit drops by more than
 the Bayesian information criterion's penalty, ``(dim + 2) ln n`` for ``n`` boundary points: a
 region the data cannot tell from the smearing of another is rejected, with its numbers reported.
-Standard errors come from the misfit's curvature (the misfit is about a chi-square: the
-covariance is twice the inverse Hessian, by central differences of the exact gradient).
+Standard errors combine the misfit's curvature, the residuals' observed scatter and the
+discretisation (a refit on a coarser mesh); a radius or ratio they leave undetermined is reported
+as not identified (:mod:`refine.correspond.region_errors`).
 """
 
 from __future__ import annotations
@@ -110,7 +111,9 @@ def refit_regions(model: CloudModel, config: FitConfig, data: FrameData, Q, cand
             ``relative_elasticity``, ``area``: :func:`refine.correspond.follow.field_findings`).
 
     Returns a dict: ``regions`` (kept: cause, centroid, radius, relative_elasticity, and
-    standard errors ``centroid_se``, ``radius_se``, ``relative_elasticity_se``), ``rejected``
+    standard errors ``centroid_se``, ``radius_se``, ``relative_elasticity_se``; radius and
+    ratio None where not identified, with ``radius_fitted``, ``identified``, ``se_parts``,
+    ``trade_off``: :func:`refine.correspond.region_errors.described`), ``rejected``
     (the candidates the BIC turned down, with the misfit drop and the penalty), ``misfits`` (the
     misfit with 0, 1, ... balls), ``bic_penalty`` per ball, ``grips`` of the best fit and, where a
     ball was kept, ``positions (n_frames, n_nodes, dim)`` every node in every frame under it.
@@ -136,7 +139,7 @@ def refit_regions(model: CloudModel, config: FitConfig, data: FrameData, Q, cand
     out = {"regions": [], "rejected": rejected, "misfits": misfits, "bic_penalty": penalty, "grips": best_Q.tolist()}
     if kept:
         fitter = ball_fitter(model, config, len(kept))
-        out["regions"] = _described(fitter, data, best_Q, z)
+        out["regions"] = _described(fitter, config, data, best_Q, z, maxiter)
         out["positions"] = np.asarray(fitter._positions(jnp.asarray(best_Q), jnp.asarray(z), model.start(None)))
     return out
 
@@ -151,44 +154,15 @@ def _start(param: SoftBalls, cand: dict, dim: int) -> np.ndarray:
     return param.z_of(cand["centroid"], radius, ratio)
 
 
-def _described(fitter: Fitter, data: FrameData, Q, z) -> list:
-    """The kept balls with their standard errors (from the curvature of the misfit in the grips
-    and the balls' unknowns together)."""
-    param, dim = fitter.param, fitter.model.dim
-    se = _standard_errors(fitter, data, Q, z)[Q.size:].reshape(param.n_balls, dim + 2)
-    out = []
-    for q, s in zip(np.reshape(z, (param.n_balls, dim + 2)), se):
-        ratio = float(np.exp(q[dim + 1]))
-        radius = float(np.exp(q[dim]))
-        out.append({"cause": "stiffer-region" if ratio > 1 else "softer-region",
-                    "centroid": (q[:dim] * param.scale).tolist(), "centroid_se": (s[:dim] * param.scale).tolist(),
-                    "radius": radius, "radius_se": radius * float(s[dim]),
-                    "relative_elasticity": ratio, "relative_elasticity_se": ratio * float(s[dim + 1])})
-    return out
+def _described(fitter: Fitter, config: FitConfig, data: FrameData, Q, z, maxiter: int) -> list:
+    """The kept balls with standard errors from the misfit's curvature (scaled by the residuals'
+    scatter) and the discretisation (a refit on the model's coarser sibling), and whether radius
+    and ratio are identified (:mod:`refine.correspond.region_errors`)."""
+    from refine.correspond import region_errors as E
 
-
-def _standard_errors(fitter: Fitter, data: FrameData, Q, z, step: float = 1e-4) -> np.ndarray:
-    """Standard errors of all unknowns (grips, then the balls'), ``sqrt(diag(2 H^-1))`` with H the
-    misfit's Hessian by central differences of its exact gradient; NaN where H is not positive."""
-    from refine.correspond.fit import _Objective
-
-    if fitter.uses_shortlist:
-        from dataclasses import replace
-
-        data = replace(data, candidates=fitter.shortlists(data, Q, z, fitter.model.start(None)))
-    objective = _Objective(fitter, data, Q, z, fitter.model.start(None), True, 1.0)
-    x = np.concatenate([np.ravel(Q), z])
-    H = np.zeros((len(x), len(x)))
-    for i in range(len(x)):
-        e = np.zeros_like(x)
-        e[i] = step * max(1.0, abs(x[i]))
-        gp = np.asarray(objective.value_and_grad(jnp.asarray(x + e))[1])
-        gm = np.asarray(objective.value_and_grad(jnp.asarray(x - e))[1])
-        H[:, i] = (gp - gm) / (2 * e[i])
-    H = 0.5 * (H + H.T)
-    try:
-        cov = 2.0 * np.linalg.inv(H)
-    except np.linalg.LinAlgError:
-        return np.full(len(x), np.nan)
-    d = np.diag(cov)
-    return np.where(d > 0, np.sqrt(np.abs(d)), np.nan)
+    model, param = fitter.model, fitter.param
+    H, misfit = E.curvature(fitter, data, Q, z)
+    cov, scatter = E.statistical_covariance(H, misfit, float(np.sum(data.w_boundary)))
+    dz, factor = E.discretisation_change(model, model.coarser(), config, data, Q, z, param.n_balls, maxiter)
+    nq = np.size(Q)
+    return E.described(param, z, cov[nq:, nq:], dz, factor, H[nq:, nq:], scatter)
