@@ -99,6 +99,32 @@ def test_bad_clouds_give_clear_errors(model):
         CloudModel(_experiment(PolygonDomain(((0.0, 0.0), (10.0, 0.0), (0.0, 10.0)))), Grips())
 
 
+def test_every_method_refuses_bad_sequences_before_any_solve(model):
+    """The issue's bad input (an empty frame, NaN, a reference cloud far from the model, a later
+    frame far from the model fitted to it), given to the follow and to the Hausdorff method: a
+    CorrespondenceError that names the frame and says what to do, raised before a solve."""
+    from refine.correspond import FollowConfig, follow_clouds
+    from refine.correspond.follow import _check_frame
+
+    rng = np.random.default_rng(13)
+    ref = outline_samples(rng, DOMAIN, 300) + rng.normal(0, 0.03, (300, 2))
+    nan = ref.copy()
+    nan[rng.integers(300), rng.integers(2)] = np.nan
+    shift = rng.uniform(30.0, 60.0) * np.array([np.cos(a := rng.uniform(0, 2 * np.pi)), np.sin(a)])
+    cases = [([ref, ref, np.zeros((0, 2))], "frame 2 has an empty cloud"), ([ref, nan], "frame 1's cloud has NaN"),
+             ([ref + shift, ref], "reference cloud"), ([ref], "at least one more frame")]
+    hausdorff = HausdorffConfig(tol=0.1, noise=0.03)
+    for clouds, message in cases:
+        with pytest.raises(CorrespondenceError, match=message):
+            follow_clouds(model.experiment, clouds, FollowConfig(fit=FitConfig(noise=0.03)), model=model)
+        with pytest.raises(CorrespondenceError, match=message):
+            hausdorff_track(model, clouds, hausdorff)
+    train, _ = split_frames([ref, ref + shift], FitConfig(noise=0.03))  # frame 1 far from where the model went
+    with pytest.raises(CorrespondenceError, match="frame 1's cloud lies .* add the frames between"):
+        _check_frame(model, model.mesh.nodes, train.frames([1]), 1, 0.05 * model.size)
+    _check_frame(model, model.mesh.nodes, train.frames([0]), 1, 0.05 * model.size)  # frame 0 on the model: fine
+
+
 def test_misfit_gradient_passes_a_taylor_test(model, sequence):
     """The adjoint gradient of the clouds' misfit in the grips and a modulus field (one implicit
     solve) against the misfit itself: the Taylor remainder falls as the step squared."""

@@ -26,6 +26,7 @@ from scipy.spatial.distance import directed_hausdorff
 
 import jaxfem as jf
 
+from refine.correspond.fit import FitConfig, split_frames
 from refine.correspond.geometry import facet_distances, on_boundary, point_spacing, seen_nodes
 from refine.correspond.model import CloudModel
 from refine.exceptions import CorrespondenceError
@@ -91,10 +92,16 @@ def hausdorff_track(model: CloudModel, clouds, config: HausdorffConfig) -> Hausd
     """Track the clouds ``[frame 0, frame 1, ...]`` (``(n_k, dim)`` each) by nodal forces.
 
     The model is held only at its clamped sides; its gripped sides are free and moved by the
-    forces like any other node. Returns a :class:`HausdorffResult`.
+    forces like any other node. Returns a :class:`HausdorffResult`. Raises
+    :class:`CorrespondenceError` before any solve for clouds the fit would refuse too (fewer than
+    two frames, an empty frame, NaN, too few boundary points, a reference cloud far from the model).
     """
     if not model.grips.clamped:
         raise CorrespondenceError("the Hausdorff force method needs a clamped side: forces alone leave rigid modes")
+    if len(clouds) < 2:
+        raise CorrespondenceError("a sequence needs frame 0 (the reference shape) and at least one more frame")
+    split_frames(clouds, FitConfig(noise=config.noise))
+    model.check_reference(clouds[0], config.noise, max(10 * config.noise, 0.02 * model.size))
     t0 = time.perf_counter()
     mesh, ex = model.mesh, model.experiment
     problem = jf.Problem(mesh, ex.law, ex.kind, fixed=jf.dofs(mesh, model.clamp))
