@@ -75,6 +75,9 @@ def follow(bundle, out: str | Path, grips=None, h: float = 5.0, noise: float | N
     plot_errors(out / "errors.png", result.records, result.null_level)
     say(f"null level {result.null_level:.4g}; refinements at frames "
         f"{[r.frame for r in result.records if r.refined] or 'none'}; findings {result.findings}; wrote {out}")
+    for f in result.findings:  # a refit's radius or ratio the data leave undetermined
+        if f.get("note"):
+            say(f"{f['cause']} at {[round(c, 2) for c in f['centroid']]}: {f['note']}")
     if result.refit is not None and result.refit["rejected"]:
         say(f"regions of the field rejected by the BIC (misfit drop below {result.refit['bic_penalty']:.3g}): "
             f"{[(r['cause'], [round(c, 2) for c in r['centroid']]) for r in result.refit['rejected']]}")

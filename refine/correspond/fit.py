@@ -56,6 +56,12 @@ class FitConfig:
     shortlist: int = 32
 
 
+def compiled_settings(config: FitConfig) -> FitConfig:
+    """The settings a compiled misfit depends on: ``config`` without the hold-out's share and seed
+    (they only split the data), so that fitters kept per settings serve every seed."""
+    return replace(config, seed=0, holdout=0.0)
+
+
 @dataclass(frozen=True, eq=False)
 class FrameData:
     """Clouds of several frames, split into boundary points (the outline in 2D, every point of a

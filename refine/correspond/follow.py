@@ -20,7 +20,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from refine.correspond.fit import FitConfig, Fitter, held_error, split_frames, with_labelled
+from refine.correspond.fit import FitConfig, Fitter, compiled_settings, held_error, split_frames, with_labelled
 from refine.correspond.model import CloudModel, Grips
 from refine.exceptions import CorrespondenceError
 from refine.model.parametrize import ModulusField
@@ -211,6 +211,7 @@ def field_fitter(model: CloudModel, config: FitConfig) -> Fitter:
     """The :class:`Fitter` of a total-variation modulus field on ``model`` (kept on the model, so a
     second sequence on the same model compiles nothing)."""
     cache = model.__dict__.setdefault("_field_fitters", {})
+    config = compiled_settings(config)
     if config not in cache:
         cache[config] = Fitter(model, config, ModulusField(model.mesh, model.experiment.E, weight=1.0, kind="tv",
                                                            eps=0.05))

@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from refine.correspond.fit import FitConfig, Fitter, FrameData
+from refine.correspond.fit import FitConfig, Fitter, FrameData, compiled_settings
 from refine.correspond.model import CloudModel
 
 
@@ -90,6 +90,7 @@ def ball_fitter(model: CloudModel, config: FitConfig, n_balls: int) -> Fitter:
     """The :class:`Fitter` of ``n_balls`` soft balls on ``model`` (kept on the model: a second
     refit compiles nothing)."""
     cache = model.__dict__.setdefault("_ball_fitters", {})
+    config = compiled_settings(config)
     key = (config, n_balls)
     if key not in cache:
         cell = float(np.mean(model.mesh.volumes())) ** (1.0 / model.dim)
