@@ -112,3 +112,17 @@ def test_coarser_models_for_the_discretisation_estimate():
     renum[used] = np.arange(len(used))
     ell = jf.Mesh(full.nodes[used], renum[full.cells[keep]], "tet4")
     assert CloudModel(solid, Grips(), mesh=ell).coarser() is None
+
+
+def test_balls_keep_their_place_across_cell_sizes():
+    """A ball's unknowns carried from a fine mesh's SoftBalls to a coarser one's (other length
+    unit) describe the same centre, radius and ratio."""
+    from refine.correspond.region_errors import _converted
+
+    rng = np.random.default_rng(8)
+    fine, coarse = _balls_2d(rng), SoftBalls(rng.uniform(0, 100, (90, 2)), 10.0, 1, width=3.5, scale=7.1)
+    centre, radius, ratio = rng.uniform(30, 70, 2), rng.uniform(5, 12), rng.uniform(3, 9)
+    z = fine.z_of(centre[None], radius, ratio)
+    zc = _converted(z, fine, coarse)
+    np.testing.assert_allclose(list(coarse.values(zc)["ball1"].values())[0], centre)
+    np.testing.assert_allclose(_converted(zc, coarse, fine), z, atol=1e-12)

@@ -92,12 +92,20 @@ def discretisation_change(fine, coarse, config, data, Q, z, n_balls: int, maxite
 
     if coarse is None:
         return None, None
+    fine_param = ball_fitter(fine, config, n_balls).param
     try:
         fitter = ball_fitter(coarse, config, n_balls)
-        _, zc, _ = fitter.fit(coarse_data(data, fine, coarse), Q, z, joint=True, maxiter=maxiter)
+        _, zc, _ = fitter.fit(coarse_data(data, fine, coarse), Q, _converted(z, fine_param, fitter.param), joint=True,
+                              maxiter=maxiter)
     except Exception:  # noqa: BLE001 - a coarse mesh that cannot follow the motion gives no estimate
         return None, None
-    return np.asarray(zc) - np.asarray(z), coarse.cell_size() / fine.cell_size()
+    return _converted(zc, fitter.param, fine_param) - np.asarray(z), coarse.cell_size() / fine.cell_size()
+
+
+def _converted(z, source, target) -> np.ndarray:
+    """Balls' unknowns of one :class:`SoftBalls` in another's units (centres scale by cell size)."""
+    v = list(source.values(z).values())
+    return target.z_of([b["centre"] for b in v], [b["radius"] for b in v], [b["ratio"] for b in v])
 
 
 def described(param, z, cov_stat: np.ndarray, dz: np.ndarray | None, factor: float | None, H_balls: np.ndarray,
