@@ -195,7 +195,8 @@ def targets(rows) -> dict:
     out = {
         "fit_correspondence_within_1_percent": {"worst_percent": worst, "pass": bool(worst <= 1.0)},
         "fit_within_noise_without_effect": rows_of(
-            none, "no case without an effect in this file", ok=all(r["fit"]["error"]["rms"] <= r["noise"] for r in none),
+            none, "no case without an effect in this file",
+            ok=all(r["fit"]["error"]["rms"] <= r["noise"] for r in none),
             rms_over_noise=[r["fit"]["error"]["rms"] / r["noise"] for r in none]),
         "no_refinement_without_effect": rows_of(none, "no case without an effect in this file",
                                                 ok=all(not r["fit"]["refinements"] for r in none),

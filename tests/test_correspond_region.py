@@ -88,6 +88,18 @@ def test_refit_errors_add_the_discretisation_and_say_what_is_not_identified():
     assert bad["trade_off"]["log_radius_log_ratio_correlation"] < -0.99 and "not both identified" in bad["note"]
     np.testing.assert_allclose([bad["radius_fitted"], bad["relative_elasticity_fitted"]], [radius, ratio])
     assert bad["se_parts"]["discretisation"] is None and np.all(np.isfinite(bad["centroid_se"]))
+    # only the ratio undetermined (flat along log ratio alone), traded off with the radius: neither reported
+    w = np.array([0.1, 1.0]) / np.hypot(0.1, 1.0)
+    H3 = H.copy()
+    H3[2:, 2:] = 4000.0 * np.eye(2) - (4000.0 - 0.5) * np.outer(w, w)
+    cov3, _ = statistical_covariance(H3, 50.0, 100.0)
+    one = described(balls, z, cov3, None, None, H3, 1.0)[0]
+    assert one["log_se"]["radius"] < IDENTIFIED_LOG_SE < one["log_se"]["relative_elasticity"]
+    assert abs(one["trade_off"]["log_radius_log_ratio_correlation"]) > 0.9 and one["radius"] is None
+    H3[2, 3], H3[3, 2], H3[3, 3] = 0.0, 0.0, 0.5  # the ratio undetermined alone, not traded off: the radius stays
+    cov4, _ = statistical_covariance(H3, 50.0, 100.0)
+    alone = described(balls, z, cov4, None, None, H3, 1.0)[0]
+    assert alone["radius"] == radius and alone["relative_elasticity"] is None
 
 
 def test_coarser_models_for_the_discretisation_estimate():

@@ -17,7 +17,8 @@ noise. Three parts are combined here, per unknown (centre, log radius, log ratio
   quadrature;
 - identification: a radius or ratio whose total standard error on the log scale exceeds
   :data:`IDENTIFIED_LOG_SE` (known within less than a factor ``exp(0.5) = 1.65`` at one standard
-  error) is reported as not identified (the value None, the fitted number kept as
+  error) is reported as not identified, and so is the other where the two are traded off
+  (correlation beyond :data:`TRADE_OFF`) (the value None, the fitted number kept as
   ``radius_fitted`` / ``relative_elasticity_fitted``), with the evidence: the correlation of log
   radius and log ratio in the curvature's covariance and the condition of their 2 x 2 Hessian
   block (a small stiff ball and a larger, less stiff one bend the boundary alike).
@@ -32,6 +33,10 @@ import numpy as np
 
 #: the largest total standard error of log radius or log ratio still called identified
 IDENTIFIED_LOG_SE = 0.5
+#: above this |correlation| of log radius and log ratio, one not identified makes the other not
+#: identified either: a ratio run off towards a rigid ball leaves the radius at the value that
+#: trades off with it, and the quadratic approximation behind the radius's error no longer holds
+TRADE_OFF = 0.9
 
 
 def curvature(fitter, data, Q, z, step: float = 1e-4) -> tuple[np.ndarray, float]:
@@ -136,6 +141,8 @@ def described(param, z, cov_stat: np.ndarray, dz: np.ndarray | None, factor: flo
         cond = float(np.linalg.cond(Hb / np.outer(d, d)))
         ratio, radius = float(np.exp(q[dim + 1])), float(np.exp(q[dim]))
         ok_r, ok_k = bool(s[dim] <= IDENTIFIED_LOG_SE), bool(s[dim + 1] <= IDENTIFIED_LOG_SE)
+        if not (ok_r and ok_k) and not abs(corr) <= TRADE_OFF:  # one undetermined drags the other along
+            ok_r = ok_k = False
         row = {"cause": "stiffer-region" if ratio > 1 else "softer-region",
                "centroid": (q[:dim] * param.scale).tolist(), "centroid_se": (s[:dim] * param.scale).tolist(),
                "radius": radius if ok_r else None, "radius_se": radius * float(s[dim]),
