@@ -73,3 +73,30 @@ def test_no_tracked_subset_reaches_into_the_cfrp_coupons_dark_disc():
     assert reached.max() <= DEPTH, reached.max()
     assert tracks.meta["excluded"][LOST_REASONS[SUBSET_EDGE]] > 0
     assert tracks.reference.shape[0] > 2700
+
+
+def test_a_tracked_bundles_subsets_leave_the_true_hole_free(tmp_path):
+    """What refine reads (``measurement.subset`` in the bundle's unit, each point's square of that
+    side, :func:`refine.diagnosis.subsets.subset_distance`) leaves the true hole free: the hole a
+    fit may grow to holds the true one, to the squares' pixel footprint (half a pixel wider than
+    their pixel centres along the axes, half a diagonal at the corners)."""
+    cv2 = pytest.importorskip("cv2")
+    from refine.cli import track
+    from refine.diagnosis.subsets import subset_distance
+
+    rng = np.random.default_rng(5300)
+    hx, hy, r = rng.uniform(80, 120), rng.uniform(80, 120), rng.uniform(20, 35)
+    scene = Scene(holes=((hx, hy, r),))
+    field = clamped_displacement(0.0, 0.002, 0.3, 100.0, shift=(0.7, -1.2))
+    paths = []
+    for k, u in enumerate((None, field)):
+        paths.append(tmp_path / f"f{k}.png")
+        cv2.imwrite(str(paths[-1]), render_speckle((200, 200), 1.3, u, noise_sigma=1.0, scene=scene, seed=k,
+                                                   quantize=True).astype(np.uint8))
+    scale = 0.25
+    bundle = track(paths, tmp_path / "b", pattern="speckle", scale=scale, cut_holes=False, quiet=True)
+    assert bundle.experiment.subset == pytest.approx(SpeckleTracker().subset * scale)
+    clear = subset_distance(bundle.observations.reference, (hx * scale, hy * scale, r * scale, r * scale, 0.0),
+                            bundle.experiment.subset) / scale
+    assert clear.min() >= -(DEPTH + 0.5 * np.sqrt(2)), clear.min()
+    assert clear.min() < CLEAR, clear.min()   # and the ring of kept subsets reaches the hole

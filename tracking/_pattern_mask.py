@@ -31,7 +31,7 @@ level on the material) over a Gaussian of 1 px instead of 3 px, so that for a st
 0.67 px (the quartile of the window, ``0.674 sigma``) inside the texture-less side instead of 2 px,
 and one pixel more is taken off for that offset. On 12 generated holes (random radius 15-35 px,
 speckles of 1-1.8 px) the squares of the subsets kept reached at most 0.2 px into the hole (pixel
-centres; 1.3 px without the extra pixel, 1.6-3.9 px with the mask alone), and no lattice site
+centres; 1.3 px without the extra pixel, 1.6-3.9 px with the mask alone; 0.35 px on later draws), and no lattice site
 whose square cleared the hole by more than 5.2 px was dropped. At 1 px a flat spot between
 speckles also falls under the level, so only pixels connected to what the mask left out, within
 the mask's own reach of it, are taken off: the mask never opens a new hole.
