@@ -202,7 +202,7 @@ def summarise(rows: list[dict]) -> dict:
     return {"cases": len(rows), "estimates": out, "targets": targets}
 
 
-def _plot(rows: list[dict], path: Path):
+def _plot(rows: list[dict], path: Path, title: str):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -216,7 +216,7 @@ def _plot(rows: list[dict], path: Path):
     for y in (-100 * AREA_TOL, 100 * AREA_TOL):
         ax.axhline(y, color="r", lw=0.6)
     ax.set_xticks(range(len(names)), [n.replace("_", " ") for n in names])
-    ax.set(ylabel="area error (%)", title=f"{len(rows)} generated holes, ring of failed subsets removed")
+    ax.set(ylabel="area error (%)", title=f"{len(rows)} generated holes, {title}")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 
@@ -243,7 +243,7 @@ def main():
     OUT.mkdir(exist_ok=True)
     name = "subset_holes_images" if args.images else "subset_holes"
     (OUT / f"{name}.json").write_text(json.dumps({**summary, "rows": rows}, indent=1))
-    _plot(rows, OUT / f"{name}.png")
+    _plot(rows, OUT / f"{name}.png", "tracked from speckle images" if args.images else "ring of failed subsets removed")
     print(json.dumps(summary["targets"], indent=1))
 
 
