@@ -61,10 +61,11 @@ def image_hole(path: Path) -> tuple[np.ndarray, float, float]:
     return np.array([xs.mean(), ys.mean()]), float(hole.sum()), float(speckled.max() - speckled.min() + 1)
 
 
-def run(work: Path, log=print, tracked: Path | None = None) -> dict:
+def run(work: Path, log=print, tracked: Path | None = None, config=None, whole_only: bool = False) -> dict:
     """Track (or read the bundle ``tracked`` wrote by ``nonrigid track --pattern speckle --scale 1
-    --keep-holes``), diagnose without the hole, diagnose with the found hole; the figures as a
-    dict (``"diagnoses"``: the two :class:`~refine.diagnosis.Diagnosis`, not JSON)."""
+    --keep-holes``), diagnose without the hole, diagnose with the found hole (not with
+    ``whole_only``); the figures as a dict (``"diagnoses"``: the :class:`~refine.diagnosis.Diagnosis`
+    objects, not JSON); ``config``: the diagnoses' DiagnoseConfig (None: the defaults)."""
     from refine.bundle.io import Bundle, read_bundle
     from refine.cli import track
     from refine.diagnosis import diagnose
@@ -76,7 +77,7 @@ def run(work: Path, log=print, tracked: Path | None = None) -> dict:
     track_s = None if tracked else time.perf_counter() - t
     obs = bundle.observations
     log(f"{obs.n_points} points x {obs.n_frames} frames (tracking: {track_s or 0:.0f} s)")
-    whole = diagnose(bundle, log=log)
+    whole = diagnose(bundle, config, log=log)
     holes = [f for f in whole.findings if f.cause == "hole"]
     out = {"image_hole": {"centre": centre.round(2).tolist(), "area": round(area, 1)},
            "specimen_width": width, "points": obs.n_points, "frames": obs.n_frames, "track_seconds": track_s and round(track_s, 1),
@@ -89,7 +90,8 @@ def run(work: Path, log=print, tracked: Path | None = None) -> dict:
     if holes:
         found = holes[0].region
         targets.update(hole_targets(found.centroid, found.area, centre, area, width))
-        holed, more, more_targets = run_holed(bundle, found.polygon, centre, area, log)
+    if holes and not whole_only:
+        holed, more, more_targets = run_holed(bundle, found.polygon, centre, area, log, config)
         diagnoses.append(holed)
         out.update(more)
         targets.update(more_targets)
@@ -106,14 +108,14 @@ def hole_targets(found_centre, found_area: float, centre, area: float, width: fl
             "area_within_10pct": {"measured": area_error, "passed": abs(area_error) < AREA_TOL}}
 
 
-def run_holed(bundle, polygon, centre, area: float, log=print) -> tuple:
+def run_holed(bundle, polygon, centre, area: float, log=print, config=None) -> tuple:
     """Diagnose with the found hole (``polygon``) in the domain, then test the area shortfall
     (:func:`shortfall`); ``(diagnosis, out entries, targets)``."""
     from refine.bundle.io import Bundle
     from refine.diagnosis import diagnose
 
     domain = replace(bundle.experiment.domain, holes=(tuple(map(tuple, polygon)),))
-    holed = diagnose(Bundle(replace(bundle.experiment, domain=domain), bundle.observations, bundle.root), log=log)
+    holed = diagnose(Bundle(replace(bundle.experiment, domain=domain), bundle.observations, bundle.root), config, log=log)
     out = {"with_hole": {"findings": [f.to_json() for f in holed.findings], "chosen": holed.chosen.describe(),
                          "seconds": round(holed.seconds, 1), "null_ratio": holed.null.ratio,
                          "p_value": holed.null.p_value, "gain": holed.errors["gain"],
@@ -356,9 +358,24 @@ def main() -> None:
                    "too, measure only the area shortfall (noise estimated, no model error in the weights)")
     p.add_argument("--subsets-only", action="store_true", help="with --previous: keep its diagnoses, measure only "
                    "the hole seen through the DIC subsets (refine.diagnosis.subsets)")
+    p.add_argument("--workers", type=int, help="the diagnoses' workers (DiagnoseConfig.workers; 1 where two fits side "
+                   "by side deadlock in XLA's CPU pool on a 2-core machine)")
+    p.add_argument("--whole-only", action="store_true", help="only the diagnosis without the hole; with --previous "
+                   "its later entries are kept, marked \"rerun\": false")
     args = p.parse_args()
+    from refine.diagnosis.config import DiagnoseConfig
+    config = DiagnoseConfig(workers=args.workers) if args.workers else None
     load = os.getloadavg()[0]
-    if args.previous and args.subsets_only:
+    if args.whole_only:
+        with tempfile.TemporaryDirectory() as work:
+            result = run(Path(work), tracked=args.tracked, config=config, whole_only=True)
+        if args.previous:  # the later stages as the previous run left them
+            previous = json.loads(args.previous.read_text())
+            result.update({k: {**v, "rerun": False} for k, v in previous.items() if k not in result
+                           and isinstance(v, dict) and k not in ("targets", "image_hole")})
+            result["targets"].update({k: {**v, "rerun": False} for k, v in previous["targets"].items()
+                                      if k not in result["targets"]})
+    elif args.previous and args.subsets_only:
         result = subsets_only(json.loads(args.previous.read_text()), args.tracked)
     elif args.previous and args.shortfall_only:
         result = shortfall_only(json.loads(args.previous.read_text()), args.tracked)
@@ -366,9 +383,9 @@ def main() -> None:
         result = rerun_holed(json.loads(args.previous.read_text()), args.tracked)
     else:
         with tempfile.TemporaryDirectory() as work:
-            result = run(Path(work), tracked=args.tracked)
+            result = run(Path(work), tracked=args.tracked, config=config)
     diagnoses = result.pop("diagnoses")
-    if args.previous:
+    if args.previous and not args.whole_only:
         diagnoses = [None, *diagnoses] if diagnoses else []  # the whole domain's diagnosis was not rerun: its figure stays
     result["load_average"] = [round(load, 2), round(os.getloadavg()[0], 2)]
     OUT.mkdir(exist_ok=True)

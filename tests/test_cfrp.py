@@ -9,10 +9,14 @@ tracker and the diagnosis). With the hole in the model the diagnosis says what i
 gain on the held-out validation points, and the holed initial model predicts those points better
 than the whole one. The area shortfall is tested as well (benchmarks/cfrp.py's :func:`shortfall`): the
 hole fitted in a fibre-reinforced material (the laminate's anisotropy) must come within 10 % of the
-image's area too. The tracked bundle now carries the tracker's subset (``measurement.subset``), so
-the diagnosis keeps the hole out of every tracked subset (refine.diagnosis.subsets); measured on
-the search's frames alone (benchmarks/cfrp.py --subsets-only) that hole is -13 % in area, so the
-area targets are still expected to fail (not rerun end to end since). Slow: 40-60 minutes on 2 cores."""
+image's area too. The tracked bundle carries the tracker's subset (``measurement.subset``), and the
+speckle tracker keeps only subsets wholly on textured material (the hole's edge read at the pixel
+scale, tests/test_subset_edges.py), so the diagnosis keeps the hole out of every tracked subset
+(refine.diagnosis.subsets) and no further: on the search's frames alone (benchmarks/cfrp.py
+--subsets-only) the hole came out +2.3 % in area (-13 % when the subsets reached 3 px into the
+hole). See benchmarks/README.md for which targets were rerun end to end. Slow: 40-60 minutes on 2
+cores; the pipeline's two workers have deadlocked in XLA's CPU pool on a 2-core machine (see
+benchmarks/cfrp.py --workers)."""
 
 from __future__ import annotations
 

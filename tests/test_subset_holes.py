@@ -204,3 +204,43 @@ def test_a_hole_fitted_with_its_failed_subsets_keeps_its_area():
     hole = fit_hole(MeasuredModel(bundle.experiment, obs), start, guide, hold, 0.02).shapes[0]
     assert hole.axes[0] * hole.axes[1] / (truth.rx * truth.ry) == pytest.approx(1.0, abs=0.10)
     assert subset_distance(obs.reference, hole.params, subset).min() > 0  # no tracked subset covered
+
+
+def test_a_hole_fitted_with_a_law_starts_where_the_subsets_put_it(monkeypatch):
+    """``fit_hole_with_law`` (a hole and a material law fitted together) starts, like ``fit_hole``,
+    from the subsets' ellipse: from a candidate off the hole's centre it starts on the hole, clear of every
+    tracked square (the candidate only shrunk clear of the squares was too small to be tried). The fit itself is replaced by a stub that hands back the hypothesis."""
+    from refine.diagnosis import hole_law
+    from refine.diagnosis.fitted import NotApplicable
+    from refine.diagnosis.holes import hole_hypothesis
+    from refine.diagnosis.shapes import Hole
+    from refine.model.measured import MeasuredModel
+
+    rng = np.random.default_rng(17)
+    spacing, subset = 5.0, 9.0
+    pts = _lattice(spacing)
+    hole = _random_hole(rng, spacing)
+    keep = subset_distance(pts, hole.params, subset) > 0
+    edge = (pts[keep, 0] % 100 == 20) | (pts[keep, 1] % 60 == 10)
+    obs = Observations(ids=np.flatnonzero(keep) + 1, reference=pts[keep], roles=np.where(edge, "boundary", "guide"),
+                       displacements=np.zeros((1, keep.sum(), 2)))
+    r = max(hole.rx, hole.ry) + 4
+    off = Hole((hole.cx + 0.6 * r, hole.cy - 0.3 * r), (r, r), 0.0)   # a candidate off the hole's centre
+    base = MeasuredModel(_experiment(subset=subset), obs, h=4.0)
+
+    class Started(Exception):
+        pass
+
+    def stub(hypothesis, *args, **kwargs):
+        raise Started(hypothesis)
+
+    monkeypatch.setattr(hole_law, "fit", stub)
+    with pytest.raises(Started) as caught:
+        hole_law.fit_hole_with_law(base, off, "fibre-reinforced", None, None, 0.02,
+                                   start={"fibre_angle": 0.3, "fibre_stiffness": 2.0})
+    start = caught.value.args[0].hole.hole
+    assert subset_distance(obs.reference, start.params, subset).min() > 0
+    assert np.hypot(start.cx - hole.cx, start.cy - hole.cy) < 0.25 * spacing
+    assert start.rx * start.ry > 0.8 * hole.rx * hole.ry
+    with pytest.raises(NotApplicable):  # the start before: the candidate shrunk clear of the squares, too small
+        hole_hypothesis(base, off)

@@ -22,6 +22,7 @@ NO_RANGE = 8        # no depth: the range image has a hole (NaN, inf, the scanne
 OFF_RANGE = 9       # its depth interpolation reaches beyond the range image's edge
 RANGE_EDGE = 10     # its depth support straddles an occluding edge (a jump over the allowed step)
 NO_REFERENCE = 11   # not measured in the reference frame (frame 0), so it has no reference position
+SUBSET_EDGE = 12    # its subset would reach a texture-less edge (a hole's, the background's) at the pixel scale
 
 LOST_REASONS = {
     MEASURED: "measured",
@@ -36,6 +37,7 @@ LOST_REASONS = {
     OFF_RANGE: "outside the range image",
     RANGE_EDGE: "depth jumps within its range support (occluding edge)",
     NO_REFERENCE: "not measured in the reference frame",
+    SUBSET_EDGE: "its subset reaches a texture-less edge (hole, background)",
 }
 
 

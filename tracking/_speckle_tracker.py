@@ -2,7 +2,8 @@
 
 Points sit every ``spacing`` px in the region of interest, where the speckle is (``_pattern_mask``:
 holes, background beyond the edges and glare are left out, and a subset must lie wholly on the
-pattern). Each frame's global affine motion is estimated first (``_coarse``: correlation of the
+pattern, whose texture-less edges are read at the pixel scale: ``textured_material``, so that a
+kept subset lies on material to about half a pixel). Each frame's global affine motion is estimated first (``_coarse``: correlation of the
 whole images over a tenth of their size, then ECC), so a frame may jump by far more than a
 subset; each point starts IC-GN (see ``_dic``) from that map plus its own residual from the
 previous frames extrapolated at constant velocity (with ``reference="previous"`` the map from
@@ -32,7 +33,7 @@ from ._errors import OptionError, RoiError
 from ._grid_topology import fill_field
 from ._images import as_stack, roi_mask
 from ._interp import spline_image
-from ._pattern_mask import material_outline, pattern_mask, saturated
+from ._pattern_mask import material_outline, pattern_mask, saturated, textured_material
 from ._support import unsupported
 from ._tracks import Tracks
 
@@ -74,8 +75,10 @@ class SpeckleTracker:
     find_pattern: bool = True
     coarse: bool = True
 
-    def points(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Correlation points in ``mask`` (rows, cols): xy (n, 2) integer pixels, (row, col) (n, 2)."""
+    def points(self, mask: np.ndarray, material: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Correlation points in ``mask`` (rows, cols): xy (n, 2) integer pixels, (row, col) (n, 2);
+        the lattice spans ``mask``, and a point's subset (``subset_in_roi``; else the point) lies
+        wholly in ``material`` (rows, cols) bool (None: ``mask``)."""
         radius = self.subset // 2
         margin = radius + 2
         rows, cols = np.nonzero(mask)
@@ -89,10 +92,11 @@ class SpeckleTracker:
         index = np.stack([ii.ravel(), jj.ravel()], axis=1)
         keep = ((xy[:, 0] >= margin) & (xy[:, 1] >= margin)
                 & (xy[:, 0] < w - margin) & (xy[:, 1] < h - margin))
+        material = mask if material is None else material
         if self.subset_in_roi:
-            inside = ndimage.binary_erosion(mask, np.ones((self.subset, self.subset)), border_value=0)
+            inside = ndimage.binary_erosion(material, np.ones((self.subset, self.subset)), border_value=0)
         else:
-            inside = mask
+            inside = material
         ok = np.zeros(len(xy), bool)
         ok[keep] = inside[xy[keep, 1].astype(int), xy[keep, 0].astype(int)]
         if not ok.any():
@@ -105,7 +109,8 @@ class SpeckleTracker:
 
         ``meta`` holds ``lost_reasons`` (n_frames, n) int8 and ``lost_reason_names`` (see
         ``tracking._lost``), ``excluded`` ({reason: lattice points in the ROI not made points}),
-        ``pattern_mask``, ``outline`` ({"outer": (k, 2), "holes": [(m, 2), ...]} px) and
+        ``pattern_mask``, ``material_mask`` (the mask less its texture-less edges at the pixel
+        scale: every point's whole subset lies in it), ``outline`` ({"outer": (k, 2), "holes": [(m, 2), ...]} px) and
         ``coarse_motion`` (per frame: the global affine (2, 3) and whether the data supported it).
         """
         if self.subset < 5 or self.subset % 2 == 0:
@@ -118,11 +123,13 @@ class SpeckleTracker:
             stack = np.stack([ndimage.gaussian_filter(im, self.smoothing) for im in raw])
         roi = roi_mask(roi, stack.shape[1:])
         mask = pattern_mask(raw[0], self.subset, roi) if self.find_pattern else roi
-        xy, index = self.points(mask)
+        material = textured_material(raw[0], mask, self.subset, roi) if self.find_pattern else roi
+        xy, index = self.points(mask, material)
         excluded = {}
         if self.find_pattern:
-            lattice_in_roi = len(self.points(roi)[0])
-            excluded = lost_codes.reason_counts(np.full(max(lattice_in_roi - len(xy), 0), lost_codes.OFF_PATTERN))
+            lattice_in_roi, on_pattern = len(self.points(roi)[0]), len(self.points(mask)[0])
+            excluded = lost_codes.reason_counts(np.r_[np.full(max(lattice_in_roi - on_pattern, 0), lost_codes.OFF_PATTERN),
+                                                      np.full(max(on_pattern - len(xy), 0), lost_codes.SUBSET_EDGE)])
         n = len(xy)
         positions = np.full((len(stack), n, 2), np.nan)
         quality = np.zeros((len(stack), n))
@@ -169,7 +176,7 @@ class SpeckleTracker:
         meta = {"tracker": "speckle", "subset_px": self.subset, "spacing_px": self.spacing,
                 "reference": self.reference, "spline_order": self.order,
                 "lost_reasons": codes, "lost_reason_names": dict(lost_codes.LOST_REASONS),
-                "excluded": excluded, "pattern_mask": mask,
+                "excluded": excluded, "pattern_mask": mask, "material_mask": material,
                 "outline": material_outline(mask, min_hole_area=float(self.subset) ** 2),
                 "coarse_motion": [{"affine": np.hstack([m.linear, m.offset[:, None]]), "supported": m.supported}
                                   for m in motions]}

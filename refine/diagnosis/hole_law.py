@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from refine.diagnosis.fitted import Fitted, fit, fit_compiled
-from refine.diagnosis.holes import HoleHypothesis, hole_hypothesis
+from refine.diagnosis.holes import HoleHypothesis, hole_hypothesis, subset_start
 from refine.diagnosis.laws import best_angle_start, law_parameters, law_parts
 from refine.diagnosis.shapes import Hole
 from refine.model.measured import MeasuredModel
@@ -59,7 +59,11 @@ def fit_hole_with_law(base: MeasuredModel, shape, law: str, fit_mask, hold_mask,
                       h: float | None = None, element: str = "tri3") -> Fitted:
     """A hole started at ``shape`` (a fitted hole's, or a candidate's) in a material of ``law``,
     its geometry and the law's parameters fitted together; the law's angle (where it has one)
-    from the best of a few starts unless ``start`` gives it (:func:`best_angle_start`)."""
+    from the best of a few starts unless ``start`` gives it (:func:`best_angle_start`). With the
+    bundle's subset known, the hole starts where the subsets put it
+    (:func:`~refine.diagnosis.holes.subset_start`) and keeps out of every tracked subset, as
+    :func:`~refine.diagnosis.holes.fit_hole`'s second fit does."""
+    shape = subset_start(base, shape)
     hypothesis = HoleWithLaw(hole_hypothesis(with_law(base, law), shape, h, element), tuple((start or {}).items()))
     if start:
         fitted = fit(hypothesis, fit_mask, hold_mask, sigma)
