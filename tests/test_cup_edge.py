@@ -1,0 +1,72 @@
+"""The painted grid's evidence of a cup holder's hidden hole (refine.solid.edge): the lattice of the
+bottom's crossings found at any angle under noise, the gap of missing crossings that brackets the
+hole's edge (the true hole consistent with it, the ellipse between the two sets near it), crossings
+lost at the rim or out of view taken for no hole, and the fit's constraint."""
+
+import numpy as np
+import pytest
+
+import jaxfem as jf
+from refine.solid.edge import EdgeGeometry, NoLattice, evidence_near, grid_lattice
+from refine.solid.morph import ExtrudedMorph
+from refine.synthetic.cup import CupGeometry, _points, random_hole
+
+G = CupGeometry()
+
+
+def bottom(seed, hole=True, spacing=1.2):
+    """The bottom's crossings (cup frame, noisy by 0.01 mm as tracked) and the hole drawn under ``seed``."""
+    truth = random_hole(G, seed) if hole else None
+    rng = np.random.default_rng(seed)
+    X, _ = _points(G, truth, spacing, rng)
+    xy = X[np.abs(X[:, 2]) < 1e-9, :2]
+    return xy + rng.normal(0, 0.01, xy.shape), truth
+
+
+@pytest.mark.parametrize("seed", [11, 12])
+def test_the_lattice_of_a_turned_noisy_grid_is_found(seed):
+    xy, _ = bottom(seed)
+    lat = grid_lattice(xy)
+    assert lat.step == pytest.approx(1.2, abs=0.005)
+    np.testing.assert_allclose(lat.sites(lat.index), xy, atol=0.05)
+    with pytest.raises(NoLattice):
+        grid_lattice(np.random.default_rng(seed).uniform(-10, 10, (200, 2)))  # scattered points: no grid
+
+
+@pytest.mark.parametrize("seed", [21, 22, 23])
+def test_the_missing_crossings_bracket_the_hidden_hole(seed):
+    xy, truth = bottom(seed)
+    lat = grid_lattice(xy)
+    # a candidate's centre off by a step still finds the gap
+    start = np.array([truth.cx, truth.cy]) + np.random.default_rng(seed).normal(0, 0.7, 2)
+    ev = evidence_near(lat, start, max(truth.rx, truth.ry) + 2 * lat.step, G.r_in)
+    assert ev is not None and len(ev.missing) >= 3
+    assert ev.violation(truth.params) == 0.0  # the truth is consistent with what the grid shows
+    c = ev.ellipse
+    assert np.hypot(c[0] - truth.cx, c[1] - truth.cy) < 0.5 * lat.step
+    assert abs(np.pi * c[2] * c[3] / truth.area - 1) < 0.35
+    lo, hi = ev.area_range()
+    assert lo <= truth.area <= hi and hi - lo < truth.area  # the grid's bracket: wide, but holds the truth
+    # the fit's constraint: a hole moved off its gap by two steps is turned down before any solve
+    e = jf.Ellipse(*ev.ellipse)
+    slab = jf.cup.cup_bottom(G.r_in, G.r_out, G.bottom, 2.5, e)
+    geo = EdgeGeometry(ExtrudedMorph.of(slab), e.params[None], scale=1.0, rotate=True, edge=ev, slack=ev.slack)
+    assert geo.infeasibility(np.zeros(5)) is None
+    away = np.zeros(5)
+    away[:2] = 2 * lat.step * (np.array([ev.ellipse[0], ev.ellipse[1]]) / max(np.hypot(*ev.ellipse[:2]), 1e-9) + 1e-3)
+    assert "missing crossing" in geo.infeasibility(-away)
+
+
+def test_crossings_lost_at_the_rim_or_out_of_view_are_no_hole():
+    xy, _ = bottom(31, hole=False)
+    r = np.hypot(*xy.T)
+    rim = np.argmin(np.abs(r - (G.r_out - 1.0)))  # a crossing near the rim, lost
+    keep = (np.arange(len(xy)) != rim) & (xy[:, 0] > -6.0)  # and the left part out of view
+    lat = grid_lattice(xy[keep])
+    for place in (xy[rim], [-7.0, 0.0], [-6.5, 3.0]):
+        assert evidence_near(lat, place, 2.5, G.r_in) is None
+    # a crossing lost inside the floor is a gap of one site, enclosed: evidence, but only of itself
+    inner = np.argmin(np.hypot(*(xy - [2.0, 1.0]).T))
+    lat = grid_lattice(np.delete(xy, inner, 0))
+    ev = evidence_near(lat, xy[inner], 2.5, G.r_in)
+    assert ev is not None and len(ev.missing) == 1 and np.hypot(*(ev.missing[0] - xy[inner])) < 0.05
