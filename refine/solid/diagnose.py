@@ -38,6 +38,7 @@ from refine.solid.global_model import held_by_fixture
 from refine.solid.inclusion_diagnosis import InclusionDiagnosis, diagnose_inclusion, fills_hull, inclusion_report
 from refine.solid.initial import checked_baseline
 from refine.solid.local import Local, SolidHole, Whole
+from refine.solid.start import best_start, bracket_starts
 
 
 @dataclass(frozen=True)
@@ -52,8 +53,8 @@ class SolidConfig:
     remeshes anyway, sizes it; each remesh is a compile of half a minute); ``edge_slack``: with the
     bottom's points on a painted grid's lattice, the missing crossings of a hole's gap bracket its
     edge (:mod:`refine.solid.edge`): both fits start from the ellipse between them and keep every
-    missing crossing within ``edge_slack`` grid steps of the hole (a crossing on the edge is lost
-    too); None: no edge evidence."""
+    missing crossing within ``edge_slack`` grid steps of the hole (a tracker loses crossings within
+    about 0.7 pitch of a hole's edge: :mod:`refine.solid.start`); None: no edge evidence."""
 
     h: float | None = None
     alpha: float = 0.01
@@ -62,7 +63,7 @@ class SolidConfig:
     linear_solver: str = "auto"
     global_modulus: bool = True
     local_remesh: int = 0
-    edge_slack: float | None = 0.35
+    edge_slack: float | None = 0.75
 
 
 @dataclass
@@ -190,7 +191,7 @@ def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) 
     chosen, whole = base, None
     if best is not None and best.bic < base.bic and best.chi2_holdout < base.chi2_holdout:
         chosen = best
-        whole = refit_whole(bundle, local, best.shapes[0], sigma, cfg, best.hypothesis.edge)
+        whole = refit_whole(bundle, local, best.shapes[0], sigma, cfg, best.hypothesis.edge, log)
         log(f"  global model: {whole.describe()}")
         seconds["global_fit"] = time.perf_counter() - t0 - seconds["initial"] - seconds["hole"]
     return SolidDiagnosis(shape, local, base, null, tried, best, chosen, seconds, whole)
@@ -222,12 +223,12 @@ def without_cavity(bundle: Bundle) -> bool:
 
 
 def refit_whole(bundle: Bundle, local: Local, hole: Hole, sigma: float, cfg: SolidConfig,
-                edge: EdgeEvidence | None = None) -> Fitted:
+                edge: EdgeEvidence | None = None, log=print) -> Fitted:
     """The local model's hole refitted in the global model (:class:`~refine.solid.local.Whole`),
     held by the fixture's points, on every bottom point but the ``validate`` ones, scored on all
-    ``validate`` points. With the grid's ``edge`` evidence the refit starts from its ellipse (the
-    local model, which leaves the wall out, sizes the hole wrongly: -37 % to +92 % on the
-    benchmark's cases) and keeps to it."""
+    ``validate`` points. With the grid's ``edge`` evidence the refit starts from the best of a few
+    ellipses along its bracket (:mod:`refine.solid.start`; the local model, which leaves the wall
+    out, sizes the hole wrongly: -37 % to +92 % on the benchmark's cases) and keeps to it."""
     obs = bundle.observations
     tol = 0.05 * point_spacing(obs.reference)
     held = held_by_fixture(obs, local.shape, tol)
@@ -237,8 +238,9 @@ def refit_whole(bundle: Bundle, local: Local, hole: Hole, sigma: float, cfg: Sol
     guide = (held.roles == "guide") & on
     validate = held.roles == "validate"
     e = jf.Ellipse(*hole.centre, *hole.axes, hole.angle)
-    if edge is not None:
-        e = local.hole_from(Hole(tuple(edge.ellipse[:2]), tuple(edge.ellipse[2:4]), float(edge.ellipse[4])))
+    starts = [] if edge is None else bracket_starts(local, edge)
+    if starts:
+        e = best_start(whole, starts, guide, sigma, log)
     start = SolidHole(whole, e, cfg.global_modulus, edge)
     return refit(fit(start, guide, validate, sigma), guide, validate, sigma, max_remesh=cfg.max_remesh, element="tet10")
 

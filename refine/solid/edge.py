@@ -138,7 +138,7 @@ class EdgeEvidence:
 
 
 def evidence_near(lattice: GridLattice, centre, reach: float, floor: float,
-                  slack: float = 0.35) -> EdgeEvidence | None:
+                  slack: float = 0.75) -> EdgeEvidence | None:
     """The grid's evidence of a hole near ``centre`` (cup frame, within ``reach``): in the
     lattice's frame, where the tracked crossings sit on integer sites,
     :func:`refine.diagnosis.subsets.hole_from_subsets` (points, no subset) finds the gap of
