@@ -39,7 +39,8 @@ def test_the_missing_crossings_bracket_the_hidden_hole(seed):
     lat = grid_lattice(xy)
     # a candidate's centre off by a step still finds the gap
     start = np.array([truth.cx, truth.cy]) + np.random.default_rng(seed).normal(0, 0.7, 2)
-    ev = evidence_near(lat, start, max(truth.rx, truth.ry) + 2 * lat.step, G.r_in)
+    # the synthetic bundle drops the crossings within 0.1 pitch of the hole: a tight slack holds
+    ev = evidence_near(lat, start, max(truth.rx, truth.ry) + 2 * lat.step, G.r_in, slack=0.15)
     assert ev is not None and len(ev.missing) >= 3
     assert ev.violation(truth.params) == 0.0  # the truth is consistent with what the grid shows
     c = ev.ellipse
@@ -47,10 +48,13 @@ def test_the_missing_crossings_bracket_the_hidden_hole(seed):
     assert abs(np.pi * c[2] * c[3] / truth.area - 1) < 0.35
     lo, hi = ev.area_range()
     assert lo <= truth.area <= hi and hi - lo < truth.area  # the grid's bracket: wide, but holds the truth
+    loose = evidence_near(lat, start, max(truth.rx, truth.ry) + 2 * lat.step, G.r_in)  # a tracker's slack
+    assert loose.violation(truth.params) == 0.0 and loose.area_range()[0] < lo
     # the fit's constraint: a hole moved off its gap by two steps is turned down before any solve
     e = jf.Ellipse(*ev.ellipse)
     slab = jf.cup.cup_bottom(G.r_in, G.r_out, G.bottom, 2.5, e)
-    geo = EdgeGeometry(ExtrudedMorph.of(slab), e.params[None], scale=1.0, rotate=True, edge=ev, slack=ev.slack)
+    geo = EdgeGeometry(ExtrudedMorph.of(slab), e.params[None], scale=1.0, rotate=True, edge=ev,
+                       slack=max(ev.slack, ev.missing_outside(ev.ellipse) + 1e-9))  # as SolidHole.build sets it
     assert geo.infeasibility(np.zeros(5)) is None
     away = np.zeros(5)
     away[:2] = 2 * lat.step * (np.array([ev.ellipse[0], ev.ellipse[1]]) / max(np.hypot(*ev.ellipse[:2]), 1e-9) + 1e-3)
@@ -70,3 +74,29 @@ def test_crossings_lost_at_the_rim_or_out_of_view_are_no_hole():
     lat = grid_lattice(np.delete(xy, inner, 0))
     ev = evidence_near(lat, xy[inner], 2.5, G.r_in)
     assert ev is not None and len(ev.missing) == 1 and np.hypot(*(ev.missing[0] - xy[inner])) < 0.05
+
+
+def test_the_global_fit_starts_along_the_bracket_off_every_tracked_crossing(tmp_path):
+    from refine.bundle.experiment import Experiment, MeshDomain
+    from refine.bundle.io import Bundle
+    from refine.bundle.observations import Forces, Observations
+    from refine.diagnosis.shapes import Hole
+    from refine.solid.diagnose import SolidConfig, grid_edge, local_recipe
+    from refine.solid.start import bracket_starts
+
+    truth = random_hole(G, 41)
+    X, roles = _points(G, truth, 1.2, np.random.default_rng(41))
+    jf.write_vtu(tmp_path / "mesh.vtu", jf.cup_holder(G.r_in, G.r_out, G.height, G.bottom, 3.0).mesh)
+    F = Forces(("back",), np.tile([[[0.0, 0.0, 1.0]]], (2, 1, 1)))
+    obs = Observations(np.arange(1, len(X) + 1), X, roles, np.zeros((2, len(X), 3)), forces=F)
+    exp = Experiment(name="cup", kind="solid", domain=MeshDomain("mesh.vtu"), law="neo-hookean", E=1.0, nu=0.4)
+    _, local, _ = local_recipe(Bundle(exp, obs, root=tmp_path), SolidConfig())
+    edge = grid_edge(local, Hole((truth.cx + 0.5, truth.cy), (truth.rx, truth.ry), 0.0), SolidConfig(), log=print)
+    assert edge is not None and edge.slack == pytest.approx(0.75 * 1.2, rel=1e-3)
+    starts = bracket_starts(local, edge)
+    assert len(starts) >= 2
+    areas = [np.pi * e.rx * e.ry for e in starts]
+    assert areas == sorted(areas) and min(areas) < truth.area < max(areas) * 1.3  # the bracket holds the truth
+    xy = local.obs.reference[:, :2]
+    for e in starts:
+        assert not e.contains(xy).any() and edge.missing_outside(e.params) <= edge.slack
