@@ -100,3 +100,10 @@ def test_the_global_fit_starts_along_the_bracket_off_every_tracked_crossing(tmp_
     xy = local.obs.reference[:, :2]
     for e in starts:
         assert not e.contains(xy).any() and edge.missing_outside(e.params) <= edge.slack
+
+
+def test_the_grids_area_bracket_searched_from_a_consistent_hole_holds_the_truth():
+    xy, truth = bottom(21)
+    ev = evidence_near(grid_lattice(xy), [truth.cx, truth.cy], 5.0, G.r_in, slack=0.15)
+    lo, hi = ev.area_range(truth.params)  # from the truth, which is consistent
+    assert lo <= truth.area <= hi

@@ -263,7 +263,8 @@ def report(d: SolidDiagnosis) -> dict:
         out["validate_rms"]["refined"] = rms(d.chosen, validate)
         out["held_out_gain"] = out["validate_rms"]["initial"] / max(out["validate_rms"]["refined"], 1e-300)
         out["findings"].append({**hole_entry(d, d.whole or d.chosen), "local_model": hole_entry(d, d.chosen),
-                                "edge": edge_entry(getattr(d.chosen.hypothesis, "edge", None))})
+                                "edge": edge_entry(getattr(d.chosen.hypothesis, "edge", None),
+                                                   (d.whole or d.chosen).shapes[0])})
     return out
 
 
@@ -281,13 +282,14 @@ def hole_entry(d: SolidDiagnosis, f: Fitted) -> dict:
                                              else round(float(err.area * d.shape.bottom), 4)}}
 
 
-def edge_entry(edge: EdgeEvidence | None) -> dict | None:
+def edge_entry(edge: EdgeEvidence | None, hole: Hole) -> dict | None:
     """The painted grid's evidence of the hole as report.json lists it: the missing crossings, the
     grid's step and the slack (length unit), the ellipse between the missing and the tracked
     crossings (centre in the cup's frame) and the range of areas every consistent ellipse has
-    (what the grid alone says of the area)."""
+    (what the grid alone says of the area; searched from the fitted ``hole``, null where the search
+    failed)."""
     if edge is None:
         return None
-    lo, hi = edge.area_range()
+    bracket = edge.area_range([*hole.centre, *hole.axes, hole.angle])
     return {"missing_sites": int(len(edge.missing)), "step": float(edge.step), "slack": float(edge.slack),
-            "ellipse": [float(v) for v in edge.ellipse], "area_range": [lo, hi]}
+            "ellipse": [float(v) for v in edge.ellipse], "area_range": None if bracket is None else list(bracket)}

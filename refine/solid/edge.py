@@ -120,10 +120,11 @@ class EdgeEvidence:
         """The largest distance (length unit) by which a missing site lies outside the ellipse."""
         return float(subset_distance(self.missing, ellipse, 0.0).max())
 
-    def area_range(self, start=None) -> tuple[float, float]:
+    def area_range(self, start=None) -> tuple[float, float] | None:
         """The smallest and largest area (length unit^2) of an ellipse consistent with the evidence
-        (:meth:`violation` 0), searched from ``start`` (default :attr:`ellipse`): what the grid
-        alone says of the hole's area."""
+        (:meth:`violation` 0), searched from ``start`` (default :attr:`ellipse`; a consistent one,
+        e.g. a fitted hole, is best): what the grid alone says of the hole's area. None where the
+        search finds no consistent ellipse (SLSQP stopped outside the constraints)."""
         from scipy import optimize
 
         cons = [{"type": "ineq", "fun": lambda q: self.slack - subset_distance(self.missing, q, 0.0)},
@@ -133,7 +134,10 @@ class EdgeEvidence:
         for sign in (1.0, -1.0):
             r = optimize.minimize(lambda q: sign * q[2] * q[3], q0, constraints=cons, method="SLSQP",
                                   options={"maxiter": 200})
-            out.append(float(np.pi * abs(r.x[2] * r.x[3])))
+            q = np.r_[r.x[:2], np.abs(r.x[2:4]), r.x[4]]
+            if self.violation(q) > 1e-3 * self.step:
+                return None
+            out.append(float(np.pi * q[2] * q[3]))
         return out[0], out[1]
 
 
