@@ -50,6 +50,7 @@ RESULTS = HERE / "results"
 
 
 def case(seed: int, hole: bool, args) -> dict:
+    from refine.solid.diagnose import SolidConfig
     from refine.solid.write import diagnose_and_write
     from refine.synthetic.cup import CupGeometry, random_hole, write_cup_bundle
 
@@ -58,9 +59,9 @@ def case(seed: int, hole: bool, args) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         root = write_cup_bundle(Path(tmp) / "cup", geometry=g, hole=truth, h_data=args.h_data, h_model=2.0,
-                                noise=args.noise, seed=seed)
+                                noise=args.noise, seed=seed, spacing=args.spacing, forces=tuple(args.forces))
         t_data = time.perf_counter() - t0
-        d, rep = diagnose_and_write(root, Path(tmp) / "out", quiet=True)
+        d, rep = diagnose_and_write(root, Path(tmp) / "out", SolidConfig(h=args.model_h), quiet=True)
     row = {"seed": seed, "hole": None if truth is None else [float(v) for v in truth.params],
            "data_seconds": t_data, "local_seconds": sum(rep["seconds"].values()),
            "global_seconds": max(v["seconds"] for k, v in rep["global"].items() if isinstance(v, dict)),
@@ -79,6 +80,8 @@ def errors_of(row: dict, truth, g) -> None:
         row["area_error_pct"] = 100 * (f["area"] / truth.area - 1)
         row["area_std_pct"] = None if not f.get("std") else 100 * f["std"]["area"] / truth.area
         row["local_area_error_pct"] = 100 * (f["local_model"]["area"] / truth.area - 1)
+        if f.get("edge") and f["edge"]["area_range"]:  # what the painted grid alone says of the area
+            row["edge_area_range_pct"] = [100 * (a / truth.area - 1) for a in f["edge"]["area_range"]]
 
 
 def end_to_end(seed: int, args) -> dict:
@@ -156,6 +159,10 @@ def main() -> None:
     p.add_argument("--sound", type=int, nargs="*", default=[4])
     p.add_argument("--h-data", type=float, default=1.0)
     p.add_argument("--noise", type=float, default=0.01)
+    p.add_argument("--spacing", type=float, default=1.2, help="the painted grid's pitch of the bundle cases (mm)")
+    p.add_argument("--forces", type=float, nargs="+", default=[1.0, 2.0, 3.0], help="squeeze force per frame (N)")
+    p.add_argument("--model-h", type=float, default=None, help="the local and global models' element size (mm; "
+                   "default 1.5 point spacings)")
     p.add_argument("--e2e", type=int, nargs="*", default=[2], help="seeds of the end-to-end rows (images in)")
     p.add_argument("--depth-noise", type=float, default=0.02, help="range noise of the end-to-end rows (mm)")
     p.add_argument("--out", type=Path, default=RESULTS / "diagnose3d.json", help="results JSON (the plot beside it)")

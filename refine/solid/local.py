@@ -23,8 +23,9 @@ from refine.bundle.roles import point_spacing
 from refine.diagnosis.fitted import NotApplicable
 from refine.diagnosis.holes import HoleShape, hole_hypothesis
 from refine.model.objective import Compiled
-from refine.model.parametrize import Combined, ShapeGeometry, UniformParameter
+from refine.model.parametrize import Combined, UniformParameter
 from refine.solid.cup import CupShape
+from refine.solid.edge import EdgeEvidence, EdgeGeometry
 from refine.solid.loaded import LoadedModel
 from refine.solid.morph import ExtrudedMorph
 
@@ -94,11 +95,14 @@ class SolidHole(HoleShape):
     orientation fitted through an extruded morph
     (:class:`~refine.solid.morph.ExtrudedMorph`), remeshed at fitted shapes by
     :func:`refine.diagnosis.fitted.refit`. ``free_modulus``: a uniform modulus is fitted too (the
-    last unknown; between half and twice the experiment's E)."""
+    last unknown; between half and twice the experiment's E). ``edge``: the painted grid's
+    evidence of the hole (:class:`~refine.solid.edge.EdgeEvidence`): every missing crossing of its
+    gap is kept within the evidence's slack of the hole (:class:`~refine.solid.edge.EdgeGeometry`)."""
 
     local: Local
     hole: jf.Ellipse
     free_modulus: bool = False
+    edge: EdgeEvidence | None = None
     remeshable = True
 
     @property
@@ -108,8 +112,10 @@ class SolidHole(HoleShape):
     def build(self) -> tuple[Compiled, None]:
         model, slab = self.local.model(self.hole)
         sp = model.spacing
-        param = ShapeGeometry(ExtrudedMorph.of(slab), self.hole.params[None], scale=0.5 * sp, rotate=True,
-                              mesh=slab.mesh, outside=self.local.obs.reference[:, :2], min_axis=0.1 * sp)
+        slack = 0.0 if self.edge is None else max(self.edge.slack, self.edge.missing_outside(self.hole.params) + 1e-9)
+        param = EdgeGeometry(ExtrudedMorph.of(slab), self.hole.params[None], scale=0.5 * sp, rotate=True,
+                             mesh=slab.mesh, outside=self.local.obs.reference[:, :2], min_axis=0.1 * sp,
+                             edge=self.edge, slack=slack)
         if self.free_modulus:
             E = float(self.local.experiment.E)
             param = Combined((param, UniformParameter("E", E, 0.5 * E, 2.0 * E)))
@@ -122,4 +128,4 @@ class SolidHole(HoleShape):
 
     def at(self, shapes, element: str = "tet10") -> SolidHole:
         s = shapes[0]
-        return SolidHole(self.local, jf.Ellipse(*s.centre, *s.axes, s.angle), self.free_modulus)
+        return SolidHole(self.local, jf.Ellipse(*s.centre, *s.axes, s.angle), self.free_modulus, self.edge)
