@@ -43,6 +43,9 @@ OPTIONS = (
                                                                 "model is refitted on all (default 2; 0: all)")),
     (("--strain-candidates",), "strain_candidates", dict(type=int, help="candidate regions also from the measured "
                                                                         "strain map (default 1)")),
+    (("--discretisation-error",), "discretisation_error",
+     dict(action=argparse.BooleanOptionalAction, help="estimate the mesh's share of the reported errors by one more "
+                                                      "fit on a coarser mesh (default: --discretisation-error)")),
 )
 
 

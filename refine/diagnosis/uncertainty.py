@@ -16,6 +16,11 @@ first order: ``dz = -(J^T J)^-1 J^T (dr/dB) dB`` with ``Cov(dB) = sigma_B^2 I``,
 ``C_drive = sigma_B^2 M M^T``, ``M = (J^T J)^-1 J^T dr/dB``; ``dr/dB`` exactly, by forward-mode
 derivatives of the prediction with respect to the boundary motion (one back-substitution per
 boundary value and frame at the converged state).
+
+Noise is not the only error: the model is a finite-element mesh. :func:`with_discretisation`
+refits the chosen hypothesis from its fitted shapes on a mesh sqrt(2) times coarser; the change of
+each quantity is Richardson's estimate of the fine mesh's error (:func:`discretisation_bias`),
+reported beside the standard error and added to it in quadrature (:func:`total_errors`).
 """
 
 from __future__ import annotations
@@ -92,8 +97,19 @@ def shape_errors(fitted) -> list[ShapeErrors] | None:
     var = np.einsum("qk,kl,ql->q", G, cov, G).reshape(len(fitted.shapes), len(QUANTITIES))
     std = np.sqrt(np.clip(var, 0, None))
     std[~np.isfinite(var)] = np.nan
-    return [ShapeErrors((s[0], s[1]), (s[2], s[3]), s[4], s[5], None if shape.kind == "hole" else s[6])
-            for s, shape in zip(std, fitted.shapes)]
+    return [errors_of(s, shape) for s, shape in zip(std, fitted.shapes)]
+
+
+def errors_of(row: Float[np.ndarray, "7"], shape) -> ShapeErrors:
+    """``row`` (one value per :data:`QUANTITIES`) as the :class:`ShapeErrors` of ``shape`` (a
+    hole's ratio error None)."""
+    return ShapeErrors((row[0], row[1]), (row[2], row[3]), row[4], row[5], None if shape.kind == "hole" else row[6])
+
+
+def as_row(e: ShapeErrors) -> Float[np.ndarray, "7"]:
+    """A :class:`ShapeErrors` as one value per :data:`QUANTITIES` (NaN where None)."""
+    return np.array([*e.centroid, *e.axes, e.angle, e.area,
+                     np.nan if e.relative_elasticity is None else e.relative_elasticity], float)
 
 
 def drive_sensitivity(fitted, points: Bool[np.ndarray, "n_points"], sigma: float
@@ -152,13 +168,14 @@ def drive_covariance(fitted, points: Bool[np.ndarray, "n_points"], sigma: float,
 
 
 def discretisation_bias(fitted, points: Bool[np.ndarray, "n_points"], hold: Bool[np.ndarray, "n_points"],
-                        sigma: float, factor: float = np.sqrt(2.0)) -> Float[np.ndarray, "shapes 7"] | None:
+                        sigma: float, factor: float = np.sqrt(2.0), order: float = 2.0
+                        ) -> Float[np.ndarray, "shapes 7"] | None:
     """An estimate of the discretisation error of every reported quantity (:data:`QUANTITIES`,
-    one row per shape): the change of the quantity when the same hypothesis is refitted from its
-    fitted shapes on a mesh ``factor`` times coarser. Richardson's estimate of the fine mesh's
-    error is that change over ``factor^p - 1``: with ``factor = sqrt(2)`` and the rate ``p = 2`` of
-    the energy norm of quadratic triangles, the change itself. None where the hypothesis has no
-    shapes to remesh at, or the coarse refit fails. Costs one more fit."""
+    one row per shape, absolute values): Richardson's, the change of the quantity when the same
+    hypothesis is refitted from its fitted shapes on a mesh ``factor`` times coarser, over
+    ``factor^order - 1``: with ``factor = sqrt(2)`` and the rate ``order = 2`` of the energy norm
+    of quadratic triangles, the change itself. None where the hypothesis has no shapes to remesh
+    at, or the coarse refit fails. Costs one more fit (on the coarser, cheaper mesh)."""
     from dataclasses import replace
 
     from refine.diagnosis.fitted import fit
@@ -173,4 +190,38 @@ def discretisation_bias(fitted, points: Bool[np.ndarray, "n_points"], hold: Bool
     q, qc = shape_quantities(fitted.shapes), shape_quantities(g.shapes)
     d = qc - q
     d[:, 4] = np.angle(np.exp(2j * d[:, 4])) / 2  # an orientation is defined modulo pi
-    return np.abs(d)
+    return np.abs(d) / (factor**order - 1.0)
+
+
+def with_discretisation(fitted, points: Bool[np.ndarray, "n_points"], hold: Bool[np.ndarray, "n_points"],
+                        sigma: float):
+    """``fitted`` (a :class:`~refine.diagnosis.fitted.Fitted` with its shapes' standard errors)
+    with ``q_disc``, the discretisation error of every shape's quantities
+    (:func:`discretisation_bias`, one more fit), set; unchanged where there is none to give (no
+    shapes, or the coarse refit fails)."""
+    from dataclasses import replace
+
+    d = discretisation_bias(fitted, points, hold, sigma)
+    return fitted if d is None else replace(fitted, q_disc=d)
+
+
+def discretisation_errors(fitted) -> list[ShapeErrors] | None:
+    """The discretisation errors ``fitted.q_disc`` as one :class:`ShapeErrors` per shape (None
+    where not estimated, :func:`with_discretisation`)."""
+    d = getattr(fitted, "q_disc", None)
+    if d is None:
+        return None
+    return [errors_of(row, shape) for row, shape in zip(d, fitted.shapes)]
+
+
+def total_errors(std: ShapeErrors | None, disc: ShapeErrors | None) -> ShapeErrors | None:
+    """The total error of each quantity: its standard error (noise of the fitted points and of
+    the drive) and its discretisation error in quadrature (one kind missing: the other alone).
+    Both are read as standard deviations, so about 95 % of truths lie within 2 total errors
+    where the discretisation error is estimated as well as its size suggests."""
+    if std is None or disc is None:
+        return std if disc is None else disc
+    a, b = as_row(std), as_row(disc)
+    row = np.where(np.isnan(b), a, np.hypot(a, np.nan_to_num(b)))
+    return ShapeErrors((row[0], row[1]), (row[2], row[3]), row[4], row[5],
+                       None if std.relative_elasticity is None else row[6])

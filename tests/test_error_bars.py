@@ -1,0 +1,71 @@
+"""The discretisation term of the reported errors (refine.diagnosis.uncertainty): the total error is
+the standard error and the discretisation error in quadrature, each quantity on its own, and
+report.json gains ``discretisation``, ``total_std`` and ``relative_elasticity_total_std`` beside the
+keys older readers know (no solve here: the fit itself is measured by benchmarks/error_coverage.py)."""
+
+import numpy as np
+import pytest
+
+from refine.diagnosis.findings import FoundRegion, findings
+from refine.diagnosis.shapes import Hole, RegionShape
+from refine.diagnosis.uncertainty import (QUANTITIES, ShapeErrors, as_row, discretisation_errors, errors_of,
+                                          total_errors)
+
+
+def _random_errors(rng, hole=False) -> ShapeErrors:
+    row = rng.uniform(0.01, 2.0, len(QUANTITIES))
+    return errors_of(row, Hole((0.0, 0.0), (1.0, 1.0), 0.0) if hole else RegionShape((0, 0), (1, 1), 0.0))
+
+
+def test_total_error_is_both_in_quadrature_per_quantity():
+    rng = np.random.default_rng(4)
+    for _ in range(5):
+        std, disc = _random_errors(rng), _random_errors(rng)
+        total = as_row(total_errors(std, disc))
+        assert np.allclose(total, np.sqrt(as_row(std) ** 2 + as_row(disc) ** 2))
+        assert np.all(total >= np.maximum(as_row(std), as_row(disc)))
+    one = _random_errors(rng)
+    assert total_errors(one, None) is one and total_errors(None, one) is one and total_errors(None, None) is None
+
+
+def test_a_hole_has_no_ratio_error_and_a_missing_term_is_not_a_zero():
+    rng = np.random.default_rng(5)
+    std, disc = _random_errors(rng, hole=True), _random_errors(rng, hole=True)
+    assert std.relative_elasticity is None and total_errors(std, disc).relative_elasticity is None
+    row = as_row(_random_errors(rng))
+    gap = row.copy()
+    gap[4] = np.nan  # e.g. an angle the coarse refit could not give
+    t = as_row(total_errors(errors_of(row, RegionShape((0, 0), (1, 1), 0.0)), errors_of(gap, RegionShape((0, 0), (1, 1), 0.0))))
+    assert t[4] == pytest.approx(row[4]) and np.allclose(np.delete(t, 4), np.hypot(np.delete(row, 4), np.delete(gap, 4)))
+
+
+class _Chosen:
+    """What :func:`findings` reads of a fitted hypothesis (no model: no covariance to carry)."""
+
+    def __init__(self, shapes, q_disc, law="neo-hookean"):
+        self.shapes, self.q_disc, self.law, self.z_std, self.z_cov = shapes, q_disc, law, None, None
+        self.hypothesis = type("H", (), {"law": law})()
+
+    @property
+    def cause(self):
+        return self.shapes[0].cause
+
+
+def test_report_json_gains_the_discretisation_and_total_keys_and_keeps_the_old_ones():
+    rng = np.random.default_rng(6)
+    shape = RegionShape(tuple(rng.uniform(10, 30, 2)), tuple(rng.uniform(3, 6, 2)), float(rng.uniform(0, 3)),
+                        "rectangle", float(rng.uniform(2, 6)))
+    q_disc = rng.uniform(0.001, 0.1, (1, len(QUANTITIES)))
+    [f] = findings(_Chosen((shape,), q_disc), "evidence", None)
+    j = f.to_json()
+    for key in ("cause", "region", "relative_elasticity", "modulus", "evidence"):
+        assert key in j
+    assert isinstance(f.region, FoundRegion)
+    assert j["discretisation"]["relative_elasticity"] == pytest.approx(q_disc[0, 6], abs=1e-4)
+    assert j["discretisation"]["centroid"] == pytest.approx(q_disc[0, :2], abs=1e-4)
+    # no covariance: the total is the discretisation error alone, never a silent zero
+    assert j["relative_elasticity_total_std"] == pytest.approx(q_disc[0, 6], abs=1e-4)
+    assert "std" not in j and "relative_elasticity_std" not in j
+    [g] = findings(_Chosen((shape,), None), "evidence", None)
+    assert not {"discretisation", "total_std", "relative_elasticity_total_std"} & set(g.to_json())
+    assert discretisation_errors(_Chosen((shape,), None)) is None
