@@ -28,7 +28,7 @@ def summary(d) -> str:
         reg = k["region"]
         pm = f" +- {k['relative_elasticity_std']:.2f}" if k.get("relative_elasticity_std") is not None else ""
         if k.get("relative_elasticity_total_std") is not None:  # noise and the mesh's discretisation error
-            pm = (f" +- {k['relative_elasticity_total_std']:.2f} (noise{pm.replace(' +- ', ' ') or ' -'}, mesh "
+            pm = (f" +- {k['relative_elasticity_total_std']:.2f} (noise{pm.replace(' +- ', ' ') or ' -'}, discretisation "
                   f"{k['discretisation']['relative_elasticity']:.2f})")
         absolute = f", E = {k['modulus']:.4g}" if k.get("modulus") is not None else ""
         what = ("hole" if k["cause"] == "hole"
