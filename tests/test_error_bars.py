@@ -97,3 +97,27 @@ def test_a_sparser_drive_keeps_every_other_boundary_point_along_the_outline_and_
     K = ref[kept]
     gaps = np.linalg.norm(K[:, None] - K[None], axis=2) + np.eye(len(K)) * 1e9
     assert gaps.min() > 2.0 + 1e-9
+
+
+def test_the_summary_gives_the_ratio_with_its_standard_error_then_the_discretisation_and_total():
+    from types import SimpleNamespace
+
+    from refine.diagnosis.report import summary
+
+    rng = np.random.default_rng(8)
+    ratio, std, disc = float(rng.uniform(2, 6)), float(rng.uniform(0.01, 0.1)), float(rng.uniform(0.01, 0.1))
+    finding = {"cause": "stiffer-region", "relative_elasticity": ratio, "relative_elasticity_std": std,
+               "relative_elasticity_total_std": float(np.hypot(std, disc)), "modulus": None,
+               "discretisation": {"relative_elasticity": disc},
+               "region": {"centroid": [1.0, 2.0], "area": 3.0, "axes": [1.0, 1.0]}}
+    errors = {"guide_error": 0.1, "validation_error": 0.1, "tracking_error": 0.01}
+    report = {"bundle": "b", "baseline": errors, "refined": errors, "background": {"modulus": None},
+              "findings": [finding], "gain": {"validation_error": 1.0}, "seconds": 1.0}
+    d = SimpleNamespace(report=lambda: report, null=SimpleNamespace(ratio=9.0, p_value=1e-9),
+                        bundle=SimpleNamespace(experiment=SimpleNamespace(E=1.0, law="neo-hookean")))
+    text = summary(d)
+    total = np.hypot(std, disc)
+    assert f"{ratio:.2f} +- {std:.2f} (standard error; discretisation {disc:.2f}, total {total:.2f})" in text
+    finding.pop("discretisation")
+    finding.pop("relative_elasticity_total_std")
+    assert f"{ratio:.2f} +- {std:.2f} x the background" in summary(d)  # an older report reads as before
