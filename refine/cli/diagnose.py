@@ -44,8 +44,9 @@ OPTIONS = (
     (("--strain-candidates",), "strain_candidates", dict(type=int, help="candidate regions also from the measured "
                                                                         "strain map (default 1)")),
     (("--discretisation-error",), "discretisation_error",
-     dict(action=argparse.BooleanOptionalAction, help="estimate the mesh's share of the reported errors by one more "
-                                                      "fit on a coarser mesh (default: --discretisation-error)")),
+     dict(action=argparse.BooleanOptionalAction, help="estimate the discretisation error of the finding (a refit on a "
+                                                      "coarser mesh, one driven by every other boundary point) and "
+                                                      "add it to the reported errors (default: on)")),
 )
 
 

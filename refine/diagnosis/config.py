@@ -60,9 +60,9 @@ class DiagnoseConfig:
             map (:func:`refine.diagnosis.candidates.strain_regions`), beside the field's and the
             gaps in the points.
         discretisation_error: estimate the discretisation error of the chosen hypothesis'
-            quantities (one more fit, on a mesh sqrt(2) coarser;
-            :func:`refine.diagnosis.uncertainty.with_discretisation`) and report it beside the
-            standard errors and in their total.
+            quantities (two more fits: on a mesh sqrt(2) coarser, and driven by every other
+            boundary point; :func:`refine.diagnosis.uncertainty.with_discretisation`) and report
+            it beside the standard errors and in their total.
     """
 
     alpha: float = 1e-3
