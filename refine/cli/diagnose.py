@@ -43,6 +43,10 @@ OPTIONS = (
                                                                 "model is refitted on all (default 2; 0: all)")),
     (("--strain-candidates",), "strain_candidates", dict(type=int, help="candidate regions also from the measured "
                                                                         "strain map (default 1)")),
+    (("--discretisation-error",), "discretisation_error",
+     dict(action=argparse.BooleanOptionalAction, help="estimate the discretisation error of the finding (a refit on a "
+                                                      "coarser mesh, one driven by every other boundary point) and "
+                                                      "add it to the reported errors (default: on)")),
 )
 
 

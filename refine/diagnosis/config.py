@@ -59,6 +59,10 @@ class DiagnoseConfig:
         strain_candidates: at most this many candidate regions also from the measured strain
             map (:func:`refine.diagnosis.candidates.strain_regions`), beside the field's and the
             gaps in the points.
+        discretisation_error: estimate the discretisation error of the chosen hypothesis'
+            quantities (two more fits: on a mesh sqrt(2) coarser, and driven by every other
+            boundary point; :func:`refine.diagnosis.uncertainty.with_discretisation`) and report
+            it beside the standard errors and in their total.
     """
 
     alpha: float = 1e-3
@@ -79,6 +83,7 @@ class DiagnoseConfig:
     max_cells: int = 3000
     search_frames: int = 2
     strain_candidates: int = 1
+    discretisation_error: bool = True
 
     def __post_init__(self):
         for f in fields(self):
@@ -137,6 +142,7 @@ _RULES = {
     "max_cells": (int, lambda v: v >= 10, "an integer >= 10"),
     "search_frames": (int, lambda v: v >= 0, "an integer >= 0 (0: all frames)"),
     "strain_candidates": (int, lambda v: v >= 0, "an integer >= 0"),
+    "discretisation_error": (bool, None, "true or false"),
 }
 
 

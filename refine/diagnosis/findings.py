@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from refine.diagnosis.laws import law_parameters
-from refine.diagnosis.uncertainty import ShapeErrors, shape_errors
+from refine.diagnosis.uncertainty import ShapeErrors, discretisation_errors, errors_of, shape_errors, total_errors
 
 
 @dataclass(frozen=True)
@@ -47,6 +47,10 @@ class Finding:
             v, "std": s}}`` (:func:`~refine.diagnosis.laws.law_parameters`; an angle in radians).
         std: standard errors of every fitted quantity of the region (centroid, axes, angle,
             area, relative elasticity; :mod:`refine.diagnosis.uncertainty`), where known.
+        discretisation: the discretisation errors of the same quantities (the mesh's, by
+            Richardson's estimate), where estimated; total_std: ``std`` and ``discretisation``
+            in quadrature, the error a truth is compared with; discretisation_parts: the
+            discretisation error by source (``"mesh"``, ``"drive"``), where estimated.
         evidence: a sentence: the null test and what the hypothesis gains.
 
     ``finding["key"]`` reads the report.json entry (:meth:`to_json`).
@@ -61,6 +65,9 @@ class Finding:
     law: str | None = None
     std: ShapeErrors | None = None
     parameters: dict | None = None
+    discretisation: ShapeErrors | None = None
+    total_std: ShapeErrors | None = None
+    discretisation_parts: dict | None = None
 
     def to_json(self) -> dict:
         """The report.json entry (keys in the order of the bundle spec's example)."""
@@ -70,6 +77,12 @@ class Finding:
         std = {} if self.relative_elasticity_std is None else {"relative_elasticity_std": self.relative_elasticity_std}
         if self.std is not None:
             std["std"] = self.std.to_json()
+        if self.discretisation is not None:  # keys added after std (older readers ignore them)
+            std["discretisation"] = self.discretisation.to_json()
+            std["total_std"] = self.total_std.to_json()
+            std["relative_elasticity_total_std"] = std["total_std"]["relative_elasticity"]
+            if self.discretisation_parts:
+                std["discretisation_parts"] = {k: e.to_json() for k, e in self.discretisation_parts.items()}
         law = {"law": self.law, **self._law_parameters()} if self.law else {}
         return {"cause": self.cause, "region": self.region.to_json(), "relative_elasticity": self.relative_elasticity,
                 "modulus": self.modulus, **std, **law, "evidence": self.evidence}
@@ -94,6 +107,9 @@ def findings(chosen, evidence: str, background_modulus: float | None) -> list[Fi
         return [Finding("material-law", evidence, law=chosen.law, parameters=parameters)]
     out = []
     errors = shape_errors(chosen) or [None] * len(chosen.shapes)
+    disc = discretisation_errors(chosen) or [None] * len(chosen.shapes)
+    parts = {k: [errors_of(row, s) for row, s in zip(d, chosen.shapes)]
+             for k, d in (getattr(chosen, "q_disc_parts", None) or {}).items()}
     for i, shape in enumerate(chosen.shapes):
         # z holds the log ratios first, then the geometry unknowns: ratio i's standard error is std[i]
         std = None
@@ -107,5 +123,7 @@ def findings(chosen, evidence: str, background_modulus: float | None) -> list[Fi
         modulus = None if background_modulus is None else round(float(shape.ratio) * background_modulus, 4)
         law = chosen.law if parameters else None  # a hole in a material of another law (refine.diagnosis.hole_law)
         out.append(Finding(shape.cause, evidence, region, round(float(shape.ratio), 4), modulus, std, std=errors[i],
-                           law=law, parameters=parameters))
+                           law=law, parameters=parameters, discretisation=disc[i],
+                           total_std=None if disc[i] is None else total_errors(errors[i], disc[i]),
+                           discretisation_parts={k: e[i] for k, e in parts.items()} or None))
     return out

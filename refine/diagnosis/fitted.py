@@ -93,6 +93,9 @@ class Fitted:
         compiled, z, result: the compiled model, its fitted unknowns and the fit (None for the
             initial model); z_std: standard errors of z and z_cov ``(k, k)`` their covariance
             (after :func:`refit`; :mod:`refine.diagnosis.uncertainty` carries it to the shapes).
+        q_disc: discretisation errors of the shapes' quantities ``(shapes, 7)``
+            (:func:`~refine.diagnosis.uncertainty.with_discretisation`), None where not estimated;
+            q_disc_parts: its parts by source (``"mesh"``, ``"drive"``), each ``(shapes, 7)``.
     """
 
     hypothesis: Hypothesis
@@ -110,6 +113,8 @@ class Fitted:
     result: RefineResult | None = None
     z_std: Float[np.ndarray, "k"] | None = None
     z_cov: Float[np.ndarray, "k k"] | None = None
+    q_disc: Float[np.ndarray, "shapes 7"] | None = None
+    q_disc_parts: dict | None = None
 
     @property
     def cause(self) -> str:

@@ -38,6 +38,7 @@ from refine.diagnosis.forces import ForceScale, force_scale
 from refine.diagnosis.config import DiagnoseConfig
 from refine.diagnosis.findings import Finding, findings
 from refine.diagnosis.fitted import Fitted, NotApplicable, baseline, refit
+from refine.diagnosis.uncertainty import with_discretisation
 from refine.diagnosis.candidates import data_candidates
 from refine.diagnosis.holes import fit_hole, named_hole
 from refine.diagnosis.laws import ALTERNATIVE_LAWS, fit_law
@@ -209,6 +210,10 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
             if chosen.cause == "softer-region" and chosen.shapes[0].ratio < cfg.hole_refit_below:
                 chosen = _hole_if_as_likely(replace(trials, model=full), chosen, guide)
             chosen = named_hole(chosen, obs.reference, cfg.hole_refit_below)
+            if cfg.discretisation_error:  # the mesh's share of the error bars: one fit on a coarser mesh
+                t = time.perf_counter()
+                chosen = with_discretisation(chosen, guide, hold, sigma_eff)
+                log(f"discretisation error estimated ({time.perf_counter() - t:.0f} s)")
     if model is not full:
         pred = full_compiled.result() if full_compiled is not None else every_frame(model, full, model.params())
         base = baseline(full, fit, hold, sigma_eff, predicted=pred)

@@ -27,6 +27,9 @@ def summary(d) -> str:
             continue
         reg = k["region"]
         pm = f" +- {k['relative_elasticity_std']:.2f}" if k.get("relative_elasticity_std") is not None else ""
+        disc = (k.get("discretisation") or {}).get("relative_elasticity")
+        if k.get("relative_elasticity_total_std") is not None and disc is not None:  # noise and discretisation
+            pm += f" (standard error; discretisation {disc:.2f}, total {k['relative_elasticity_total_std']:.2f})"
         absolute = f", E = {k['modulus']:.4g}" if k.get("modulus") is not None else ""
         what = ("hole" if k["cause"] == "hole"
                 else f"{k['cause']} ({k['relative_elasticity']:.2f}{pm} x the background{absolute})")
