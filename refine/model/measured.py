@@ -275,12 +275,26 @@ class MeasuredModel:
         """Derivatives of the prediction ``(n_frames, n_points, dim)`` with respect to the measured
         boundary displacements ``(n_frames, n_boundary * dim)`` (:meth:`measured_boundary`), as
         ``(n_frames, n_points, dim, n_frames, n_boundary * dim)``: zero between different frames
-        (each frame's equilibrium depends on its own drive only). On the solver's shared programs
-        (one tangent solve per boundary value and frame) where :attr:`shares_programs`; else by
-        forward mode through the model's own solve."""
+        (each frame's equilibrium depends on its own drive only; :meth:`boundary_jacobian_blocks`
+        gives the blocks alone, frames times smaller). On the solver's shared programs (one tangent
+        solve per boundary value and frame) where :attr:`shares_programs`; else by forward mode
+        through the model's own solve."""
         B = self.measured_boundary()
         if not self.shares_programs:
             return np.asarray(jax.jit(jax.jacfwd(lambda b: self.predict(theta, boundary=b)))(B))
+        dP = self.boundary_jacobian_blocks(theta)
+        out = np.zeros(dP.shape[:3] + B.shape)
+        for f in range(len(B)):
+            out[f, :, :, f] = dP[f]
+        return out
+
+    def boundary_jacobian_blocks(self, theta) -> np.ndarray:
+        """The frames' own blocks of :meth:`boundary_jacobian`, ``(n_frames, n_points, dim,
+        n_boundary * dim)``: frame f's prediction with respect to frame f's boundary displacements,
+        on the solver's shared programs (a model that :attr:`shares_programs`). The whole
+        Jacobian is n_frames times larger, all of it zeros but these blocks (3,000 points x 11
+        frames: 2.5 GB against 0.23 GB)."""
+        B = self.measured_boundary()
         n_f, m = B.shape
         zero = {k: np.zeros((m,) + np.shape(v)) for k, v in theta.items() if k != "u_D"}
         start, U, dU = self.frame_starts(theta), [], []
@@ -293,11 +307,7 @@ class MeasuredModel:
             dU.append(du)
         dU = np.stack(dU, 1)  # (m, frames, n_nodes, dim)
         _, dP = self.at_points_and_derivatives(np.stack(U), dU, theta["X"], np.zeros((m,) + np.shape(theta["X"])))
-        dP = np.moveaxis(dP, 0, -1)  # (frames, points, dim, m)
-        out = np.zeros(dP.shape[:3] + (n_f, m))
-        for f in range(n_f):
-            out[f, :, :, f] = dP[f]
-        return out
+        return np.moveaxis(dP, 0, -1)  # (frames, points, dim, m)
 
     def at_points_and_derivatives(self, U, dU, X, dX):
         """:meth:`at_points` of ``U (n_frames, n_nodes, dim)`` and its derivatives along ``k``
