@@ -4,6 +4,7 @@ sizes (tracked points 300 -> 5,000, frames 1 -> 20), on synthetic bundles with a
     python benchmarks/diagnose_scale.py                       # the default sweep (hours on a shared 2 cores)
     python benchmarks/diagnose_scale.py --sizes 300x2 3000x11 # chosen cells (POINTSxFRAMES)
     python benchmarks/diagnose_scale.py --merge               # summary and plot from the rows file
+    python benchmarks/diagnose_scale.py --sizes 3000x11 --profile   # where its CPU seconds go (_diagnose_profile.py)
 
 Each cell draws its hidden effect (place, size, ratio) under its own seed from ``--causes``; the
 data come from refine.synthetic (a finer quadratic mesh of a larger sheet, solved
@@ -201,6 +202,8 @@ def main(argv=None) -> None:
     p.add_argument("--threads", type=int, default=2, help="the diagnosis's workers")
     p.add_argument("--rows", default=str(OUT / "diagnose_scale.jsonl"), help="rows file (JSONL, resumable)")
     p.add_argument("--merge", action="store_true", help="only summarise the rows file")
+    p.add_argument("--rerun", action="store_true",
+                   help="run the cells even where the rows file has them (the new row replaces the old in the JSON)")
     p.add_argument("--profile", action="store_true",
                    help="profile the cells instead (cProfile, compilations, CPU s per stage; "
                         "results/diagnose_profile_SIZE.json; no row written)")
@@ -216,7 +219,7 @@ def main(argv=None) -> None:
             k = DEFAULT_SIZES.index(size) if size in DEFAULT_SIZES else len(DEFAULT_SIZES) + i
             points, frames = map(int, size.split("x"))
             cause = args.causes[k % len(args.causes)]
-            if (size, cause) in done and not args.profile:
+            if (size, cause) in done and not (args.profile or args.rerun):
                 continue
             cases.append({"size": size, "cause": cause, "seed": 700 + k, "frames": frames,
                           "spacing": round(spacing_for(points), 4), "threads": args.threads})
