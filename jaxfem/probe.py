@@ -18,6 +18,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import _config  # noqa: F401
+from ._small import inv
 from .elements import get_element
 from .exceptions import MeshError
 from .mesh import Mesh
@@ -63,7 +64,7 @@ class Probe:
         Xe = jnp.asarray(X)[self.nodes]  # (p, k, d)
         pts = jnp.asarray(points)
         T = jnp.swapaxes(Xe[:, 1:dim + 1] - Xe[:, :1], 1, 2)  # (p, d, d): the corners' affine map
-        lam = jnp.linalg.solve(T, (pts - Xe[:, 0])[..., None])[..., 0]
+        lam = solve_small(T, pts - Xe[:, 0])
         if k == dim + 1:
             w = jnp.concatenate([1.0 - lam.sum(axis=1, keepdims=True), lam], axis=1)
             return Probe(self.cells, self.nodes, w)
@@ -73,7 +74,7 @@ class Probe:
         for _ in range(_TRI6_NEWTON):
             r = jnp.einsum("pk,pki->pi", shape(xi), Xe) - pts
             J = jnp.einsum("pki,pkj->pij", Xe, grad(xi))
-            xi = xi - jnp.linalg.solve(J, r[..., None])[..., 0]
+            xi = xi - solve_small(J, r)
         return Probe(self.cells, self.nodes, shape(xi))
 
     def _relocated(self, X, points):
@@ -92,6 +93,18 @@ class Probe:
 
 
 _TRI6_NEWTON = 4
+
+
+def solve_small(A, b):
+    """``x (p, d)`` with ``A[i] x[i] = b[i]`` for a batch of 2 x 2 or 3 x 3 systems ``A (p, d, d)``,
+    ``b (p, d)``, by the closed-form inverse (:mod:`jaxfem._small`).
+
+    Not ``jnp.linalg.solve``: on CPU a batched solve is LAPACK's getrf and trsm run by jaxlib's
+    ``ParallelBatchMap`` on XLA's intra-op pool; where a program runs two such kernels at once
+    and the pool has two threads (two cores), each kernel's thread waits for its batch's work,
+    queued behind the other, and the process hangs for good (jaxlib 0.10; seen in a diagnosis of
+    3,000 points, where a model's points are interpolated on a morphed mesh)."""
+    return jnp.einsum("pij,pj->pi", inv(A), b)
 
 
 def _corner_coordinates(w6, dim):

@@ -209,3 +209,36 @@ def test_field_gradient_and_drive_jacobian_on_the_shared_programs():
     dB = rng.normal(size=B.shape)
     fd = (np.asarray(model.predict(theta, boundary=B + eps * dB)) - np.asarray(model.predict(theta, boundary=B - eps * dB))) / (2 * eps)
     np.testing.assert_allclose(np.einsum("fpdgm,gm->fpd", got, dB), fd, atol=1e-5 * np.abs(fd).max())
+
+
+def test_host_solves_run_inside_their_programs_lock():
+    """Every host solve (PARDISO here: a Python callback that needs the GIL) of what the
+    diagnosis runs in its thread pool (a hypothesis's prediction and Jacobian, a model's
+    prediction, the drive's Jacobian) runs inside its shared program's lock, where the caller
+    waits for the result with the GIL released (jaxfem.program.Program.lock): no program of the
+    model's own calls back into Python unguarded (a thread waiting for a busy executable while
+    holding the GIL hung a diagnosis once)."""
+    from jaxfem.linsolve import _base
+    from refine.model.objective import Compiled
+
+    rng = np.random.default_rng(13)
+    (model, param), _ = _region_models(rng)
+    if "host" not in model.solver.padded_arrays:
+        pytest.skip("no host linear solver installed (PARDISO, SuperLU): no callback to guard")
+    host = _base._HOSTS[int(model.solver.padded_arrays["host"])]
+    lock, seen = model.solver.program.lock, []
+    inner = host._cache
+
+    def watched(vals, rhs):
+        seen.append(lock.locked())
+        return inner(vals, rhs)
+
+    host._cache = watched
+    try:
+        z = Z + rng.normal(0, 0.01, Z.size)  # a point no earlier call cached
+        Compiled(model, param).evaluate(z)
+        model.predict(model.params())
+        model.boundary_jacobian(model.params())
+    finally:
+        host._cache = inner
+    assert seen and all(seen), f"{seen.count(False)} of {len(seen)} host solves ran outside the program's lock"

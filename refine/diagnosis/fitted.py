@@ -149,37 +149,45 @@ def fit(hypothesis, fit_mask: Mask, hold_mask: Mask, sigma: float) -> Fitted:
 
 
 def refit(f: Fitted, points: Mask, hold_mask: Mask, sigma: float, max_remesh: int = 2,
-          element: str = "tri3") -> Fitted:
+          element: str = "tri3", remesh: bool = True) -> Fitted:
     """The same hypothesis refitted on other points (e.g. all guide points), with the standard
-    errors of its unknowns.
-
-    A hypothesis with fitted shapes is remeshed at them first and refitted from there, again
-    while its shapes still move by more than a fifth of the element size, or by more than their
-    standard errors where the data fix them better (:func:`_settled`): a morph of the first
-    mesh can only take a shape so far (its cells distort, then invert), which leaves a region
-    fitted too small with too large a ratio, or a hole too small. The new meshes use
-    ``element`` (quadratic triangles are far less stiff in a strongly strained region than
-    linear ones at the same size). Without shapes the compiled model is reused."""
-    g = None
-    if f.shapes and f.hypothesis.remeshable:
-        start = f
-        for _ in range(max(1, max_remesh)):
-            try:
-                h = fit(f.hypothesis.at(start.shapes, element), points, hold_mask, sigma)
-            except Exception:  # noqa: BLE001 - e.g. a remesh at a runaway ratio that no longer solves
-                h = None
-            if h is None or not np.isfinite(h.chi2_fit):
-                break
-            if g is None or h.chi2_fit < g.chi2_fit:
-                g = h
-            moved = max(a.moved(b) for a, b in zip(start.shapes, h.shapes))
-            if moved < _settled(h, points, sigma, 0.2 * f.model.h):
-                break
-            start = h
+    errors of its unknowns: remeshed at its fitted shapes first (:func:`settle`; not with
+    ``remesh`` False, e.g. for a fit settled on fewer frames); without shapes, or where no
+    remesh could be fitted, the compiled model is refitted as it is."""
+    g = settle(f, points, hold_mask, sigma, max_remesh, element) if remesh else None
     if g is None:  # no shapes, or no remesh could be fitted: refit the compiled model as it is
         g = fit_compiled(f.hypothesis, f.compiled, points, hold_mask, sigma, z0=f.z)
     cov = covariance(g, points, sigma) + drive_covariance(g, points, sigma)  # noise of the drive too
     return replace(g, z_std=np.sqrt(np.clip(np.diag(cov), 0, None)), z_cov=cov)
+
+
+def settle(f: Fitted, points: Mask, hold_mask: Mask, sigma: float, max_remesh: int = 2,
+           element: str = "tri3") -> Fitted | None:
+    """A hypothesis with fitted shapes remeshed at them and refitted from there on ``points``
+    (the best of the remeshed fits; None without shapes or where no remesh could be fitted),
+    again while its shapes still move by more than a fifth of the element size, or by more than
+    their standard errors where the data fix them better (:func:`_settled`): a morph of the first
+    mesh can only take a shape so far (its cells distort, then invert), which leaves a region
+    fitted too small with too large a ratio, or a hole too small. The new meshes use
+    ``element`` (quadratic triangles are far less stiff in a strongly strained region than
+    linear ones at the same size)."""
+    if not (f.shapes and f.hypothesis.remeshable):
+        return None
+    g, start = None, f
+    for _ in range(max(1, max_remesh)):
+        try:
+            h = fit(f.hypothesis.at(start.shapes, element), points, hold_mask, sigma)
+        except Exception:  # noqa: BLE001 - e.g. a remesh at a runaway ratio that no longer solves
+            h = None
+        if h is None or not np.isfinite(h.chi2_fit):
+            break
+        if g is None or h.chi2_fit < g.chi2_fit:
+            g = h
+        moved = max(a.moved(b) for a, b in zip(start.shapes, h.shapes))
+        if moved < _settled(h, points, sigma, 0.2 * f.model.h):
+            break
+        start = h
+    return g
 
 
 def _settled(f: Fitted, points: Mask, sigma: float, coarse: float) -> float:

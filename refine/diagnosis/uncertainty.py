@@ -122,23 +122,36 @@ def drive_sensitivity(fitted, points: Bool[np.ndarray, "n_points"], sigma: float
     """``M = (J^T J)^-1 J^T dr/dB`` ``(k, n_frames * n_boundary * dim)``: the fitted unknowns z
     move by ``-M dB`` when the driving boundary displacements (:meth:`MeasuredModel.measured_boundary`,
     flattened frame by frame) move by ``dB``, to first order, for a fit on ``points`` weighted
-    by ``sigma`` (length unit). ``J^T dr/dB`` on the solver's shared programs (one tangent solve
-    per boundary value and frame, :meth:`MeasuredModel.boundary_jacobian`) where the model shares
-    them (no compile of its own); else by reverse mode, one pull-back per unknown (an adjoint solve
-    per frame each; forward mode would take a tangent solve per boundary value, a thousand and more
-    for a 3D model); NaN where ``J^T J`` is singular."""
+    by ``sigma`` (length unit). ``J^T dr/dB`` by reverse mode, one pull-back per unknown (an
+    adjoint solve per frame each; forward mode would take a tangent solve per boundary value,
+    ~450 per frame for 3,000 points, a thousand and more for a 3D model): on the solver's shared
+    programs where the model shares them (:meth:`MeasuredModel.boundary_vjp`), else through the
+    model's own solve; NaN where ``J^T J`` is singular."""
     model = fitted.compiled.model
     res = Residuals.at(model.obs.displacements, points, sigma)
     J = res.jacobian(np.asarray(fitted.compiled.jacobian(fitted.z)))
     if model.shares_programs:
-        dB = model.boundary_jacobian(fitted.theta)
-        JtJB = J.T @ res.jacobian(dB.reshape(dB.shape[:3] + (-1,)))  # (k, frames * n_boundary * dim)
+        JtJB = _pulled_shared(model, res, fitted.theta, J)
     else:
         JtJB = _pulled_boundary(model, res, fitted.theta, J)
     try:
         return np.linalg.solve(J.T @ J, JtJB)
     except np.linalg.LinAlgError:
         return np.full(JtJB.shape, np.nan)
+
+
+def _pulled_shared(model, res, theta, J) -> np.ndarray:
+    """``J^T dr/dB`` ``(k, n_frames * n_boundary * dim)`` on the solver's shared programs: the
+    residuals' cotangents ``J (n, k)`` (rows frame after frame over the tracked matched points,
+    weighted by ``res.sigma``) pulled back to the drive by :meth:`MeasuredModel.boundary_vjp`
+    (one adjoint solve per unknown and frame, not a tangent solve per boundary value)."""
+    obs = model.obs.displacements
+    k, dim = J.shape[1], obs.shape[-1]
+    at = np.zeros((k,) + res.valid.shape + (dim,))
+    at[:, res.valid] = J.T.reshape(k, -1, dim) / res.sigma
+    C = np.zeros((k,) + obs.shape)
+    C[:, :, res.points] = at
+    return model.boundary_vjp(theta, C).reshape(k, -1)
 
 
 def _pulled_boundary(model, res, theta, J) -> np.ndarray:

@@ -277,7 +277,7 @@ class MeasuredModel:
         ``(n_frames, n_points, dim, n_frames, n_boundary * dim)``: zero between different frames
         (each frame's equilibrium depends on its own drive only). On the solver's shared programs
         (one tangent solve per boundary value and frame) where :attr:`shares_programs`; else by
-        forward mode through the model's own solve."""
+        forward mode through the model's own solve. Rows of it alone: :meth:`boundary_vjp`."""
         B = self.measured_boundary()
         if not self.shares_programs:
             return np.asarray(jax.jit(jax.jacfwd(lambda b: self.predict(theta, boundary=b)))(B))
@@ -298,6 +298,38 @@ class MeasuredModel:
         for f in range(n_f):
             out[f, :, :, f] = dP[f]
         return out
+
+    def boundary_vjp(self, theta, cotangents) -> np.ndarray:
+        """Cotangents of the measured boundary displacements ``(c, n_frames, n_boundary * dim)``
+        from ``c`` cotangents of the prediction ``cotangents (c, n_frames, n_points, dim)``: the
+        rows ``C dP/dB`` of :meth:`boundary_jacobian` without it, by one adjoint solve per
+        cotangent and frame on the solver's shared programs (a model that
+        :attr:`shares_programs`). The Jacobian takes one tangent solve per boundary value and
+        frame and its interpolation at the points (3,000 points x 11 frames: ~450 directions per
+        frame, most of the diagnosis's CPU seconds); a covariance of k fitted unknowns needs k
+        rows of it."""
+        C = np.asarray(cotangents, np.float64)
+        B = self.measured_boundary()
+        start, out = self.frame_starts(theta), np.zeros(C.shape[:2] + (B.shape[1],))
+        for f in range(len(B)):
+            D = self.drives[f].matrix  # (n_fixed, m): u_D = D @ B[f]
+            u_D = D @ B[f]
+            u, state = self.solver.solve_for_adjoint({**theta, "u_D": u_D}, start=start)
+            start = (np.asarray(u).reshape(-1), {**start[1], "u_D": u_D})
+            gU = np.asarray(self.points_vjp(np.asarray(u)[None], theta["X"], C[:, f:f + 1]))[:, 0]  # (c, nodes, dim)
+            for i, g in enumerate(gU):
+                out[i, f] = D.T @ np.asarray(self.solver.adjoint(state, g)["u_D"])
+        return out
+
+    @cached_property
+    def points_vjp(self):
+        """``(U, X, C) -> (c, n_frames, n_nodes, dim)``, compiled once per model: the pull-back
+        of :meth:`at_points` (nodal displacements ``U (n_frames, n_nodes, dim)`` at the tracked
+        points of a mesh at ``X``) of ``c`` cotangents ``C (c, n_frames, n_points, dim)``."""
+        def f(U, X, C):
+            _, pull = jax.vjp(lambda UU: self.at_points(UU, {"X": X}), U)
+            return jax.vmap(lambda c: pull(c)[0])(C)
+        return jax.jit(f)
 
     def at_points_and_derivatives(self, U, dU, X, dX):
         """:meth:`at_points` of ``U (n_frames, n_nodes, dim)`` and its derivatives along ``k``

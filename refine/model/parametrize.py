@@ -192,6 +192,13 @@ class Combined:
         return out
 
 
+def _inverse_2x2(M, xp):
+    """Inverses of ``M (n, 2, 2)`` in closed form (no LAPACK kernel in the compiled
+    parametrisation: see :func:`jaxfem.probe.solve_small`)."""
+    adj = xp.stack([xp.stack([M[:, 1, 1], -M[:, 0, 1]], -1), xp.stack([-M[:, 1, 0], M[:, 0, 0]], -1)], -2)
+    return adj / (M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0])[:, None, None]
+
+
 def make_shape(kind: str, params):
     """A ``jaxfem.Ellipse`` (``kind="ellipse"``) or ``jaxfem.Rect`` (``"rectangle"``) from
     ``(cx, cy, a, b, angle)``: centre, semi-axes or half sides, angle (radians)."""
@@ -287,13 +294,13 @@ class ShapeGeometry:
         # ellipses: M = M0 + dM, symmetric
         M0 = R0 @ (p[:, 2:4, None] * xp.swapaxes(R0, -1, -2))
         dM = xp.stack([xp.stack([dz[:, 2], dz[:, 4]], -1), xp.stack([dz[:, 4], dz[:, 3]], -1)], -2)
-        ell_map = (M0 + dM) @ xp.linalg.inv(M0)
+        ell_map = (M0 + dM) @ _inverse_2x2(M0, xp)
         # rectangles: A = R(angle) diag(a, b), half sides and angle changed
         r0 = xp.sqrt(p[:, 2] * p[:, 3])
         a1, b1, t1 = p[:, 2] + dz[:, 2], p[:, 3] + dz[:, 3], p[:, 4] + dz[:, 4] / r0
         A0 = R0 * p[:, None, 2:4]
         A1 = rot(t1) * xp.stack([a1, b1], -1)[:, None, :]
-        rect_map = A1 @ xp.linalg.inv(A0)
+        rect_map = A1 @ _inverse_2x2(A0, xp)
         maps = xp.where(xp.asarray(rect)[:, None, None], rect_map, ell_map)
         return p[:, :2] + dz[:, :2], maps, (M0 + dM, xp.stack([a1, b1, t1], -1))
 
