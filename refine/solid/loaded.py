@@ -15,6 +15,7 @@ import numpy as np
 
 import jaxfem as jf
 from jaxfem.elements import get_element
+from jaxfem.probe import solve_small
 
 from refine.exceptions import ObservationError
 from refine.model.measured import MeasuredModel
@@ -41,7 +42,7 @@ def moved_probe(probe: jf.Probe, X, points) -> jf.Probe:
         return probe.moved(X, points)
     Xe = jnp.asarray(X)[probe.nodes[:, :4]]
     T = jnp.swapaxes(Xe[:, 1:] - Xe[:, :1], 1, 2)
-    lam = jnp.linalg.solve(T, (jnp.asarray(points) - Xe[:, 0])[..., None])[..., 0]
+    lam = solve_small(T, jnp.asarray(points) - Xe[:, 0])  # closed form: no batched LAPACK (see solve_small)
     return jf.Probe(probe.cells, probe.nodes, get_element("tet10").shape(lam))
 
 
