@@ -2,12 +2,14 @@
 Dirichlet data differentiable in the joint angles, the tracker's exact Jacobian (Taylor test
 through the solve), a strain map carried between hand meshes, bad input (no data, an empty range
 frame, a cloud far from the hand, markers off it, unknown angles), and (slow) joint angles
-recovered within a degree from a range sequence and from markers generated on a finer mesh with
-noise (refine.synthetic.hand_range) by the paper-size model, angles and pose drawn under a seed.
+recovered within a degree from range sequences and markers generated on a finer mesh with noise
+(refine.synthetic.hand_range) by the paper-size model, angles and pose drawn under three seeds.
 
 A coarse hand (no fingers, ~900 tet10 elements, as tests/test_hand.py) keeps the fast tests at one
 compile; benchmarks/hand.py tracks the paper-size hand."""
 
+
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -107,21 +109,35 @@ def test_bad_input(hand, tracker):
         tracker.track([X, X], (X[:3], np.stack([X[:3]] * 3)))
 
 
-@pytest.mark.slow  # a finer data solve and two tracked sequences of the paper-size hand (~10 min on 2 shared cores)
-@pytest.mark.parametrize("seed", [0, pytest.param(1, marks=pytest.mark.xfail(
-    reason="known shortfall: seed 1's thumb tip (flexed ~50 degrees towards the palm, seen from the back) is off "
-           "by 1.29 degrees in the last frame from the clouds (0.20-0.59 before); the other angles within 0.24",
-    strict=True))])
-def test_joint_angles_within_a_degree_from_range_clouds_and_from_markers(seed):
-    """The paper-size model (2,412 tet10): on the coarse test hand (one ~22 mm element along each
-    20 mm thumb phalanx) the thumb tip's angle is off by up to ~1.2 degrees, the model's own limit."""
+@functools.lru_cache(maxsize=1)
+def _sequence_and_tracker(seed):
     seq = hand_range_sequence(seed=seed, frames=4, h=12.0)  # steps of up to ~12 degrees (at 25 the thumb was lost)
-    assert all(len(c) > 1000 for c in seq.clouds)
     tracker = HandTracker(HandModel(hand_mesh(default_body(PAPER), 24.0, 4.5)), TrackConfig(seed=seed))
-    names = tracker.names
-    assert names == seq.names
-    for kw in ({"clouds": seq.clouds}, {"markers": (seq.marker_reference, seq.markers)}):
-        fits = tracker.track(**kw)
-        err = angle_errors(fits, seq.angles)
-        assert np.abs(err).max() < 1.0, (kw.keys(), err)
-        assert np.abs(fits[-1].pose[3:] - seq.pose[3:]).max() < 1.0
+    return seq, tracker
+
+
+CLOUDS_ALONE_SHORT = pytest.mark.xfail(
+    reason="known shortfall: seed 1's thumb tip (flexed ~73 degrees towards the palm in all, seen from the back: ~58 "
+           "points on its phalanx) ends 1.29 degrees off from the clouds alone; from the truth it goes to the same "
+           "place (not a local minimum or the step cap), noise-free clouds leave 0.51 (the coarse model's floor), all "
+           "2,281 points 1.21: the view and the floor; with the markers beside the clouds 0.25", strict=True)
+
+
+@pytest.mark.slow  # a finer data solve and three tracked sequences of the paper-size hand (~12 min on 2 shared cores)
+@pytest.mark.parametrize("seed, kind", [(0, "clouds"), (0, "markers"), (0, "both"),
+                                        pytest.param(1, "clouds", marks=CLOUDS_ALONE_SHORT), (1, "markers"), (1, "both"),
+                                        (2, "clouds"), (2, "markers"), (2, "both")])
+def test_joint_angles_within_a_degree_from_range_clouds_markers_and_both(seed, kind):
+    """The paper-size model (2,412 tet10) against sequences generated on a finer mesh (4,248) with
+    noise, angles and pose drawn under each seed: every angle of every frame within 1 degree from
+    the clouds and the markers together (the paper's set-up), from the markers alone, and from the
+    clouds alone (not for seed 1's thumb tip: the xfail's reason)."""
+    seq, tracker = _sequence_and_tracker(seed)
+    assert all(len(c) > 1000 for c in seq.clouds)
+    assert tracker.names == seq.names
+    data = {"clouds": {"clouds": seq.clouds}, "markers": {"markers": (seq.marker_reference, seq.markers)}}
+    data["both"] = data["clouds"] | data["markers"]
+    fits = tracker.track(**data[kind])
+    err = angle_errors(fits, seq.angles)
+    assert np.abs(err).max() < 1.0, err
+    assert np.abs(fits[-1].pose[3:] - seq.pose[3:]).max() < 1.0
