@@ -6,17 +6,19 @@ hinge of a two-segment fit whose second segment is the steeper
 (``refine.threshold.strain_threshold(rising=True)``; the free hinge takes the up-down curve's early
 slowing-down on the coarse mesh and its late speed-up on the fine one).
 
-The truth: that hinge of the FINE, noise-free curve: the paper-size hand meshed finer (``fine_h``)
-and moved in ``dense`` equal steps, the maximum skin strain over the area of interest against the
-marked point's displacement. The detection: on the paper-size (COARSE) model's curve, as a
-tracked study gets it, in two ways:
+The solves (:func:`curve_data`, saved by hand.py to results/hand_threshold.npz) are apart from the
+analysis (:func:`threshold_truth`, per motion over its own area of interest, any frame stride).
+The truth: that hinge of the FINE, noise-free curve: the paper-size hand meshed finer and moved in
+``dense`` equal steps, the maximum skin strain over the area of interest against the marked
+point's displacement. The detection: on the paper-size (COARSE) model's curve (``frames`` steps),
+as a tracked study gets it, in two ways:
 
 - ``tracked``: the curve of the model fitted to the measurements, i.e. the coarse model's strain
   and displacement at TRACKED joint angles, each angle of each frame off by a Gaussian error of
-  ``ANGLE_NOISE_DEG`` (the tracking section's joint-angle errors). The paper computes strain from
-  the model driven by the tracked motion, not from raw grid strains. Propagated to first order:
-  per frame the Jacobian of (displacement, area maximum strain) in all joint angles by forward
-  differences (``STEP_DEG``, warm-started solves), so a draw costs no solve.
+  ``ANGLE_NOISE_DEG`` (the tracking section's joint-angle errors), independent between frames. The
+  paper computes strain from the model driven by the tracked motion, not from raw grid strains.
+  Propagated to first order: per frame the Jacobian of (displacement, area maximum strain) in all
+  joint angles by forward differences (``STEP_DEG``, warm-started solves), so a draw costs no solve.
 - ``raw``: the coarse noise-free curve with independent noise on each frame's maximum
   (``STRAIN_NOISE``), the maximum of directly measured strains (kept for comparison; a painted
   grid's strain is far noisier than this, see the README).
