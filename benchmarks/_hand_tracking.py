@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import asdict
 
 import jax.numpy as jnp
 import numpy as np
@@ -65,6 +66,7 @@ def tracking(model, strains, area_box, seed: int = 0, frames: int = 4, h: float 
     tracker = HandTracker(model, TrackConfig(noise=seq.noise, marker_noise=seq.marker_noise, seed=seed,
                                              max_points=MAX_POINTS))
     out["max_points"] = MAX_POINTS
+    out["tracker_config"] = asdict(tracker.config)
     data = {"clouds": {"clouds": seq.clouds}, "markers": {"markers": (seq.marker_reference, seq.markers)}}
     data["both"] = data["clouds"] | data["markers"]
     for kind in KINDS:
@@ -81,7 +83,8 @@ def tracking(model, strains, area_box, seed: int = 0, frames: int = 4, h: float 
             "pose_error": {"rotation_deg": [np.degrees(f.pose[:3] - seq.pose[:3]).tolist() for f in fits],
                            "translation_mm": [(f.pose[3:] - seq.pose[3:]).tolist() for f in fits]},
             "rms_mm": [f.rms for f in fits], "marker_rms_mm": [f.marker_rms for f in fits],
-            "iterations": [f.iterations for f in fits], "seconds": sec,
+            "iterations": [f.iterations for f in fits], "seconds": sec, "cost": [f.cost for f in fits],
+            "restarted": [f.restarted for f in fits], "restart_won": [f.restart for f in fits],
             "s_per_frame": float(np.median(sec[1:])),  # frame 0 compiles
             "total_s": time.perf_counter() - t1,
             "strain_rms": [_rms(e, t) for e, t in zip(est, truth)],
@@ -99,6 +102,13 @@ def seeds(model, strains, area_box, seeds=SEEDS, **kw) -> dict:
         runs.append(tracking(model, strains, area_box, seed=s, **kw))
         print("tracking run", json.dumps(runs[-1], default=float), flush=True)  # kept in the log if a later seed fails
     return {"seeds": list(seeds), "runs": runs}
+
+
+def merge_runs(old: list, new: list) -> list:
+    """The runs of ``new`` beside those of ``old`` for the other seeds (marked ``carried``), by seed."""
+    by = {r["seed"]: r | {"carried": r.get("carried", "from the previous hand.json (not rerun: --seeds)")} for r in old}
+    by |= {r["seed"]: r for r in new}
+    return [by[s] for s in sorted(by)]
 
 
 def targets(res: dict) -> dict:

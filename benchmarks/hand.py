@@ -307,10 +307,12 @@ def main(argv=None):
                     help="run only these sections, into the last hand.json")
     ap.add_argument("--reuse-curves", action="store_true", help="--only threshold: analyse the solves saved in "
                     "results/hand_threshold.npz again instead of solving")
+    ap.add_argument("--seeds", nargs="+", type=int, default=None, help="--only tracking: track these seeds only, the "
+                    "other seeds' runs kept from the last hand.json (marked 'carried')")
     args = ap.parse_args(argv)
     frames = 3 if args.quick else 10
     if args.only:
-        return sections(args.only, frames, args.reuse_curves)
+        return sections(args.only, frames, args.reuse_curves, args.seeds)
     if args.fine_only:
         res = json.loads((OUT / "hand.json").read_text())
         res["mesh_dependence"] = fine(args.fine_h) | {"load": load()}
@@ -352,15 +354,20 @@ def main(argv=None):
     print(json.dumps(res["targets"], indent=1, default=float))
 
 
-def sections(only, frames, reuse=False):
-    """The --only sections, merged into the last hand.json (its targets recomputed)."""
+def sections(only, frames, reuse=False, seeds=None):
+    """The --only sections, merged into the last hand.json (its targets recomputed); ``seeds``: the
+    tracking seeds run (default all; the others' runs carried)."""
     res = json.loads((OUT / "hand.json").read_text())
     hand, model, size = build(PAPER, 24.0, 4.5)
     fine = None
     if "tracking" in only:
         strains = skin_strain_function(model)
-        res["tracking"] = {"load_start": load()} | _hand_tracking.seeds(model, strains, AREA)
+        old = res.get("tracking", {}).get("runs", [])
+        res["tracking"] = {"load_start": load()} | _hand_tracking.seeds(model, strains, AREA,
+                                                                      seeds=seeds or _hand_tracking.SEEDS)
         res["tracking"]["load"] = load()
+        res["tracking"]["runs"] = _hand_tracking.merge_runs(old, res["tracking"]["runs"])
+        res["tracking"]["seeds"] = [r["seed"] for r in res["tracking"]["runs"]]
     if ("threshold" in only and not (reuse and (OUT / "hand_threshold.npz").exists())) or "found-scar" in only:
         _, fine, fine_size = build(PAPER, FOUND_H, 4.5)
     if "threshold" in only:

@@ -10,6 +10,7 @@ compile; benchmarks/hand.py tracks the paper-size hand."""
 
 
 import functools
+from dataclasses import replace
 
 import jax
 import jax.numpy as jnp
@@ -18,7 +19,7 @@ import pytest
 
 from jaxfem.hand import PAPER, HandModel, bone_displacements, default_body, hand_mesh
 from refine.exceptions import CorrespondenceError
-from refine.hand import HandTracker, TrackConfig, angle_errors, skin_strain_on
+from refine.hand import FrameFit, HandTracker, TrackConfig, angle_errors, skin_strain_on
 from refine.synthetic.hand_range import hand_range_sequence, pose_matrix
 from tests._hand_util import coarse_hand
 
@@ -107,6 +108,38 @@ def test_bad_input(hand, tracker):
         HandTracker(tracker.model, names=("wrist_flexion", "elbow"))
     with pytest.raises(CorrespondenceError, match="range frames but markers"):
         tracker.track([X, X], (X[:3], np.stack([X[:3]] * 3)))
+
+
+def test_restart_from_other_starts_when_the_fit_ends_high(hand, tracker):
+    """A frame started with one angle off by one restart offset (drawn: which angle of two, its sign,
+    the angles, pose and noise) and no first trials (``iterations=0``) ends at a high cost: the
+    restart from the start moved back by that offset wins and ends with that angle near the truth; with
+    ``restart_cost=inf`` nothing restarts and the fit stays at its start."""
+    rng = np.random.default_rng(7)
+    names, off = tracker.names, 0.2
+    truth = rng.uniform(-0.15, 0.15, len(names))
+    pose = np.r_[rng.uniform(-0.03, 0.03, 3), rng.uniform(-2, 2, 3)]
+    R, t = pose_matrix(pose)
+    x = hand.mesh.nodes + bone_displacements(hand, dict(zip(names, truth)))  # rigid bones, not the FE model
+    skin = np.unique(hand.skin_facets)
+    cloud = x[skin] @ R.T + t + rng.normal(0, 0.2, (len(skin), 3))
+    moved, sign = rng.choice(["wrist_flexion", "thumb_2"]), rng.choice([-1.0, 1.0])
+    a0 = truth.copy()
+    a0[names.index(moved)] += sign * off
+    sol = tracker.model.solver.solve(tracker.model.params(dict(zip(names, a0))))  # the last frame's solve
+    start = FrameFit(a0, pose, np.asarray(sol.u).reshape(-1, 3), np.nan, np.nan, 0, 0.0)
+    cfg = replace(tracker.config, iterations=0, restart_cost=0.0, restart_angles=("wrist_flexion", "thumb_2"),
+                  restart_offsets=(off, -off), restart_trials=1)
+    fit = tracker.with_config(cfg).fit_frame(cloud, start=start)
+    assert fit.restarted and fit.restart == 2 * ("wrist_flexion", "thumb_2").index(moved) + (sign > 0)
+    k = names.index(moved)  # the rigid-bone data against the FE skin leave the coupled thumb angles a few degrees off
+    assert abs(fit.angles[k] - truth[k]) < 0.25 * off, np.degrees(fit.angles - truth)
+    stay = tracker.with_config(replace(cfg, restart_cost=np.inf)).fit_frame(cloud, start=start)
+    assert not stay.restarted and np.allclose(stay.angles, a0) and stay.cost > fit.cost
+    with pytest.raises(CorrespondenceError, match="restart_angles"):
+        tracker.with_config(replace(cfg, restart_angles=("index_1",)))
+    with pytest.raises(CorrespondenceError, match="compiled into"):
+        tracker.with_config(replace(cfg, max_points=100))
 
 
 @functools.lru_cache(maxsize=1)
