@@ -156,10 +156,6 @@ CLOUDS_ALONE_SHORT = pytest.mark.xfail(
            "2,281 points 1.21: the view and the floor; with the markers beside the clouds 0.29", strict=True)
 
 
-FINGER_UNMEASURED = pytest.mark.xfail(
-    reason="seed 2 from the clouds and markers together lost the finger in frame 1 before the tracker's restarts (48 "
-           "degrees off at the end); with the restarts seed 2 from the clouds alone ends 0.20 degrees off at most, but "
-           "this way was not rerun yet (benchmarks/README.md): not strict until measured", strict=False)
 MARKERS_SHORT = pytest.mark.xfail(
     reason="known shortfall: seed 2's thumb tip from the 13 markers alone is off by up to 1.35 degrees (two markers on "
            "the 25 mm phalanx, 0.1 mm noise)", strict=True)
@@ -170,14 +166,14 @@ MARKERS_SHORT = pytest.mark.xfail(
                                         pytest.param(1, "clouds", marks=CLOUDS_ALONE_SHORT), (1, "markers"), (1, "both"),
                                         (2, "clouds"),
                                         pytest.param(2, "markers", marks=MARKERS_SHORT),
-                                        pytest.param(2, "both", marks=FINGER_UNMEASURED)])
+                                        (2, "both")])
 def test_joint_angles_within_a_degree_from_range_clouds_markers_and_both(seed, kind):
     """The paper-size model (2,412 tet10) against sequences generated on a finer mesh (4,248) with
     noise, angles and pose drawn under each seed: every angle of every frame within 1 degree from
     the clouds and the markers together (the paper's set-up), from the markers alone, and from the
     clouds alone; the known failures are strict xfails with their reasons (seed 1's thumb tip from the
-    clouds alone, seed 2's thumb tip from the markers); seed 2 from both, not yet rerun with the
-    tracker's restarts, a non-strict xfail."""
+    clouds alone, seed 2's thumb tip from the markers); seed 2's finger, lost from the last frame's
+    estimate, is found by the tracker's restarts."""
     seq, tracker = _sequence_and_tracker(seed)
     assert all(len(c) > 1000 for c in seq.clouds)
     assert tracker.names == seq.names
