@@ -2,14 +2,17 @@
 moving hand (refine.synthetic.hand_range: random joint angles and global pose under a seed, solved
 on a finer mesh, one range camera with depth noise, part of the hand out of view or self-occluded;
 the marked points beside it) tracked by refine.hand.HandTracker on the paper-size model (a) from
-the unlabelled clouds and (b) from the markers; the joint-angle errors per frame, seconds per
-frame, and the skin-strain maps against the truth (the fine solve's skin strain carried onto the
-model's skin facets) beside the floor (the model itself at the true angles).
+the unlabelled clouds, (b) from the markers and (c) from both together (the paper's set-up: range
+data and a few marked points); the joint-angle errors per frame, seconds per frame, and the
+skin-strain maps against the truth (the fine solve's skin strain carried onto the model's skin
+facets) beside the floor (the model itself at the true angles). Several seeds (:data:`SEEDS`).
 """
 
 from __future__ import annotations
 
+import json
 import time
+from dataclasses import asdict
 
 import jax.numpy as jnp
 import numpy as np
@@ -17,6 +20,14 @@ import numpy as np
 from jaxfem.hand import skin_area
 from refine.hand import HandTracker, TrackConfig, angle_errors, skin_strain_on
 from refine.synthetic.hand_range import hand_range_sequence
+
+#: the sequences tracked (each its own angles, pose, rays and noise)
+SEEDS = (0, 1, 2)
+#: the ways of tracking: which data each uses
+KINDS = ("clouds", "markers", "both")
+#: cloud points used per frame (of ~2,300-2,600; all of them moved seed 1's thumb tip from 1.31 to 1.21
+#: degrees off at twice the cost: the README)
+MAX_POINTS = 1500
 
 
 def _rms(a, b, mask=None):
@@ -52,8 +63,14 @@ def tracking(model, strains, area_box, seed: int = 0, frames: int = 4, h: float 
     out["strain_floor"] = {"rms": [_rms(f, t) for f, t in zip(floor, truth)],
                            "rms_area": [_rms(f, t, area) for f, t in zip(floor, truth)]}
     out["truth_area_max_strain"] = [float(np.nanmax(t[area])) for t in truth]
-    tracker = HandTracker(model, TrackConfig(noise=seq.noise, marker_noise=seq.marker_noise, seed=seed))
-    for kind, kw in (("clouds", {"clouds": seq.clouds}), ("markers", {"markers": (seq.marker_reference, seq.markers)})):
+    tracker = HandTracker(model, TrackConfig(noise=seq.noise, marker_noise=seq.marker_noise, seed=seed,
+                                             max_points=MAX_POINTS))
+    out["max_points"] = MAX_POINTS
+    out["tracker_config"] = asdict(tracker.config)
+    data = {"clouds": {"clouds": seq.clouds}, "markers": {"markers": (seq.marker_reference, seq.markers)}}
+    data["both"] = data["clouds"] | data["markers"]
+    for kind in KINDS:
+        kw = data[kind]
         t1 = time.perf_counter()
         fits = tracker.track(**kw)
         err = angle_errors(fits, seq.angles)
@@ -66,7 +83,8 @@ def tracking(model, strains, area_box, seed: int = 0, frames: int = 4, h: float 
             "pose_error": {"rotation_deg": [np.degrees(f.pose[:3] - seq.pose[:3]).tolist() for f in fits],
                            "translation_mm": [(f.pose[3:] - seq.pose[3:]).tolist() for f in fits]},
             "rms_mm": [f.rms for f in fits], "marker_rms_mm": [f.marker_rms for f in fits],
-            "iterations": [f.iterations for f in fits], "seconds": sec,
+            "iterations": [f.iterations for f in fits], "seconds": sec, "cost": [f.cost for f in fits],
+            "restarted": [f.restarted for f in fits], "restart_won": [f.restart for f in fits],
             "s_per_frame": float(np.median(sec[1:])),  # frame 0 compiles
             "total_s": time.perf_counter() - t1,
             "strain_rms": [_rms(e, t) for e, t in zip(est, truth)],
@@ -77,20 +95,41 @@ def tracking(model, strains, area_box, seed: int = 0, frames: int = 4, h: float 
     return out
 
 
+def seeds(model, strains, area_box, seeds=SEEDS, **kw) -> dict:
+    """:func:`tracking` of each seed's sequence: ``{"runs": [...]}``."""
+    runs = []
+    for s in seeds:
+        runs.append(tracking(model, strains, area_box, seed=s, **kw))
+        print("tracking run", json.dumps(runs[-1], default=float), flush=True)  # kept in the log if a later seed fails
+    return {"seeds": list(seeds), "runs": runs}
+
+
+def merge_runs(old: list, new: list) -> list:
+    """The runs of ``new`` beside those of ``old`` for the other seeds (marked ``carried``), by seed."""
+    by = {r["seed"]: r | {"carried": r.get("carried", "from the previous hand.json (not rerun: --seeds)")} for r in old}
+    by |= {r["seed"]: r for r in new}
+    return [by[s] for s in sorted(by)]
+
+
 def targets(res: dict) -> dict:
-    """The tracking targets: joint angles within 1 degree per frame (each way of tracking), the
-    seconds per frame, the strain maps near the model's own floor."""
+    """The tracking targets over every seed's run (``res["runs"]``; one run's dict is read as one
+    seed): joint angles within 1 degree per frame (each way of tracking), the seconds per frame,
+    the strain maps near the model's own floor."""
+    runs = res.get("runs", [res])
+    kinds = [k for k in KINDS if all(k in r for r in runs)]
     out = {}
-    for kind in ("clouds", "markers"):
-        e = res[kind]["max_abs_error_deg"]
+    for kind in kinds:
+        e = {r["seed"]: r[kind]["max_abs_error_deg"] for r in runs}
         out[f"joint_angles_within_1_deg_{kind}"] = {
-            "target": f"every joint angle of every frame within 1 degree of the truth, tracked from the {kind}",
-            "max_abs_error_deg": e, "pass": e <= 1.0}
-    spf = {k: res[k]["s_per_frame"] for k in ("clouds", "markers")}
+            "target": f"every joint angle of every frame within 1 degree of the truth, tracked from the {kind}, "
+                      f"every seed", "max_abs_error_deg": max(e.values()), "max_abs_error_deg_by_seed": e,
+            "max_abs_error_deg_per_angle_by_seed": {r["seed"]: r[kind]["max_abs_error_deg_per_angle"] for r in runs},
+            "pass": max(e.values()) <= 1.0}
+    spf = {k: max(r[k]["s_per_frame"] for r in runs) for k in kinds}
     out["tracking_seconds_per_frame"] = {"target": "< 60 s per tracked frame (paper-size model, 2 shared cores)",
                                          "s": spf, "pass": all(v < 60 for v in spf.values())}
-    ratio = max(np.mean(res[k]["strain_rms_area"]) / max(np.mean(res["strain_floor"]["rms_area"]), 1e-12)
-                for k in ("clouds", "markers"))
+    ratio = max(np.mean(r[k]["strain_rms_area"]) / max(np.mean(r["strain_floor"]["rms_area"]), 1e-12)
+                for k in kinds for r in runs)
     out["tracked_strain_near_the_floor"] = {
         "target": "RMS skin-strain error over the area of interest (tracked angles) within 1.5x that of the model at "
                   "the true angles (the mesh's own floor against the fine truth)",

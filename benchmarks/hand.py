@@ -32,13 +32,16 @@ with the 95 % profile-likelihood interval and the F test's p-value of a change a
 Tracking (issue 25 item 5, ``_hand_tracking.py``): a synthetic range sequence of the moving hand
 (a finer mesh, random angles and pose, depth noise, part of the hand unseen) tracked by
 refine.hand from the unlabelled clouds and from the marked points; joint-angle errors, seconds per
-frame, skin-strain RMS against the truth. The threshold's truth (``_hand_threshold.py``): the
-hinge of the fine noise-free curve against the detection on the coarse noisy one. The scar found
+frame, skin-strain RMS against the truth; seeds 0-2, from the clouds, the markers and both. The
+threshold's truth (``_hand_threshold.py``): the rising hinge of the fine noise-free curve against
+the detection on the coarse model's curve at tracked joint angles (and with raw strain noise). The scar found
 in skin data (the committed benchmarks/results/scar.json: its shape and relative elasticity)
 placed on the wrist of a hand meshed fine enough to hold it, with a strain limit from the
 literature (STRAIN_LIMIT).
 
     python benchmarks/hand.py --only tracking threshold found-scar   # these sections into the last hand.json
+    python benchmarks/hand.py --only threshold --reuse-curves        # the threshold analysed again from
+                                                                     # results/hand_threshold.npz (no solve)
 
 Writes benchmarks/results/hand.json (with ``targets``) and hand.png (the curves).
 """
@@ -89,6 +92,10 @@ STRAIN_LIMIT = 0.22
 #: skin's 1-2 mm is thinner than one element, so it is run twice: with the ratio as found, and with the ratio that
 #: keeps the skin's in-plane stiffness E t over the layer's thickness T, 1 + (ratio - 1) t / T
 FOUND_SEED, FOUND_AT, FOUND_DEPTH, FOUND_H = 0, (0.0, -8.0), 7.0, 12.0
+#: the threshold section's area per motion (``_hand_threshold``): the wrist's AREA for the wrist motions,
+#: the thumb's own skin (both phalanges, every side) for thumb flexion, whose strain barely reaches the wrist
+THRESHOLD_AREAS = {"thumb flexion": Box((39.0, 8.0, -12.0), (96.0, 32.0, 12.0)), "wrist side-to-side": AREA,
+                   "wrist up-down": AREA}
 SCARS = {"small": Scar(jf.Ellipse(0.0, -8.0, 14.0, 6.0), depth=7.0, ratio=RATIO),
          "large": Scar(jf.Ellipse(0.0, -22.0, 20.0, 20.0), depth=9.0, ratio=RATIO)}
 
@@ -298,10 +305,14 @@ def main(argv=None):
     ap.add_argument("--series", default=None, help="folder for the ParaView series (not written by default)")
     ap.add_argument("--only", nargs="+", choices=("tracking", "threshold", "found-scar"), default=None,
                     help="run only these sections, into the last hand.json")
+    ap.add_argument("--reuse-curves", action="store_true", help="--only threshold: analyse the solves saved in "
+                    "results/hand_threshold.npz again instead of solving")
+    ap.add_argument("--seeds", nargs="+", type=int, default=None, help="--only tracking: track these seeds only, the "
+                    "other seeds' runs kept from the last hand.json (marked 'carried')")
     args = ap.parse_args(argv)
     frames = 3 if args.quick else 10
     if args.only:
-        return sections(args.only, frames)
+        return sections(args.only, frames, args.reuse_curves, args.seeds)
     if args.fine_only:
         res = json.loads((OUT / "hand.json").read_text())
         res["mesh_dependence"] = fine(args.fine_h) | {"load": load()}
@@ -343,19 +354,33 @@ def main(argv=None):
     print(json.dumps(res["targets"], indent=1, default=float))
 
 
-def sections(only, frames):
-    """The --only sections, merged into the last hand.json (its targets recomputed)."""
+def sections(only, frames, reuse=False, seeds=None):
+    """The --only sections, merged into the last hand.json (its targets recomputed); ``seeds``: the
+    tracking seeds run (default all; the others' runs carried)."""
     res = json.loads((OUT / "hand.json").read_text())
     hand, model, size = build(PAPER, 24.0, 4.5)
     fine = None
     if "tracking" in only:
         strains = skin_strain_function(model)
-        res["tracking"] = _hand_tracking.tracking(model, strains, AREA) | {"load_start": load()}
+        old = res.get("tracking", {}).get("runs", [])
+        res["tracking"] = {"load_start": load()} | _hand_tracking.seeds(model, strains, AREA,
+                                                                      seeds=seeds or _hand_tracking.SEEDS)
         res["tracking"]["load"] = load()
-    if "threshold" in only or "found-scar" in only:
+        res["tracking"]["runs"] = _hand_tracking.merge_runs(old, res["tracking"]["runs"])
+        res["tracking"]["seeds"] = [r["seed"] for r in res["tracking"]["runs"]]
+    if ("threshold" in only and not (reuse and (OUT / "hand_threshold.npz").exists())) or "found-scar" in only:
         _, fine, fine_size = build(PAPER, FOUND_H, 4.5)
     if "threshold" in only:
-        res["threshold_truth"] = _hand_threshold.threshold_truth(model, fine, AREA, frames) | {"load": load()}
+        path = OUT / "hand_threshold.npz"  # the solves, reused by --reuse-curves (analysis only)
+        if reuse and path.exists():
+            data = dict(np.load(path))
+        else:
+            data = _hand_threshold.curve_data(model, fine)
+            np.savez_compressed(path, **data)
+        res["threshold_truth"] = _hand_threshold.threshold_truth(data, THRESHOLD_AREAS) | {"load": load()}
+        res["threshold_truth"]["variants"] = {
+            "every 2nd frame (10 frames)": _hand_threshold.threshold_truth(data, THRESHOLD_AREAS, every=2),
+            "wrist area for every motion": _hand_threshold.threshold_truth(data, {m: AREA for m in THRESHOLD_AREAS})}
     if "found-scar" in only:
         res["found_scar"] = found_scar_section(fine, fine_size, frames) | {"load": load()}
     res["targets"] = targets(res)

@@ -10,7 +10,10 @@ bounded scalar search. The uncertainty of ``x0`` is its profile-likelihood inter
 (the F form of the likelihood ratio with the noise estimated from the residuals, Muggeo 2003's
 recommendation for a breakpoint, whose Wald error is unreliable because RSS is not smooth in x0
 where x0 crosses a sample). Whether there is a change at all is the F test of the hinge
-against one straight line (``p_value``).
+against one straight line (``p_value``). With ``rising=True`` only a change to FASTER growth counts
+(``c >= 0``, the paper's threshold past which the skin strains faster): at a trial ``x0`` where the
+free fit would slow down, the constrained fit is the straight line (``c = 0``), so an S-shaped
+curve's early slowing-down is never taken for its threshold.
 
 A pure function of arrays, no model: layer 0 of refine, beside :mod:`refine.measures`.
 """
@@ -61,11 +64,11 @@ class Threshold:
 
 
 def strain_threshold(motion: Float[np.ndarray, "n"], strain: Float[np.ndarray, "n"], level: float = 0.95,
-                     grid: int = 400) -> Threshold:
+                     grid: int = 400, rising: bool = False) -> Threshold:
     """The threshold where ``strain`` (e.g. the maximum strain per frame) changes its growth rate
     against ``motion`` (displacement or load per frame, strictly monotone; any unit), with its
     profile-likelihood interval at ``level`` (see the module's docstring). ``grid``: trial
-    thresholds before the refinement.
+    thresholds before the refinement; ``rising``: only a change to faster growth (see the module).
 
     Raises:
         ObservationError: fewer than :data:`MIN_SAMPLES` samples, shapes that differ, values
@@ -78,21 +81,23 @@ def strain_threshold(motion: Float[np.ndarray, "n"], strain: Float[np.ndarray, "
     t = -x if flip else x
     n = len(t)
     trials = np.linspace(t[1], t[-2], grid)
-    rss = _rss(t, s, trials)
+    rss = _rss(t, s, trials, rising)
     i = int(np.argmin(rss))
     lo, hi = trials[max(i - 1, 0)], trials[min(i + 1, grid - 1)]
-    best = optimize.minimize_scalar(lambda v: _rss(t, s, np.array([v]))[0], bounds=(lo, hi), method="bounded",
+    best = optimize.minimize_scalar(lambda v: _rss(t, s, np.array([v]), rising)[0], bounds=(lo, hi), method="bounded",
                                     options={"xatol": 1e-10 * (t[-1] - t[0])})
     x0, rss_min = (best.x, best.fun) if best.fun <= rss[i] else (trials[i], rss[i])
     dof = n - 4
     s2 = max(rss_min / dof, np.finfo(float).tiny)
     limit = stats.f.ppf(level, 1, dof)
-    inside = lambda v: (_rss(t, s, np.array([v]))[0] - rss_min) / s2 - limit  # noqa: E731 - < 0 inside
+    inside = lambda v: (_rss(t, s, np.array([v]), rising)[0] - rss_min) / s2 - limit  # noqa: E731 - < 0 inside
     out = (rss - rss_min) / s2 > limit
     lo_t = _edge(inside, x0, trials[trials < x0][::-1], out[trials < x0][::-1], t[1])
     hi_t = _edge(inside, x0, trials[trials > x0], out[trials > x0], t[-2])
     coef = _coefficients(t, s, x0)
     line = np.polyfit(t, s, 1)
+    if rising and coef[2] < 0:  # no faster growth anywhere: the constrained fit is the line
+        coef = np.array([line[1], line[0], 0.0])
     rss_line = float(np.sum((np.polyval(line, t) - s) ** 2))
     F = max(rss_line - rss_min, 0.0) / 2 / s2  # the hinge adds c and x0
     p = float(stats.f.sf(F, 2, dof))
@@ -137,9 +142,10 @@ def _coefficients(t, s, x0):
     return np.linalg.lstsq(_design(t, x0), s, rcond=None)[0]
 
 
-def _rss(t, s, trials) -> np.ndarray:
+def _rss(t, s, trials, rising: bool = False) -> np.ndarray:
     """``RSS(x0)`` of the hinge fit for every trial ``x0`` (least squares on centred, scaled
-    columns, batched over the trials)."""
+    columns, batched over the trials); ``rising``: with ``c >= 0`` (the line's RSS where the free
+    fit has ``c < 0``)."""
     scale = t[-1] - t[0]
     u = (t - t[0]) / scale
     knots = (np.asarray(trials, float)[:, None] - t[0]) / scale
@@ -148,7 +154,11 @@ def _rss(t, s, trials) -> np.ndarray:
     Atb = np.einsum("gni,n->gi", A, s)
     c = np.linalg.solve(AtA, Atb[..., None])[..., 0]
     r = np.einsum("gni,gi->gn", A, c) - s
-    return np.einsum("gn,gn->g", r, r)
+    rss = np.einsum("gn,gn->g", r, r)
+    if not rising:
+        return rss
+    line = np.polyval(np.polyfit(u, s, 1), u) - s
+    return np.where(c[:, 2] >= 0, rss, line @ line)
 
 
 def _edge(inside, x0: float, trials, out, end: float) -> float:

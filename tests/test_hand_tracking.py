@@ -2,12 +2,15 @@
 Dirichlet data differentiable in the joint angles, the tracker's exact Jacobian (Taylor test
 through the solve), a strain map carried between hand meshes, bad input (no data, an empty range
 frame, a cloud far from the hand, markers off it, unknown angles), and (slow) joint angles
-recovered within a degree from a range sequence and from markers generated on a finer mesh with
-noise (refine.synthetic.hand_range) by the paper-size model, angles and pose drawn under a seed.
+recovered within a degree from range sequences and markers generated on a finer mesh with noise
+(refine.synthetic.hand_range) by the paper-size model, angles and pose drawn under three seeds.
 
 A coarse hand (no fingers, ~900 tet10 elements, as tests/test_hand.py) keeps the fast tests at one
 compile; benchmarks/hand.py tracks the paper-size hand."""
 
+
+import functools
+from dataclasses import replace
 
 import jax
 import jax.numpy as jnp
@@ -16,7 +19,7 @@ import pytest
 
 from jaxfem.hand import PAPER, HandModel, bone_displacements, default_body, hand_mesh
 from refine.exceptions import CorrespondenceError
-from refine.hand import HandTracker, TrackConfig, angle_errors, skin_strain_on
+from refine.hand import FrameFit, HandTracker, TrackConfig, angle_errors, skin_strain_on
 from refine.synthetic.hand_range import hand_range_sequence, pose_matrix
 from tests._hand_util import coarse_hand
 
@@ -107,21 +110,76 @@ def test_bad_input(hand, tracker):
         tracker.track([X, X], (X[:3], np.stack([X[:3]] * 3)))
 
 
-@pytest.mark.slow  # a finer data solve and two tracked sequences of the paper-size hand (~10 min on 2 shared cores)
-@pytest.mark.parametrize("seed", [0, pytest.param(1, marks=pytest.mark.xfail(
-    reason="known shortfall: seed 1's thumb tip (flexed ~50 degrees towards the palm, seen from the back) is off "
-           "by 1.29 degrees in the last frame from the clouds (0.20-0.59 before); the other angles within 0.24",
-    strict=True))])
-def test_joint_angles_within_a_degree_from_range_clouds_and_from_markers(seed):
-    """The paper-size model (2,412 tet10): on the coarse test hand (one ~22 mm element along each
-    20 mm thumb phalanx) the thumb tip's angle is off by up to ~1.2 degrees, the model's own limit."""
+def test_restart_from_other_starts_when_the_fit_ends_high(hand, tracker):
+    """A frame started with one angle off by one restart offset (drawn: which angle of two, its sign,
+    the angles, pose and noise) and no first trials (``iterations=0``) ends at a high cost: the
+    restart from the start moved back by that offset wins and ends with that angle near the truth; with
+    ``restart_cost=inf`` nothing restarts and the fit stays at its start."""
+    rng = np.random.default_rng(7)
+    names, off = tracker.names, 0.2
+    truth = rng.uniform(-0.15, 0.15, len(names))
+    pose = np.r_[rng.uniform(-0.03, 0.03, 3), rng.uniform(-2, 2, 3)]
+    R, t = pose_matrix(pose)
+    x = hand.mesh.nodes + bone_displacements(hand, dict(zip(names, truth)))  # rigid bones, not the FE model
+    skin = np.unique(hand.skin_facets)
+    cloud = x[skin] @ R.T + t + rng.normal(0, 0.2, (len(skin), 3))
+    moved, sign = rng.choice(["wrist_flexion", "thumb_2"]), rng.choice([-1.0, 1.0])
+    a0 = truth.copy()
+    a0[names.index(moved)] += sign * off
+    sol = tracker.model.solver.solve(tracker.model.params(dict(zip(names, a0))))  # the last frame's solve
+    start = FrameFit(a0, pose, np.asarray(sol.u).reshape(-1, 3), np.nan, np.nan, 0, 0.0)
+    cfg = replace(tracker.config, iterations=0, restart_cost=0.0, restart_angles=("wrist_flexion", "thumb_2"),
+                  restart_offsets=(off, -off), restart_trials=1)
+    fit = tracker.with_config(cfg).fit_frame(cloud, start=start)
+    assert fit.restarted and fit.restart == 2 * ("wrist_flexion", "thumb_2").index(moved) + (sign > 0)
+    k = names.index(moved)  # the rigid-bone data against the FE skin leave the coupled thumb angles a few degrees off
+    assert abs(fit.angles[k] - truth[k]) < 0.25 * off, np.degrees(fit.angles - truth)
+    stay = tracker.with_config(replace(cfg, restart_cost=np.inf)).fit_frame(cloud, start=start)
+    assert not stay.restarted and np.allclose(stay.angles, a0) and stay.cost > fit.cost
+    with pytest.raises(CorrespondenceError, match="restart_angles"):
+        tracker.with_config(replace(cfg, restart_angles=("index_1",)))
+    with pytest.raises(CorrespondenceError, match="compiled into"):
+        tracker.with_config(replace(cfg, max_points=100))
+
+
+@functools.lru_cache(maxsize=1)
+def _sequence_and_tracker(seed):
     seq = hand_range_sequence(seed=seed, frames=4, h=12.0)  # steps of up to ~12 degrees (at 25 the thumb was lost)
-    assert all(len(c) > 1000 for c in seq.clouds)
     tracker = HandTracker(HandModel(hand_mesh(default_body(PAPER), 24.0, 4.5)), TrackConfig(seed=seed))
-    names = tracker.names
-    assert names == seq.names
-    for kw in ({"clouds": seq.clouds}, {"markers": (seq.marker_reference, seq.markers)}):
-        fits = tracker.track(**kw)
-        err = angle_errors(fits, seq.angles)
-        assert np.abs(err).max() < 1.0, (kw.keys(), err)
-        assert np.abs(fits[-1].pose[3:] - seq.pose[3:]).max() < 1.0
+    return seq, tracker
+
+
+CLOUDS_ALONE_SHORT = pytest.mark.xfail(
+    reason="known shortfall: seed 1's thumb tip (flexed ~73 degrees towards the palm in all, seen from the back: ~58 "
+           "points on its phalanx) ends 1.29 degrees off from the clouds alone; from the truth it goes to the same "
+           "place (not a local minimum or the step cap), noise-free clouds leave 0.51 (the coarse model's floor), all "
+           "2,281 points 1.21: the view and the floor; with the markers beside the clouds 0.29", strict=True)
+
+
+MARKERS_SHORT = pytest.mark.xfail(
+    reason="known shortfall: seed 2's thumb tip from the 13 markers alone is off by up to 1.35 degrees (two markers on "
+           "the 25 mm phalanx, 0.1 mm noise)", strict=True)
+
+
+@pytest.mark.slow  # three finer data solves, each tracked three ways by the paper-size hand (~30 min, 2 shared cores)
+@pytest.mark.parametrize("seed, kind", [(0, "clouds"), (0, "markers"), (0, "both"),
+                                        pytest.param(1, "clouds", marks=CLOUDS_ALONE_SHORT), (1, "markers"), (1, "both"),
+                                        (2, "clouds"),
+                                        pytest.param(2, "markers", marks=MARKERS_SHORT),
+                                        (2, "both")])
+def test_joint_angles_within_a_degree_from_range_clouds_markers_and_both(seed, kind):
+    """The paper-size model (2,412 tet10) against sequences generated on a finer mesh (4,248) with
+    noise, angles and pose drawn under each seed: every angle of every frame within 1 degree from
+    the clouds and the markers together (the paper's set-up), from the markers alone, and from the
+    clouds alone; the known failures are strict xfails with their reasons (seed 1's thumb tip from the
+    clouds alone, seed 2's thumb tip from the markers); seed 2's finger, lost from the last frame's
+    estimate, is found by the tracker's restarts."""
+    seq, tracker = _sequence_and_tracker(seed)
+    assert all(len(c) > 1000 for c in seq.clouds)
+    assert tracker.names == seq.names
+    data = {"clouds": {"clouds": seq.clouds}, "markers": {"markers": (seq.marker_reference, seq.markers)}}
+    data["both"] = data["clouds"] | data["markers"]
+    fits = tracker.track(**data[kind])
+    err = angle_errors(fits, seq.angles)
+    assert np.abs(err).max() < 1.0, err
+    assert np.abs(fits[-1].pose[3:] - seq.pose[3:]).max() < 1.0

@@ -65,3 +65,17 @@ def test_curves_it_cannot_read_are_clear_errors(motion, strain, words):
     with pytest.raises(ObservationError, match=words.replace("(", r"\(").replace(")", r"\)")
                        .replace("[", r"\[").replace("]", r"\]")):
         strain_threshold(motion, strain)
+
+
+def test_rising_counts_only_a_change_to_faster_growth():
+    """``rising=True``: on curves that speed up (drawn as in the 200-curve test) it is the free
+    hinge; on their mirror images, which slow down by as much, it finds no significant change."""
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        x, s, f, x0 = _curve(rng)
+        free, up = strain_threshold(x, s), strain_threshold(x, s, rising=True)
+        assert up.fraction == pytest.approx(free.fraction, abs=1e-9) and up.p_value == pytest.approx(free.p_value)
+        slowing = -s + (s[-1] + s[0]) * x / x[-1]  # the same change, to slower growth
+        assert strain_threshold(x, slowing).p_value < 1e-3
+        down = strain_threshold(x, slowing, rising=True)
+        assert down.p_value > 0.05 and down.slopes[1] >= down.slopes[0] - 1e-12

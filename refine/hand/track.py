@@ -24,6 +24,7 @@ Units: mm, radians.
 
 from __future__ import annotations
 
+import copy
 import time
 from dataclasses import dataclass
 
@@ -58,6 +59,13 @@ class TrackConfig:
             shortened): a trust region against jumps to another local minimum.
         pose: fit the global pose (otherwise it stays where it starts).
         seed: seeds the subset of points.
+        restart_cost: when a frame's fit ends with a robust cost above this per used residual (noise
+            units squared; pure noise gives about 0.9, a lost joint tens), other starts are tried
+            (``inf``: never; 0: every frame): a constant-velocity prediction from the last two fits
+            and, per angle in ``restart_angles`` (default: every fitted angle), the last fit's angles
+            with that one moved by each of ``restart_offsets`` (radians); each start gets
+            ``restart_trials`` Levenberg-Marquardt trials and the lowest cost among them and the
+            first fit is carried on to convergence.
     """
 
     noise: float = 0.2
@@ -71,6 +79,10 @@ class TrackConfig:
     max_turn: float = 0.15
     pose: bool = True
     seed: int = 0
+    restart_cost: float = 4.0
+    restart_angles: tuple[str, ...] | None = None
+    restart_offsets: tuple[float, ...] = (0.2, -0.2)
+    restart_trials: int = 3
 
 
 @dataclass(frozen=True)
@@ -78,7 +90,9 @@ class FrameFit:
     """One frame's fit: ``angles (n_angles,)`` radians (the tracker's ``names``), ``pose (6,)``,
     the model's displacement ``u (n_nodes, 3)`` mm (model frame), ``rms``: RMS point-to-surface
     distance of the cloud's inliers (mm; NaN without a cloud), ``marker_rms`` (mm; NaN without
-    markers), ``iterations`` (trials), ``seconds``."""
+    markers), ``iterations`` (trials, restarts' included), ``seconds``, ``cost`` (the robust cost at
+    the fit, noise units squared), ``restarted``: whether other starts were tried (and ``restart``:
+    which start won, -1 the first fit)."""
 
     angles: np.ndarray
     pose: np.ndarray
@@ -87,6 +101,9 @@ class FrameFit:
     marker_rms: float
     iterations: int
     seconds: float
+    cost: float = float("nan")
+    restarted: bool = False
+    restart: int = -1
 
 
 def _pose_apply(pose, x):
@@ -111,6 +128,9 @@ class HandTracker:
         if unknown:
             raise CorrespondenceError(f"the hand has no joint angle(s) {sorted(unknown)}; its angles are "
                                       f"{model.hand.body.angle_names}")
+        if set(config.restart_angles or ()) - set(self.names):
+            raise CorrespondenceError(f"restart_angles {sorted(set(config.restart_angles) - set(self.names))} are not "
+                                      f"fitted angles; choose among {self.names}")
         self.tri = boundary_facets(model.hand.mesh)
         self._theta0 = theta0 = model.params({}, scar)
         X = jnp.asarray(model.hand.mesh.nodes)
@@ -123,6 +143,23 @@ class HandTracker:
         self._nodes = jax.jit(jax.jacfwd(nodes, has_aux=True))  # (dx/da (n, 3, n_a), (x, u_D))
         self._linear = jax.jit(self._linearised)
         self._probes = {}
+
+    #: the settings compiled into the residuals (a tracker with other values compiles anew)
+    COMPILED = ("noise", "marker_noise", "max_points")
+
+    def with_config(self, config: TrackConfig) -> "HandTracker":
+        """This tracker (its compiled solve and residuals shared) with other settings of the
+        fit: iterations, trust region, robust scale, restarts; ``COMPILED`` ones must stay."""
+        changed = [k for k in self.COMPILED if getattr(config, k) != getattr(self.config, k)]
+        if changed:
+            raise CorrespondenceError(f"{changed} are compiled into this tracker's residuals: build a new "
+                                      "HandTracker for other values")
+        if set(config.restart_angles or ()) - set(self.names):
+            raise CorrespondenceError(f"restart_angles {sorted(set(config.restart_angles) - set(self.names))} are not "
+                                      f"fitted angles; choose among {self.names}")
+        other = copy.copy(self)
+        other.config = config
+        return other
 
     # ------------------------------------------------------------------ residuals
     def _residuals(self, pose, x, P, cand, wP, probe_nodes, probe_w, M, wM):
@@ -185,12 +222,13 @@ class HandTracker:
         return cKDTree(centre).query(P, k)[1].reshape(len(P), k)
 
     # ------------------------------------------------------------------ the fit
-    def fit_frame(self, cloud=None, markers=None, start: FrameFit | None = None) -> FrameFit:
+    def fit_frame(self, cloud=None, markers=None, start: FrameFit | None = None,
+                  before: FrameFit | None = None) -> FrameFit:
         """Fit one frame: ``cloud (n, 3)`` (scanner frame, mm; non-finite rows, a range camera's
         holes, are left out; above ``max_points`` a random subset is used) and/or ``markers`` =
         ``(reference (m, 3), positions (m, 3))`` (model-frame rest positions; scanner-frame
         positions, NaN where lost: weight 0); ``start``: the last frame's fit (default: rest,
-        identity pose).
+        identity pose); ``before``: the fit before it (for the constant-velocity restart).
 
         Raises:
             CorrespondenceError: neither data, an empty frame, a cloud far from the hand, markers
@@ -206,13 +244,49 @@ class HandTracker:
         warm = self._start(start)
         if cloud is not None:
             self._check_near(q, warm[0], P[wP > 0])
-        dx, (x, u_D) = self._nodes(jnp.asarray(q[6:]), warm)
-        state = self._evaluate(q, x, dx, P, wP, mk, u_D)
+        data = (P, wP, mk)
+        state = self._state(q, warm, data)
         if "r" not in state:
             raise CorrespondenceError(f"the hand model's solve failed at the starting angles "
                                       f"{np.degrees(q[6:]).round(2)} deg; start from a nearer fit (start=)")
+        q, state, trials = self._lm(q, state, data, c.iterations)
+        n_used = int(wP.sum()) + 3 * int(mk[3].sum())
+        restarted, won = state["cost"] > c.restart_cost * max(n_used, 1), -1
+        if restarted:
+            best = (state["cost"], -1, q, state)
+            for i, q0 in enumerate(self._restart_starts(start, before)):
+                s0 = self._state(q0, warm, data)
+                if "r" not in s0:
+                    continue  # a start the model cannot reach is skipped
+                q1, s1, k = self._lm(q0, s0, data, c.restart_trials)
+                trials += k
+                if s1["cost"] < best[0]:
+                    best = (s1["cost"], i, q1, s1)
+            _, won, q, state = best
+            if won >= 0:
+                q, state, k = self._lm(q, state, data, c.iterations)
+                trials += k
+        r = state["r"]
+        n_p = int(wP.sum())
+        dist = np.abs(r[: c.max_points][wP > 0]) * c.noise
+        inl = dist[dist < c.robust * c.noise]
+        mr = r[c.max_points:].reshape(-1, 3)[mk[3] > 0] * c.marker_noise
+        return FrameFit(q[6:].copy(), q[:6].copy(), np.asarray(state["x"]) - self.model.hand.mesh.nodes,
+                        float(np.sqrt(np.mean(inl ** 2))) if n_p and len(inl) else float("nan"),
+                        float(np.sqrt(np.mean(np.sum(mr ** 2, axis=1)))) if markers is not None else float("nan"),
+                        trials, time.perf_counter() - t0, float(state["cost"]), bool(restarted), int(won))
+
+    def _state(self, q, warm, data):
+        """The evaluation (:meth:`_evaluate`) at ``q``, the solve warm-started from ``warm``."""
+        dx, (x, u_D) = self._nodes(jnp.asarray(q[6:]), warm)
+        return self._evaluate(q, x, dx, *data, u_D)
+
+    def _lm(self, q, state, data, iterations):
+        """Levenberg-Marquardt from ``q`` (its evaluation ``state``), at most ``iterations`` trials:
+        ``(q, state, trials)``."""
+        c = self.config
         lam, trials = 1e-3, 0
-        while trials < c.iterations:
+        while trials < iterations:
             r, J, w = state["r"], state["J"], state["w"]
             JW = J * w[:, None]
             H = JW.T @ J
@@ -225,8 +299,7 @@ class HandTracker:
             trials += 1
             q_new = q + step
             warm = (np.asarray(state["x"] - self.model.hand.mesh.nodes).reshape(-1), state["loads"])
-            dx, (x, u_D) = self._nodes(jnp.asarray(q_new[6:]), warm)
-            new = self._evaluate(q_new, x, dx, P, wP, mk, u_D)
+            new = self._state(q_new, warm, data)
             if np.isfinite(new["cost"]) and new["cost"] <= state["cost"]:
                 q, state, lam = q_new, new, max(lam / 5, 1e-7)
                 small = np.abs(step[6:]).max(initial=0) < c.step_tol and np.abs(step[:3]).max() < c.step_tol \
@@ -235,15 +308,21 @@ class HandTracker:
                     break
             else:
                 lam *= 8
-        r = state["r"]
-        n_p = int(wP.sum())
-        dist = np.abs(r[: c.max_points][wP > 0]) * c.noise
-        inl = dist[dist < c.robust * c.noise]
-        mr = r[c.max_points:].reshape(-1, 3)[mk[3] > 0] * c.marker_noise
-        return FrameFit(q[6:].copy(), q[:6].copy(), np.asarray(state["x"]) - self.model.hand.mesh.nodes,
-                        float(np.sqrt(np.mean(inl ** 2))) if n_p and len(inl) else float("nan"),
-                        float(np.sqrt(np.mean(np.sum(mr ** 2, axis=1)))) if markers is not None else float("nan"),
-                        trials, time.perf_counter() - t0)
+        return q, state, trials
+
+    def _restart_starts(self, start: FrameFit | None, before: FrameFit | None):
+        """The other starts ``(6 + n_angles,)`` of a frame whose first fit ended at a high cost: the
+        constant-velocity prediction (``2 start - before``; with both fits), then the last fit's
+        angles with one of ``restart_angles`` moved by each ``restart_offsets`` (the pose kept)."""
+        c = self.config
+        q = np.zeros(6 + len(self.names)) if start is None else np.r_[start.pose, start.angles]
+        if start is not None and before is not None:
+            yield 2 * q - np.r_[before.pose, before.angles]
+        for name in c.restart_angles or self.names:
+            for d in c.restart_offsets:
+                q0 = q.copy()
+                q0[6 + self.names.index(name)] += d
+                yield q0
 
     def linearise(self, q, cloud=None, markers=None, start: FrameFit | None = None):
         """The residuals ``(n_r,)`` (noise units; the cloud's padded to ``max_points``, then 3 per
@@ -305,5 +384,5 @@ class HandTracker:
         for k in range(n):
             fits.append(self.fit_frame(None if clouds is None else clouds[k],
                                        None if markers is None else (markers[0], markers[1][k]),
-                                       fits[-1] if fits else None))
+                                       fits[-1] if fits else None, fits[-2] if len(fits) > 1 else None))
         return fits
