@@ -153,6 +153,18 @@ def test_a_dice_export_gives_its_subset_size():
     assert read_dice(SAMPLE / "dice-solution").meta["subset_px"] == 27.0
 
 
+def _tracked_around_a_hole(rng, spacing: float, subset: float):
+    """A lattice of ``spacing`` with a random hole whose failed subsets (square side ``subset``) are
+    removed, as :class:`Observations` (the lattice's outer rows and columns the boundary) and the hole."""
+    pts = _lattice(spacing)
+    hole = _random_hole(rng, spacing)
+    keep = subset_distance(pts, hole.params, subset) > 0
+    edge = (pts[keep, 0] % 100 == 20) | (pts[keep, 1] % 60 == 10)
+    obs = Observations(ids=np.flatnonzero(keep) + 1, reference=pts[keep], roles=np.where(edge, "boundary", "guide"),
+                       displacements=np.zeros((1, keep.sum(), 2)))
+    return obs, hole
+
+
 def test_a_hole_keeps_half_a_subset_from_every_tracked_point():
     """With the subset known, the hole's start is free of every tracked point's square and a step
     that would cover one is infeasible; without it only the points themselves are kept out."""
@@ -160,14 +172,8 @@ def test_a_hole_keeps_half_a_subset_from_every_tracked_point():
     from refine.diagnosis.shapes import Hole
     from refine.model.measured import MeasuredModel
 
-    rng = np.random.default_rng(5)
     spacing, subset = 5.0, 9.0
-    pts = _lattice(spacing)
-    hole = _random_hole(rng, spacing)
-    keep = subset_distance(pts, hole.params, subset) > 0
-    edge = (pts[keep, 0] % 100 == 20) | (pts[keep, 1] % 60 == 10)
-    obs = Observations(ids=np.flatnonzero(keep) + 1, reference=pts[keep], roles=np.where(edge, "boundary", "guide"),
-                       displacements=np.zeros((1, keep.sum(), 2)))
+    obs, hole = _tracked_around_a_hole(np.random.default_rng(5), spacing, subset)
     gap = Hole((hole.cx, hole.cy), (max(hole.rx, hole.ry) + 6, max(hole.rx, hole.ry) + 6), 0.0)
     with_subset = MeasuredModel(_experiment(subset=subset), obs, h=4.0)
     start = hole_hypothesis(with_subset, subset_start(with_subset, gap)).hole
@@ -216,14 +222,8 @@ def test_a_hole_fitted_with_a_law_starts_where_the_subsets_put_it(monkeypatch):
     from refine.diagnosis.shapes import Hole
     from refine.model.measured import MeasuredModel
 
-    rng = np.random.default_rng(17)
     spacing, subset = 5.0, 9.0
-    pts = _lattice(spacing)
-    hole = _random_hole(rng, spacing)
-    keep = subset_distance(pts, hole.params, subset) > 0
-    edge = (pts[keep, 0] % 100 == 20) | (pts[keep, 1] % 60 == 10)
-    obs = Observations(ids=np.flatnonzero(keep) + 1, reference=pts[keep], roles=np.where(edge, "boundary", "guide"),
-                       displacements=np.zeros((1, keep.sum(), 2)))
+    obs, hole = _tracked_around_a_hole(np.random.default_rng(17), spacing, subset)
     r = max(hole.rx, hole.ry) + 4
     off = Hole((hole.cx + 0.6 * r, hole.cy - 0.3 * r), (r, r), 0.0)   # a candidate off the hole's centre
     base = MeasuredModel(_experiment(subset=subset), obs, h=4.0)
