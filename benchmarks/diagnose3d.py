@@ -38,7 +38,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
-sys.path.append(str(HERE))  # after the repository: benchmarks/tracking.py must not shadow the package
+sys.path.append(str(HERE))  # after the repository: a script here named like a package must not shadow it
 
 import numpy as np  # noqa: E402
 

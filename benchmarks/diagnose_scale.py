@@ -37,7 +37,7 @@ import sys
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-# this folder last on the path: its tracking.py (a benchmark) would shadow the tracking package
+# this folder last on the path: a script here named like a package would shadow it
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != HERE] + [str(HERE)]
 OUT = HERE / "results"
 ROI = (20.0, 10.0, 120.0, 70.0)

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-# this folder last on the path: its tracking.py (a benchmark) would shadow the tracking package
+# this folder last on the path: a script here named like a package would shadow it
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != HERE] + [str(HERE)]
 OUT = HERE / "results"
 TARGET_WALL_S = 48.0

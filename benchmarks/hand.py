@@ -60,7 +60,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 sys.path.insert(0, str(ROOT))
-sys.path.append(str(Path(__file__).resolve().parent))  # last: benchmarks/tracking.py must not shadow the package
+sys.path.append(str(Path(__file__).resolve().parent))  # last: a script here named like a package must not shadow it
 OUT = Path(__file__).parent / "results"
 
 import jaxfem as jf  # noqa: E402

@@ -10,9 +10,9 @@ holes, edges, glare, a speckle jump; against OpenCV's pyramidal LK and ECC) and 
 DICe are in ``_tracking_large``. Writes benchmarks/results/tracking.json (with ``targets``:
 pass/fail per target), tracking.png and tracking_large_motion.png.
 
-    python benchmarks/tracking.py            # a few minutes on 2 cores
-    python benchmarks/tracking.py --quick    # fewer sweep points, for a smoke test
-    python benchmarks/tracking.py --only large   # the large-motion rows and Sample 12, kept with
+    python benchmarks/trackers.py            # a few minutes on 2 cores
+    python benchmarks/trackers.py --quick    # fewer sweep points, for a smoke test
+    python benchmarks/trackers.py --only large   # the large-motion rows and Sample 12, kept with
                                                  # the other rows of an existing tracking.json
 
 The competitors get an oracle start (each point's true motion rounded to whole pixels) and track
@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-# this file is called tracking.py: keep its folder off the path so "tracking" is the package
+# keep this folder off the path so "tracking" is the package (a script here named like a package would shadow it)
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 sys.path.insert(0, str(ROOT))
 
