@@ -140,15 +140,24 @@ def _grid_case(field, noise, seed, refiners=("lines", "hessian", "snake"), pitch
     points, truth = points[visible], truth[visible]
     start = np.rint(truth)
     grid_lk = lambda *a: lucas_kanade(*a, window=15)  # noqa: E731 - LK's best window on the grid
-    for name, method in (("opencv_lk", grid_lk), ("phase_correlation", phase_correlation)):
+    result.update(_baselines((("opencv_lk", grid_lk), ("phase_correlation", phase_correlation)),
+                             images, points, truth, start))
+    return result
+
+
+def _baselines(methods, images, points, truth, start) -> dict:
+    """Each of ``methods`` (name, function of (first image, last image, points, start)) from the
+    first image to the last: its error against ``truth`` (px), points lost and points per second."""
+    out = {}
+    for name, method in methods:
         t0 = time.perf_counter()
         found = method(images[0], images[-1], points, start)
         seconds = time.perf_counter() - t0
         error = np.linalg.norm(found - truth, axis=1)
-        result[name] = {"deformed_rms_px": _rms(error), "deformed_max_px": float(np.nanmax(error)),
-                        "lost_last_frame": int(np.isnan(error).sum()), "points": len(points),
-                        "points_per_second": len(points) / seconds}
-    return result
+        out[name] = {"deformed_rms_px": _rms(error), "deformed_max_px": float(np.nanmax(error)),
+                     "lost_last_frame": int(np.isnan(error).sum()), "points": len(points),
+                     "points_per_second": len(points) / seconds}
+    return out
 
 
 def _crease_case(jump, seed, shapes=("straight", "curved", "adaptive")):
@@ -182,14 +191,8 @@ def _speckle_case(field, noise, seed):
     points = tracks.reference
     visible = np.all((truth > 20) & (truth < np.array(SHAPE[::-1]) - 20), axis=1)
     points, truth = points[visible], truth[visible]
-    for name, method in (("opencv_lk", lucas_kanade), ("phase_correlation", phase_correlation)):
-        t0 = time.perf_counter()
-        found = method(images[0], images[-1], points, np.rint(truth))
-        seconds = time.perf_counter() - t0
-        err = np.linalg.norm(found - truth, axis=1)
-        result[name] = {"deformed_rms_px": _rms(err), "deformed_max_px": float(np.nanmax(err)),
-                        "lost_last_frame": int(np.isnan(err).sum()), "points": len(points),
-                        "points_per_second": len(points) / seconds}
+    result.update(_baselines((("opencv_lk", lucas_kanade), ("phase_correlation", phase_correlation)),
+                             images, points, truth, np.rint(truth)))
     return result
 
 

@@ -210,7 +210,7 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
             if chosen.cause == "softer-region" and chosen.shapes[0].ratio < cfg.hole_refit_below:
                 chosen = _hole_if_as_likely(replace(trials, model=full), chosen, guide)
             chosen = named_hole(chosen, obs.reference, cfg.hole_refit_below)
-            if cfg.discretisation_error:  # the mesh's share of the error bars: one fit on a coarser mesh
+            if cfg.discretisation_error:  # the mesh's and the drive's share of the error bars: two more fits
                 t = time.perf_counter()
                 chosen = with_discretisation(chosen, guide, hold, sigma_eff)
                 log(f"discretisation error estimated ({time.perf_counter() - t:.0f} s)")

@@ -108,7 +108,13 @@ def shape_errors(fitted) -> list[ShapeErrors] | None:
 def errors_of(row: Float[np.ndarray, "7"], shape) -> ShapeErrors:
     """``row`` (one value per :data:`QUANTITIES`) as the :class:`ShapeErrors` of ``shape`` (a
     hole's ratio error None)."""
-    return ShapeErrors((row[0], row[1]), (row[2], row[3]), row[4], row[5], None if shape.kind == "hole" else row[6])
+    return _from_row(row, shape.kind != "hole")
+
+
+def _from_row(row: Float[np.ndarray, "7"], with_ratio: bool) -> ShapeErrors:
+    """``row`` (one value per :data:`QUANTITIES`) as a :class:`ShapeErrors` (the ratio's error
+    None unless ``with_ratio``)."""
+    return ShapeErrors((row[0], row[1]), (row[2], row[3]), row[4], row[5], row[6] if with_ratio else None)
 
 
 def as_row(e: ShapeErrors) -> Float[np.ndarray, "7"]:
@@ -205,8 +211,15 @@ def discretisation_bias(fitted, points: Bool[np.ndarray, "n_points"], hold: Bool
         g = fit(coarse, points, hold, sigma)
     except Exception:  # noqa: BLE001 - a coarse mesh that cannot hold the shapes gives no estimate
         return None
-    q, qc = shape_quantities(fitted.shapes), shape_quantities(g.shapes)
-    d = qc - q
+    return _richardson(fitted.shapes, g.shapes, factor, order)
+
+
+def _richardson(fine, coarse, factor: float, order: float) -> Float[np.ndarray, "shapes 7"]:
+    """Richardson's estimate of the error of the ``fine`` fit's shapes' quantities
+    (:data:`QUANTITIES`, absolute values) from the same shapes fitted with a discretisation
+    ``factor`` times coarser (``coarse``), for errors of ``order``: the change over
+    ``factor^order - 1``."""
+    d = shape_quantities(coarse) - shape_quantities(fine)
     d[:, 4] = np.angle(np.exp(2j * d[:, 4])) / 2  # an orientation is defined modulo pi
     return np.abs(d) / (factor**order - 1.0)
 
@@ -247,8 +260,7 @@ def total_errors(std: ShapeErrors | None, disc: ShapeErrors | None) -> ShapeErro
         return std if disc is None else disc
     a, b = as_row(std), as_row(disc)
     row = np.where(np.isnan(b), a, np.hypot(a, np.nan_to_num(b)))
-    return ShapeErrors((row[0], row[1]), (row[2], row[3]), row[4], row[5],
-                       None if std.relative_elasticity is None else row[6])
+    return _from_row(row, std.relative_elasticity is not None)
 
 
 def sparser_drive(obs, step: int = 2):
@@ -292,6 +304,4 @@ def drive_bias(fitted, points: Bool[np.ndarray, "n_points"], hold: Bool[np.ndarr
                 points, hold, sigma)
     except Exception:  # noqa: BLE001 - too few boundary points left, or a refit that fails: no estimate
         return None
-    d = shape_quantities(g.shapes) - shape_quantities(fitted.shapes)
-    d[:, 4] = np.angle(np.exp(2j * d[:, 4])) / 2
-    return np.abs(d) / (step**order - 1.0)
+    return _richardson(fitted.shapes, g.shapes, step, order)

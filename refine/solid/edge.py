@@ -40,9 +40,7 @@ class GridLattice:
 
     def sites(self, index) -> np.ndarray:
         """Positions ``(k, 2)`` of lattice sites ``index (k, 2)`` (row, col)."""
-        c, s = np.cos(self.angle), np.sin(self.angle)
-        ij = np.asarray(index, float)[:, ::-1] * self.step
-        return self.origin + ij @ np.array([[c, s], [-s, c]])
+        return from_lattice(self, np.asarray(index, float)[:, ::-1])
 
 
 def grid_lattice(points, tol: float = 0.25) -> GridLattice:
