@@ -128,9 +128,7 @@ class HandTracker:
         if unknown:
             raise CorrespondenceError(f"the hand has no joint angle(s) {sorted(unknown)}; its angles are "
                                       f"{model.hand.body.angle_names}")
-        if set(config.restart_angles or ()) - set(self.names):
-            raise CorrespondenceError(f"restart_angles {sorted(set(config.restart_angles) - set(self.names))} are not "
-                                      f"fitted angles; choose among {self.names}")
+        self._check_restarts(config)
         self.tri = boundary_facets(model.hand.mesh)
         self._theta0 = theta0 = model.params({}, scar)
         X = jnp.asarray(model.hand.mesh.nodes)
@@ -144,6 +142,13 @@ class HandTracker:
         self._linear = jax.jit(self._linearised)
         self._probes = {}
 
+    def _check_restarts(self, config: TrackConfig) -> None:
+        """Raises :class:`CorrespondenceError` where ``config.restart_angles`` names an angle the
+        tracker does not fit."""
+        unknown = set(config.restart_angles or ()) - set(self.names)
+        if unknown:
+            raise CorrespondenceError(f"restart_angles {sorted(unknown)} are not fitted angles; choose among {self.names}")
+
     #: the settings compiled into the residuals (a tracker with other values compiles anew)
     COMPILED = ("noise", "marker_noise", "max_points")
 
@@ -154,9 +159,7 @@ class HandTracker:
         if changed:
             raise CorrespondenceError(f"{changed} are compiled into this tracker's residuals: build a new "
                                       "HandTracker for other values")
-        if set(config.restart_angles or ()) - set(self.names):
-            raise CorrespondenceError(f"restart_angles {sorted(set(config.restart_angles) - set(self.names))} are not "
-                                      f"fitted angles; choose among {self.names}")
+        self._check_restarts(config)
         other = copy.copy(self)
         other.config = config
         return other
