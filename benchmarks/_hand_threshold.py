@@ -130,11 +130,11 @@ def _score(found, truth, has: bool, rule: ThresholdRule = RULE):
             "rise_quartiles": np.nanquantile([v[2] for v in found], [0.25, 0.5, 0.75]).tolist()}
 
 
-def tracked_draws(x, s, J, sigma_deg, rng, draws=DRAWS):
-    """Detections on ``draws`` tracked curves: the coarse curve ``(x, s)`` with each frame's joint
+def tracked_draws(x, s, J, sigma_deg, rng, draws=None):
+    """Detections on ``draws`` (default :data:`DRAWS`) tracked curves: the coarse curve ``(x, s)`` with each frame's joint
     angles off by ``N(0, sigma_deg)``, to first order through ``J (n_frames, 2, n_angles)``."""
     out = []
-    for _ in range(draws):
+    for _ in range(DRAWS if draws is None else draws):
         d = np.einsum("kij,kj->ki", J, rng.normal(0.0, np.radians(sigma_deg), (len(x), J.shape[2])))
         out.append(_detect(x + d[:, 0], s + d[:, 1]))
     return out

@@ -82,15 +82,16 @@ def _area_curve(c: dict, box):
 def extrapolated(elements, fractions) -> dict:
     """Richardson on the three finest meshes (h ~ elements^(-1/3)): the order ``p`` from the three
     fractions and the limit with its own error (the last step's correction); ``None`` where the
-    changes do not shrink (not yet in the asymptotic range: no extrapolation is honest then)."""
+    changes turn back or no order in (0.05, 8) fits them (not in the asymptotic range: no
+    extrapolation is honest then)."""
     n, f = np.asarray(elements[-3:], float), np.asarray(fractions[-3:], float)
     if len(n) < 3 or not np.all(np.isfinite(f)):
         return {"limit": None, "why": "needs three readable meshes"}
     h = n ** (-1 / 3)
     d1, d2 = f[1] - f[0], f[2] - f[1]
-    if d1 == 0 or d2 / d1 <= 0 or abs(d2) >= abs(d1):
+    if d1 == 0 or d2 / d1 <= 0:
         return {"limit": None, "changes": [float(d1), float(d2)],
-                "why": "the changes do not shrink monotonically: not in the asymptotic range"}
+                "why": "the changes turn back: not in the asymptotic range"}
     # f(h) = f* + C h^p through three points of unequal ratios: solve for p by bisection
     g = lambda p: (h[1] ** p - h[2] ** p) / (h[0] ** p - h[1] ** p) - d2 / d1  # noqa: E731
     lo, hi = 0.05, 8.0
