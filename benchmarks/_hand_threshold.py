@@ -118,6 +118,9 @@ def _score(found, truth, has: bool, rule: ThresholdRule = RULE):
     within 5 % of it, or none); ``coverage``: the share whose interval holds the truth (where it has
     one); the ``hinge_*`` figures score the hinge's place whether or not it is a threshold."""
     f = np.array([v[0] for v in found])
+    if np.isnan(f).all():  # every curve unreadable (displacements not monotone at large angle errors)
+        return {"share_agreeing": 0.0, "share_with_threshold": 0.0, "coverage": 0.0 if has else None,
+                "unreadable": len(f), "hinge_share_within_5pct": 0.0, "hinge_coverage": 0.0}
     lo, hi = np.array([v[1][0] for v in found]), np.array([v[1][1] for v in found])
     near, inside, holds = np.abs(f - truth) <= WITHIN, (lo <= truth) & (truth <= hi), _holds(found, rule)
     return {"share_agreeing": float(np.mean(holds & near) if has else np.mean(~holds & np.isfinite(f))),
@@ -149,16 +152,19 @@ def _curve(data, name, mesh, box):
 
 
 def threshold_truth(data, areas: dict, seed: int = 0, noise: float = STRAIN_NOISE,
-                    sigma_deg: float = ANGLE_NOISE_DEG, every: int = 1) -> dict:
+                    sigma_deg: float = ANGLE_NOISE_DEG, every: int = 1, truths: dict | None = None) -> dict:
     """For each motion of :func:`curve_data` ``data``, over its area ``areas[motion]`` (a Box): the
     truth (fine, noise-free: its hinge, and whether that is a threshold by :data:`RULE`) and the
     detections on the coarse curve (every ``every``-th frame), tracked (``sigma_deg``, and the
     :data:`ANGLE_SWEEP`) and raw (``noise``), ``DRAWS`` draws each, scored by :func:`_score`; the
-    tracked draws scored again for each ``min_rise`` of :data:`RISE_SWEEP`."""
+    tracked draws scored again for each ``min_rise`` of :data:`RISE_SWEEP`. ``truths``: ``{motion:
+    (displacement, area maximum, elements)}`` of a finer mesh to take the truth from instead of
+    ``data``'s fine curve (``_threshold_mesh.finest_curves``)."""
     rng = np.random.default_rng(seed)
     motions = [k.split("/")[0] for k in data if k.endswith("/coarse_x")]
     h = np.radians(float(data["step_deg"]))
-    out = {"fine_elements": int(data["fine/elements"]), "coarse_elements": int(data["coarse/elements"]),
+    fine_elements = int(data["fine/elements"]) if truths is None else sorted({int(v[2]) for v in truths.values()})
+    out = {"fine_elements": fine_elements, "coarse_elements": int(data["coarse/elements"]),
            "strain_noise": noise, "angle_noise_deg": sigma_deg, "draws": DRAWS, "seed": seed,
            "definition": "refine.threshold.strain_threshold(rising=True): the hinge where growth speeds up; a "
                          f"threshold only where its rate rises >= {RULE.min_rise}x with F test p < {RULE.alpha} "
@@ -166,7 +172,7 @@ def threshold_truth(data, areas: dict, seed: int = 0, noise: float = STRAIN_NOIS
            "rule": {"min_rise": RULE.min_rise, "alpha": RULE.alpha}}
     for name in motions:
         box = areas[name]
-        xf, sf, _ = _curve(data, name, "fine", box)
+        xf, sf, _ = _curve(data, name, "fine", box) if truths is None else truths[name]
         x, s, area = _curve(data, name, "coarse", box)
         J = np.stack([(data[f"{name}/perturbed_x"] - x[:, None]) / h,
                       (data[f"{name}/perturbed_skin"][:, :, area].max(axis=2) - s[:, None]) / h], axis=1)
@@ -220,12 +226,14 @@ def curves_from_json(section: dict):
     return data, areas
 
 
-def section(previous: dict, model, make_fine, reuse: bool, areas: dict, wrist, saved) -> dict:
+def section(previous: dict, model, make_fine, reuse: bool, areas: dict, wrist, saved, finest=None) -> dict:
     """hand.py's ``threshold_truth``: :func:`threshold_truth` over ``areas`` ({motion: Box}), with
     the variants every 2nd frame and the ``wrist`` Box for every motion. The curves: from the npz
     ``saved`` if ``reuse`` and it exists; else, if ``reuse``, from the ``previous`` section
     (:func:`curves_from_json`); else solved (:func:`curve_data` on the coarse ``model`` and the
-    fine model ``make_fine()``) and saved to ``saved``."""
+    fine model ``make_fine()``) and saved to ``saved``. ``finest``: a function giving the finest
+    mesh's curves (``truths`` of :func:`threshold_truth`): the analysis again against that truth
+    (``against_finest_mesh``, the one the target reads where it is there)."""
     from_json = reuse and not Path(saved).exists() and "variants" in previous
     if reuse and Path(saved).exists():
         data = dict(np.load(saved))
@@ -241,10 +249,15 @@ def section(previous: dict, model, make_fine, reuse: bool, areas: dict, wrist, s
                                                          "1e-6 per degree)" if from_json else "the solves"}
     out["variants"] = {"every 2nd frame (10 frames)": threshold_truth(data, areas, every=2),
                        "wrist area for every motion": threshold_truth(*wrist_data)}
+    if finest is not None:
+        out["against_finest_mesh"] = threshold_truth(data, areas, truths=finest())
     return out | {"load": float(open("/proc/loadavg").read().split()[0])}
 
 
 def targets(res: dict) -> dict:
+    """The target on the section ``res``: against the finest mesh's truth where the section has it,
+    else against the fine curve's."""
+    res = res.get("against_finest_mesh", res)
     motions = [k for k, v in res.items() if isinstance(v, dict) and "truth_fraction" in v]
     if not all("share_agreeing" in res[m].get("tracked", {}) for m in motions):  # an older section's result
         return {}
@@ -255,6 +268,7 @@ def targets(res: dict) -> dict:
                   f"threshold (rising hinge, rate rising >= {res['rule']['min_rise']}x, p < {res['rule']['alpha']}) "
                   "within 5 % of the motion of the truth's, or none where the truth has none; in at least 80 % of "
                   "the draws, for each motion",
+        "truth_elements": res["fine_elements"],
         "truth_has_threshold": {m: res[m]["truth_has_threshold"] for m in motions},
         "truth_fraction": {m: res[m]["truth_fraction"] for m in motions},
         "truth_rise": {m: res[m]["truth_rise"] for m in motions},

@@ -127,6 +127,16 @@ def convergence(areas: dict, cache: Path, sizes=SIZES, ranges=RANGES, frames: in
     return out
 
 
+def finest_curves(areas: dict, cache: Path, h: float = SIZES[-1], frames: int = FRAMES) -> dict:
+    """``{motion: (displacement, area maximum, elements)}`` on the mesh ``h`` (the finest of the
+    study: the truth for ``_hand_threshold.threshold_truth(truths=...)``)."""
+    out = {}
+    for name, box in areas.items():
+        c = mesh_curve(name, h, frames, 1.0, cache)
+        out[name] = (*_area_curve(c, box), int(c["elements"]))
+    return out
+
+
 def targets(conv: dict) -> dict:
     """The threshold's mesh convergence as a target: per motion, the rule's answer (a threshold or
     none) the same on every mesh, and where there is one, its place within 5 % of the motion

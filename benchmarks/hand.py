@@ -376,9 +376,11 @@ def sections(only, frames, reuse=False, seeds=None):
         _, fine, fine_size = build(PAPER, FOUND_H, 4.5)
     if "threshold" in only:
         make_fine = lambda: fine if fine is not None else build(PAPER, FOUND_H, 4.5)[1]  # noqa: E731
+        cache = OUT / "hand_threshold_mesh"  # the mesh study's solves (not committed)
         res["threshold_truth"] = _hand_threshold.section(res.get("threshold_truth", {}), model, make_fine, reuse,
-                                                         THRESHOLD_AREAS, AREA, OUT / "hand_threshold.npz")
-        res["threshold_truth"]["mesh"] = _threshold_mesh.convergence(THRESHOLD_AREAS, OUT / "hand_threshold_mesh")
+                                                         THRESHOLD_AREAS, AREA, OUT / "hand_threshold.npz",
+                                                         lambda: _threshold_mesh.finest_curves(THRESHOLD_AREAS, cache))
+        res["threshold_truth"]["mesh"] = _threshold_mesh.convergence(THRESHOLD_AREAS, cache)
     if "found-scar" in only:
         res["found_scar"] = found_scar_section(fine, fine_size, frames) | {"load": load()}
     res["targets"] = targets(res)
