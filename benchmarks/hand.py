@@ -34,14 +34,16 @@ Tracking (issue 25 item 5, ``_hand_tracking.py``): a synthetic range sequence of
 refine.hand from the unlabelled clouds and from the marked points; joint-angle errors, seconds per
 frame, skin-strain RMS against the truth; seeds 0-2, from the clouds, the markers and both. The
 threshold's truth (``_hand_threshold.py``): the rising hinge of the fine noise-free curve against
-the detection on the coarse model's curve at tracked joint angles (and with raw strain noise). The scar found
+the detection on the coarse model's curve at tracked joint angles (and with raw strain noise), a
+threshold only where the growth rate rises >= 1.25x (refine.threshold.ThresholdRule, both sides);
+the hinge on three mesh sizes and over longer motions (``_threshold_mesh.py``). The scar found
 in skin data (the committed benchmarks/results/scar.json: its shape and relative elasticity)
 placed on the wrist of a hand meshed fine enough to hold it, with a strain limit from the
 literature (STRAIN_LIMIT).
 
     python benchmarks/hand.py --only tracking threshold found-scar   # these sections into the last hand.json
     python benchmarks/hand.py --only threshold --reuse-curves        # the threshold analysed again from
-                                                                     # results/hand_threshold.npz (no solve)
+                                                                     # results/hand_threshold.npz or hand.json
 
 Writes benchmarks/results/hand.json (with ``targets``) and hand.png (the curves).
 """
