@@ -25,7 +25,8 @@ from jaxfem.hand import PAPER, HandModel, default_body, hand_mesh, run_motion, s
 from refine.exceptions import ObservationError
 from refine.threshold import strain_threshold
 
-from _hand_threshold import RULE
+import _hand_threshold
+from _hand_threshold import RULE, perturbed_skin, threshold_truth
 
 #: mesh sizes h (mm) of the paper-size hand, coarse to fine (snap 4.5 mm); 8 mm: ~2 GB of memory
 SIZES = (24.0, 12.0, 8.0)
@@ -33,6 +34,9 @@ SNAP = 4.5
 FRAMES = 24
 #: the motions' ranges (x the standard range) on the coarsest mesh
 RANGES = (1.0, 1.5, 2.0)
+#: motions whose normal range is longer than the standard one, x its range: a normal wrist extends to
+#: ~70 degrees (AAOS; the standard up-down motion: 45), so 1.5 x 45 = 67.5 is inside the normal range
+LONGER = {"wrist up-down": 1.5}
 
 
 def _tag(name: str, h: float, frames: int, scale: float) -> str:
@@ -135,6 +139,41 @@ def finest_curves(areas: dict, cache: Path, h: float = SIZES[-1], frames: int = 
         c = mesh_curve(name, h, frames, 1.0, cache)
         out[name] = (*_area_curve(c, box), int(c["elements"]))
     return out
+
+
+def longer_motions(coarse, areas: dict, cache: Path, scales: dict = LONGER, frames: int = 20) -> dict:
+    """The threshold section (``_hand_threshold.threshold_truth``) over the longer motions ``scales``
+    ({motion: x its range}): the ``coarse`` model's ``frames``-step curve and its Jacobian at that
+    range (solved once, cached in ``cache/longer.npz``), the truth from the finest mesh of
+    :data:`SIZES` at that range, and the hinge on every mesh size."""
+    path = Path(cache) / "longer.npz"
+    if path.exists():
+        data = dict(np.load(path))
+    else:
+        strains = skin_strain_function(coarse)
+        data = {"step_deg": np.array(_hand_threshold.STEP_DEG), "coarse/elements": np.array(coarse.hand.mesh.n_cells),
+                "coarse/centres": coarse.hand.mesh.nodes[coarse.hand.skin_facets[:, :3]].mean(axis=1)}
+        for name, scale in scales.items():
+            motion = standard_motions(coarse.hand.body, frames)[name]
+            motion = replace(motion, angles={k: v * scale for k, v in motion.angles.items()})
+            c = run_motion(coarse, motion, strains=strains)
+            disp, skin = perturbed_skin(coarse, motion, c, strains)
+            data |= {f"{name}/coarse_x": c.displacement, f"{name}/coarse_skin": c.skin_strain,
+                     f"{name}/perturbed_x": disp, f"{name}/perturbed_skin": skin}
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(path, **data)
+    truths = {}
+    meshes = {}
+    for name, scale in scales.items():
+        rows = []
+        for h in SIZES:
+            c = mesh_curve(name, h, FRAMES, scale, cache)
+            rows.append({"h_mm": h, "elements": int(c["elements"]), "reached": float(c["reached"])}
+                        | hinge(*_area_curve(c, areas[name])))
+        meshes[name] = rows
+        truths[name] = (*_area_curve(c, areas[name]), int(c["elements"]))
+    out = threshold_truth(data, {n: areas[n] for n in scales}, truths=truths)
+    return out | {"scales": dict(scales), "meshes": meshes}
 
 
 def targets(conv: dict) -> dict:

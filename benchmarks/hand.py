@@ -383,6 +383,7 @@ def sections(only, frames, reuse=False, seeds=None):
                                                          THRESHOLD_AREAS, AREA, OUT / "hand_threshold.npz",
                                                          lambda: _threshold_mesh.finest_curves(THRESHOLD_AREAS, cache))
         res["threshold_truth"]["mesh"] = _threshold_mesh.convergence(THRESHOLD_AREAS, cache)
+        res["threshold_truth"]["longer"] = _threshold_mesh.longer_motions(model, THRESHOLD_AREAS, cache)
     if "found-scar" in only:
         res["found_scar"] = found_scar_section(fine, fine_size, frames) | {"load": load()}
     res["targets"] = targets(res)
