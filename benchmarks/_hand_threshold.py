@@ -255,15 +255,22 @@ def section(previous: dict, model, make_fine, reuse: bool, areas: dict, wrist, s
 
 
 def targets(res: dict) -> dict:
-    """The target on the section ``res``: against the finest mesh's truth where the section has it,
-    else against the fine curve's."""
-    res = res.get("against_finest_mesh", res)
+    """The targets on the section ``res``: against the finest mesh's truth where the section has it,
+    else against the fine curve's; and over its longer motions (``_threshold_mesh.longer_motions``)."""
+    t = _target(res.get("against_finest_mesh", res), "threshold_within_5pct")
+    if "longer" in res:
+        t |= _target(res["longer"], "threshold_within_5pct_longer_motion",
+                     f"over the longer motions {res['longer']['scales']} (x the standard range): ")
+    return t
+
+
+def _target(res: dict, key: str, prefix: str = "") -> dict:
     motions = [k for k, v in res.items() if isinstance(v, dict) and "truth_fraction" in v]
     if not all("share_agreeing" in res[m].get("tracked", {}) for m in motions):  # an older section's result
         return {}
     share = {m: res[m]["tracked"]["share_agreeing"] for m in motions}
-    t = {"threshold_within_5pct": {
-        "target": "the coarse model's curve at tracked joint angles (error "
+    t = {key: {
+        "target": prefix + "the coarse model's curve at tracked joint angles (error "
                   f"{res['angle_noise_deg']} deg per angle and frame) says what the fine noise-free curve says: a "
                   f"threshold (rising hinge, rate rising >= {res['rule']['min_rise']}x, p < {res['rule']['alpha']}) "
                   "within 5 % of the motion of the truth's, or none where the truth has none; in at least 80 % of "
