@@ -88,3 +88,18 @@ def test_richardson_recovers_a_known_limit_and_declines_outside_the_asymptotic_r
         assert ext["limit"] == pytest.approx(limit, abs=1e-6) and ext["order"] == pytest.approx(p, rel=1e-4)
     assert tm.extrapolated(n, [0.9, 0.8, 0.85])["limit"] is None  # turns back
     assert tm.extrapolated(n, [0.9, 0.88, 0.8])["limit"] is None  # the change grows
+
+
+def test_the_targets_read_the_finest_truth_and_the_longer_motions_apart(bench):
+    ht, _ = bench
+    row = {"truth_fraction": 0.7, "truth_has_threshold": True, "truth_rise": 1.6, "coarse_noise_free_fraction": 0.72,
+           "tracked_by_min_rise": {}, "tracked_sweep": {}, "raw": {"share_agreeing": 0.5}}
+    section = lambda share: {"fine_elements": 9, "angle_noise_deg": 0.3, "strain_noise": 0.002,  # noqa: E731
+                             "rule": {"min_rise": 1.25, "alpha": 0.01},
+                             "m": row | {"tracked": {"share_agreeing": share, "coverage": share,
+                                                     "hinge_share_within_5pct": share, "hinge_coverage": share}}}
+    res = section(0.5) | {"against_finest_mesh": section(0.9), "longer": section(0.7) | {"scales": {"m": 1.5}}}
+    t = ht.targets(res)
+    assert t["threshold_within_5pct"]["share_agreeing"] == {"m": 0.9} and t["threshold_within_5pct"]["pass"]
+    assert t["threshold_within_5pct_longer_motion"]["share_agreeing"] == {"m": 0.7}
+    assert not t["threshold_within_5pct_longer_motion"]["pass"]
