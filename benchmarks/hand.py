@@ -34,14 +34,16 @@ Tracking (issue 25 item 5, ``_hand_tracking.py``): a synthetic range sequence of
 refine.hand from the unlabelled clouds and from the marked points; joint-angle errors, seconds per
 frame, skin-strain RMS against the truth; seeds 0-2, from the clouds, the markers and both. The
 threshold's truth (``_hand_threshold.py``): the rising hinge of the fine noise-free curve against
-the detection on the coarse model's curve at tracked joint angles (and with raw strain noise). The scar found
+the detection on the coarse model's curve at tracked joint angles (and with raw strain noise), a
+threshold only where the growth rate rises >= 1.25x (refine.threshold.ThresholdRule, both sides);
+the hinge on three mesh sizes and over longer motions (``_threshold_mesh.py``). The scar found
 in skin data (the committed benchmarks/results/scar.json: its shape and relative elasticity)
 placed on the wrist of a hand meshed fine enough to hold it, with a strain limit from the
 literature (STRAIN_LIMIT).
 
     python benchmarks/hand.py --only tracking threshold found-scar   # these sections into the last hand.json
     python benchmarks/hand.py --only threshold --reuse-curves        # the threshold analysed again from
-                                                                     # results/hand_threshold.npz (no solve)
+                                                                     # results/hand_threshold.npz or hand.json
 
 Writes benchmarks/results/hand.json (with ``targets``) and hand.png (the curves).
 """
@@ -72,6 +74,7 @@ from refine.threshold import strain_threshold  # noqa: E402
 
 import _hand_threshold  # noqa: E402
 import _hand_tracking  # noqa: E402
+import _threshold_mesh  # noqa: E402
 
 RATIO = 5.1  # the paper's relative elasticity of the "more abnormal" scar areas
 LIMIT = 1.25  # the strain limit, x the normal hand's full-range maximum of the same motion
@@ -281,6 +284,8 @@ def targets(res) -> dict:
         t |= _hand_tracking.targets(res["tracking"])
     if "threshold_truth" in res:
         t |= _hand_threshold.targets(res["threshold_truth"])
+        if "mesh" in res["threshold_truth"]:
+            t |= _threshold_mesh.targets(res["threshold_truth"]["mesh"])
     if "found_scar" in res:
         fs = res["found_scar"]
         ms = [m for m in fs if isinstance(fs[m], dict) and "found" in fs[m]]
@@ -306,7 +311,8 @@ def main(argv=None):
     ap.add_argument("--only", nargs="+", choices=("tracking", "threshold", "found-scar"), default=None,
                     help="run only these sections, into the last hand.json")
     ap.add_argument("--reuse-curves", action="store_true", help="--only threshold: analyse the solves saved in "
-                    "results/hand_threshold.npz again instead of solving")
+                    "results/hand_threshold.npz (or, without it, the curves in the last hand.json) again instead of "
+                    "solving")
     ap.add_argument("--seeds", nargs="+", type=int, default=None, help="--only tracking: track these seeds only, the "
                     "other seeds' runs kept from the last hand.json (marked 'carried')")
     args = ap.parse_args(argv)
@@ -368,19 +374,16 @@ def sections(only, frames, reuse=False, seeds=None):
         res["tracking"]["load"] = load()
         res["tracking"]["runs"] = _hand_tracking.merge_runs(old, res["tracking"]["runs"])
         res["tracking"]["seeds"] = [r["seed"] for r in res["tracking"]["runs"]]
-    if ("threshold" in only and not (reuse and (OUT / "hand_threshold.npz").exists())) or "found-scar" in only:
+    if "found-scar" in only:
         _, fine, fine_size = build(PAPER, FOUND_H, 4.5)
     if "threshold" in only:
-        path = OUT / "hand_threshold.npz"  # the solves, reused by --reuse-curves (analysis only)
-        if reuse and path.exists():
-            data = dict(np.load(path))
-        else:
-            data = _hand_threshold.curve_data(model, fine)
-            np.savez_compressed(path, **data)
-        res["threshold_truth"] = _hand_threshold.threshold_truth(data, THRESHOLD_AREAS) | {"load": load()}
-        res["threshold_truth"]["variants"] = {
-            "every 2nd frame (10 frames)": _hand_threshold.threshold_truth(data, THRESHOLD_AREAS, every=2),
-            "wrist area for every motion": _hand_threshold.threshold_truth(data, {m: AREA for m in THRESHOLD_AREAS})}
+        make_fine = lambda: fine if fine is not None else build(PAPER, FOUND_H, 4.5)[1]  # noqa: E731
+        cache = OUT / "hand_threshold_mesh"  # the mesh study's solves (not committed)
+        res["threshold_truth"] = _hand_threshold.section(res.get("threshold_truth", {}), model, make_fine, reuse,
+                                                         THRESHOLD_AREAS, AREA, OUT / "hand_threshold.npz",
+                                                         lambda: _threshold_mesh.finest_curves(THRESHOLD_AREAS, cache))
+        res["threshold_truth"]["mesh"] = _threshold_mesh.convergence(THRESHOLD_AREAS, cache)
+        res["threshold_truth"]["longer"] = _threshold_mesh.longer_motions(model, THRESHOLD_AREAS, cache)
     if "found-scar" in only:
         res["found_scar"] = found_scar_section(fine, fine_size, frames) | {"load": load()}
     res["targets"] = targets(res)

@@ -15,6 +15,13 @@ against one straight line (``p_value``). With ``rising=True`` only a change to F
 free fit would slow down, the constrained fit is the straight line (``c = 0``), so an S-shaped
 curve's early slowing-down is never taken for its threshold.
 
+A hinge fits every curve, also one that bends evenly (a parabola's best hinge sits at its middle
+whatever its curvature), so whether a curve HAS a threshold is decided apart, by a
+:class:`ThresholdRule` (configuration, the same for a truth and its estimate): the growth rate must
+rise by at least ``min_rise`` at the hinge (the paper: strains "increase drastically" past the
+threshold) and the change must be significant (``p_value < alpha``). A curve whose rate rises by
+8 % over its motion then has no threshold, rather than one at a place that noise decides.
+
 A pure function of arrays, no model: layer 0 of refine, beside :mod:`refine.measures`.
 """
 
@@ -57,10 +64,40 @@ class Threshold:
     noise: float
     level: float
 
+    @property
+    def rise(self) -> float:
+        """How many times faster the curve grows after the threshold than before, ``slopes[1] /
+        slopes[0]`` (``inf`` where it was flat or falling before and grows after; ``0`` where it
+        grew before and falls or stalls after)."""
+        before, after = self.slopes
+        if before * after > 0:
+            return float(after / before)
+        return float("inf") if abs(after) > abs(before) else 0.0
+
     def to_json(self) -> dict:
         return {"motion": self.motion, "interval": list(self.interval), "fraction": self.fraction,
                 "fraction_interval": list(self.fraction_interval), "std": self.std, "slopes": list(self.slopes),
-                "p_value": self.p_value, "noise": self.noise, "level": self.level}
+                "rise": self.rise, "p_value": self.p_value, "noise": self.noise, "level": self.level}
+
+
+@dataclass(frozen=True)
+class ThresholdRule:
+    """When a curve has a threshold at all (see the module's docstring): its :class:`Threshold`'s
+    growth rate rises at least ``min_rise`` times (dimensionless, > 1) and the change is significant
+    (F test ``p_value < alpha``). Apply the same rule to a truth and to its estimate."""
+
+    min_rise: float = 1.25
+    alpha: float = 0.01
+
+    def __post_init__(self):
+        if not self.min_rise > 1:
+            raise ObservationError(f"min_rise must exceed 1 (a rate that rises), got {self.min_rise}")
+        if not 0 < self.alpha < 1:
+            raise ObservationError(f"alpha must be between 0 and 1, got {self.alpha}")
+
+    def holds(self, threshold: Threshold) -> bool:
+        """Whether ``threshold`` is one by this rule."""
+        return threshold.p_value < self.alpha and threshold.rise >= self.min_rise
 
 
 def strain_threshold(motion: Float[np.ndarray, "n"], strain: Float[np.ndarray, "n"], level: float = 0.95,
