@@ -136,10 +136,74 @@ def test_restart_from_other_starts_when_the_fit_ends_high(hand, tracker):
     assert abs(fit.angles[k] - truth[k]) < 0.25 * off, np.degrees(fit.angles - truth)
     stay = tracker.with_config(replace(cfg, restart_cost=np.inf)).fit_frame(cloud, start=start)
     assert not stay.restarted and np.allclose(stay.angles, a0) and stay.cost > fit.cost
+    # a limit between the winner's cost and the first fit's: the search stops at the winner
+    n = len(cloud[: tracker.config.max_points])
+    first = tracker.with_config(replace(cfg, restart_cost=np.sqrt(fit.cost * stay.cost) / n)).fit_frame(cloud, start=start)
+    assert first.restart == fit.restart and first.iterations == fit.restart + 1 < fit.iterations
     with pytest.raises(CorrespondenceError, match="restart_angles"):
         tracker.with_config(replace(cfg, restart_angles=("index_1",)))
     with pytest.raises(CorrespondenceError, match="compiled into"):
         tracker.with_config(replace(cfg, max_points=100))
+
+
+def test_hand_mesh_refined_along_the_thumb():
+    """``hand_mesh(..., fine=along(body, names, h, axis))``: every grid gap along the named phalanges'
+    length is at most ``h`` (a drawn size), the grid elsewhere is the unrefined one's, the mesh is
+    larger; bad rows and names are refused."""
+    from jaxfem import MeshError
+    from jaxfem.hand import along
+    from tests._hand_util import COARSE
+    body = default_body(COARSE)
+    h = float(np.random.default_rng(4).uniform(4.0, 8.0))
+    rows = along(body, ("thumb_1", "thumb_2"), h, 0)  # the thumb lies along x
+    plain, fine = hand_mesh(body, 30.0, 4.5), hand_mesh(body, 30.0, 4.5, rows)
+    lo, hi = rows[0][1], rows[1][2]
+    xs = np.unique(fine.mesh.nodes[:, 0][fine.mesh.nodes[:, 0] >= lo - 1e-9].round(9))
+    assert np.diff(xs).max() <= h / 2 + 1e-9  # tet10: mid-edge nodes halve the gaps
+    assert np.diff(xs).max() > h / 4  # no finer than asked (ceil rounding)
+    keep = lambda m: np.unique(m.mesh.nodes[m.mesh.nodes[:, 0] < lo - 1e-9].round(9), axis=0)  # noqa: E731
+    assert np.array_equal(keep(plain), keep(fine))
+    assert fine.mesh.n_cells > plain.mesh.n_cells
+    with pytest.raises(MeshError, match="no volume"):
+        along(body, ("thumb_3",), h, 0)
+    with pytest.raises(MeshError, match="axis 0-2"):
+        hand_mesh(body, 30.0, 4.5, ((3, 0.0, 1.0, 5.0),))
+    with pytest.raises(MeshError, match="axis 0-2"):
+        hand_mesh(body, 30.0, 4.5, ((0, 0.0, 1.0, 0.0),))
+
+
+def _frame_data(hand, tracker, seed):
+    """A cloud of the rigid-bone hand (the skin nodes) at drawn angles and pose, with noise: ``(truth
+    angles, pose, cloud)``."""
+    rng = np.random.default_rng(seed)
+    truth = rng.uniform(-0.15, 0.15, len(tracker.names))
+    pose = np.r_[rng.uniform(-0.03, 0.03, 3), rng.uniform(-2, 2, 3)]
+    R, t = pose_matrix(pose)
+    x = hand.mesh.nodes + bone_displacements(hand, dict(zip(tracker.names, truth)))
+    skin = np.unique(hand.skin_facets)
+    return truth, pose, x[skin] @ R.T + t + rng.normal(0, 0.2, (len(skin), 3))
+
+
+def _fit_at(tracker, angles, pose):
+    """A :class:`FrameFit` at ``angles``, ``pose`` with the model's solve there (a last frame's fit)."""
+    sol = tracker.model.solver.solve(tracker.model.params(dict(zip(tracker.names, angles))))
+    return FrameFit(np.asarray(angles, float), np.asarray(pose, float), np.asarray(sol.u).reshape(-1, 3), np.nan,
+                    np.nan, 0, 0.0)
+
+
+def test_each_frame_starts_from_the_constant_velocity_prediction(hand, tracker):
+    """Two earlier fits a drawn step apart along a drawn direction, the truth one more step on: with
+    no trials (``iterations=0``) the fit ends at the prediction (within the step's rounding) at a lower
+    cost than from the last fit, which ``predict=False`` keeps."""
+    truth, pose, cloud = _frame_data(hand, tracker, 11)
+    rng = np.random.default_rng(12)
+    step = rng.normal(size=len(truth)) * 0.08
+    before, start = _fit_at(tracker, truth - 2 * step, pose), _fit_at(tracker, truth - step, pose)
+    cfg = replace(tracker.config, iterations=0, restart_cost=np.inf)
+    fit = tracker.with_config(cfg).fit_frame(cloud, start=start, before=before)
+    assert fit.predicted and np.allclose(fit.angles, truth, atol=1e-9)
+    last = tracker.with_config(replace(cfg, predict=False)).fit_frame(cloud, start=start, before=before)
+    assert not last.predicted and np.allclose(last.angles, start.angles) and last.cost > fit.cost
 
 
 @functools.lru_cache(maxsize=1)
