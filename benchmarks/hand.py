@@ -279,6 +279,8 @@ def targets(res) -> dict:
         "pass": any(v < 1 for v in lit.values())}
     if "tracking" in res:
         t |= _hand_tracking.targets(res["tracking"])
+    if "tracking_thumb" in res:  # the model refined along the thumb (--thumb-h), its targets beside
+        t |= {f"{k}_thumb_model": v for k, v in _hand_tracking.targets(res["tracking_thumb"]).items()}
     if "threshold_truth" in res:
         t |= _hand_threshold.targets(res["threshold_truth"])
     if "found_scar" in res:
