@@ -1,9 +1,11 @@
 """Tracking the hand (refine.hand, the paper's Sec. 5 with issue 25's item 5): the kinematic
 Dirichlet data differentiable in the joint angles, the tracker's exact Jacobian (Taylor test
 through the solve), a strain map carried between hand meshes, bad input (no data, an empty range
-frame, a cloud far from the hand, markers off it, unknown angles), and (slow) joint angles
-recovered within a degree from range sequences and markers generated on a finer mesh with noise
-(refine.synthetic.hand_range) by the paper-size model, angles and pose drawn under three seeds.
+frame, a cloud far from the hand, markers off it, unknown angles), restarts and the
+constant-velocity start, a hand mesh refined along the thumb, and (slow) joint angles recovered
+within a degree from range sequences and markers generated on a finer mesh with noise
+(refine.synthetic.hand_range) by the paper-size model (and from the clouds by the model refined
+along the thumb), angles and pose drawn under three seeds.
 
 A coarse hand (no fingers, ~900 tet10 elements, as tests/test_hand.py) keeps the fast tests at one
 compile; benchmarks/hand.py tracks the paper-size hand."""
