@@ -17,7 +17,7 @@ from dataclasses import asdict
 import jax.numpy as jnp
 import numpy as np
 
-from jaxfem.hand import skin_area
+from jaxfem.hand import PAPER, HandModel, along, default_body, hand_mesh, skin_area
 from refine.hand import HandTracker, TrackConfig, angle_errors, skin_strain_on
 from refine.synthetic.hand_range import hand_range_sequence
 
@@ -28,6 +28,13 @@ KINDS = ("clouds", "markers", "both")
 #: cloud points used per frame (of ~2,300-2,600; all of them moved seed 1's thumb tip from 1.31 to 1.21
 #: degrees off at twice the cost: the README)
 MAX_POINTS = 1500
+
+
+def thumb_model(h_thumb: float, h: float = 24.0, snap: float = 4.5) -> HandModel:
+    """The paper-size hand at ``h`` with both thumb phalanges split along their length (x) to at most
+    ``h_thumb`` mm (the rest of the grid unchanged): a tracking model with a lower floor at the thumb."""
+    body = default_body(PAPER)
+    return HandModel(hand_mesh(body, h, snap, along(body, ("thumb_1", "thumb_2"), h_thumb, 0)))
 
 
 def _rms(a, b, mask=None):
@@ -46,7 +53,7 @@ def tracking(model, strains, area_box, seed: int = 0, frames: int = 4, h: float 
     names = seq.names
     out = {"seed": seed, "frames": frames + 1, "generate_s": time.perf_counter() - t0,
            "data_mesh": {"h_mm": h, "elements": seq.hand.mesh.n_cells, "nodes": seq.hand.mesh.n_nodes},
-           "model_mesh": {"h_mm": model.hand.h, "elements": model.hand.mesh.n_cells},
+           "model_mesh": {"h_mm": model.hand.h, "elements": model.hand.mesh.n_cells, "nodes": model.hand.mesh.n_nodes},
            "noise_mm": seq.noise, "marker_noise_mm": seq.marker_noise, "markers": list(seq.marker_names),
            "points_per_frame": [len(c) for c in seq.clouds], "angles": list(names),
            "truth_deg": np.degrees(seq.angles).round(4).tolist(),
@@ -85,7 +92,9 @@ def tracking(model, strains, area_box, seed: int = 0, frames: int = 4, h: float 
             "rms_mm": [f.rms for f in fits], "marker_rms_mm": [f.marker_rms for f in fits],
             "iterations": [f.iterations for f in fits], "seconds": sec, "cost": [f.cost for f in fits],
             "restarted": [f.restarted for f in fits], "restart_won": [f.restart for f in fits],
+            "predicted": [f.predicted for f in fits],
             "s_per_frame": float(np.median(sec[1:])),  # frame 0 compiles
+            "max_s_per_frame": float(np.max(sec[1:])),
             "total_s": time.perf_counter() - t1,
             "strain_rms": [_rms(e, t) for e, t in zip(est, truth)],
             "strain_rms_area": [_rms(e, t, area) for e, t in zip(est, truth)],
@@ -126,8 +135,11 @@ def targets(res: dict) -> dict:
             "max_abs_error_deg_per_angle_by_seed": {r["seed"]: r[kind]["max_abs_error_deg_per_angle"] for r in runs},
             "pass": max(e.values()) <= 1.0}
     spf = {k: max(r[k]["s_per_frame"] for r in runs) for k in kinds}
-    out["tracking_seconds_per_frame"] = {"target": "< 60 s per tracked frame (paper-size model, 2 shared cores)",
-                                         "s": spf, "pass": all(v < 60 for v in spf.values())}
+    worst = {k: max(r[k].get("max_s_per_frame", np.nan) for r in runs) for k in kinds}
+    out["tracking_seconds_per_frame"] = {"target": "< 60 s per tracked frame (median of frames 1-4, every seed; "
+                                                   "paper-size model, 2 shared cores)",
+                                         "s": spf, "slowest_frame_s": worst, "load": res.get("load"),
+                                         "pass": all(v < 60 for v in spf.values())}
     ratio = max(np.mean(r[k]["strain_rms_area"]) / max(np.mean(r["strain_floor"]["rms_area"]), 1e-12)
                 for k in kinds for r in runs)
     out["tracked_strain_near_the_floor"] = {

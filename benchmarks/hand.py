@@ -282,6 +282,8 @@ def targets(res) -> dict:
         "pass": any(v < 1 for v in lit.values())}
     if "tracking" in res:
         t |= _hand_tracking.targets(res["tracking"])
+    if "tracking_thumb" in res:  # the model refined along the thumb (--thumb-h), its targets beside
+        t |= {f"{k}_thumb_model": v for k, v in _hand_tracking.targets(res["tracking_thumb"]).items()}
     if "threshold_truth" in res:
         t |= _hand_threshold.targets(res["threshold_truth"])
         if "mesh" in res["threshold_truth"]:
@@ -315,10 +317,12 @@ def main(argv=None):
                     "solving")
     ap.add_argument("--seeds", nargs="+", type=int, default=None, help="--only tracking: track these seeds only, the "
                     "other seeds' runs kept from the last hand.json (marked 'carried')")
+    ap.add_argument("--thumb-h", type=float, default=None, help="--only tracking: the tracking model refined along "
+                    "the thumb to this element length (mm; _hand_tracking.thumb_model)")
     args = ap.parse_args(argv)
     frames = 3 if args.quick else 10
     if args.only:
-        return sections(args.only, frames, args.reuse_curves, args.seeds)
+        return sections(args.only, frames, args.reuse_curves, args.seeds, args.thumb_h)
     if args.fine_only:
         res = json.loads((OUT / "hand.json").read_text())
         res["mesh_dependence"] = fine(args.fine_h) | {"load": load()}
@@ -360,20 +364,22 @@ def main(argv=None):
     print(json.dumps(res["targets"], indent=1, default=float))
 
 
-def sections(only, frames, reuse=False, seeds=None):
+def sections(only, frames, reuse=False, seeds=None, thumb_h=None):
     """The --only sections, merged into the last hand.json (its targets recomputed); ``seeds``: the
-    tracking seeds run (default all; the others' runs carried)."""
+    tracking seeds run (default all; the others' runs carried); ``thumb_h``: the tracking model's
+    thumb refined to this length (mm; default the paper-size model)."""
     res = json.loads((OUT / "hand.json").read_text())
     hand, model, size = build(PAPER, 24.0, 4.5)
     fine = None
-    if "tracking" in only:
-        strains = skin_strain_function(model)
-        old = res.get("tracking", {}).get("runs", [])
-        res["tracking"] = {"load_start": load()} | _hand_tracking.seeds(model, strains, AREA,
-                                                                      seeds=seeds or _hand_tracking.SEEDS)
-        res["tracking"]["load"] = load()
-        res["tracking"]["runs"] = _hand_tracking.merge_runs(old, res["tracking"]["runs"])
-        res["tracking"]["seeds"] = [r["seed"] for r in res["tracking"]["runs"]]
+    if "tracking" in only:  # with --thumb-h into "tracking_thumb" (beside the paper-size model's, not in the targets)
+        key, tmodel = ("tracking", model) if thumb_h is None else ("tracking_thumb", _hand_tracking.thumb_model(thumb_h))
+        strains = skin_strain_function(tmodel)
+        old = res.get(key, {}).get("runs", [])
+        res[key] = {"load_start": load()} | _hand_tracking.seeds(tmodel, strains, AREA, seeds=seeds or _hand_tracking.SEEDS)
+        res[key]["load"] = load()
+        res[key]["thumb_h_mm"] = thumb_h  # None: the paper-size model as it is
+        res[key]["runs"] = _hand_tracking.merge_runs(old, res[key]["runs"])
+        res[key]["seeds"] = [r["seed"] for r in res[key]["runs"]]
     if "found-scar" in only:
         _, fine, fine_size = build(PAPER, FOUND_H, 4.5)
     if "threshold" in only:

@@ -22,9 +22,9 @@ from .model import HandModel, Scar, Tissues, scar_cells
 from .motion import (Motion, MotionResult, reachable, run_motion, skin_area, skin_strain_function,
                      standard_motions)
 from .output import plot_curves, write_motion_series
-from .voxels import Hand, hand_mesh
+from .voxels import Hand, along, hand_mesh
 
 __all__ = ["PAPER", "Body", "Bone", "Box", "HandDimensions", "Joint", "default_body", "bone_displacements",
            "bone_transforms", "rotation", "HandModel", "Scar", "Tissues", "scar_cells", "Motion", "MotionResult",
            "reachable", "run_motion", "skin_area", "skin_strain_function", "standard_motions", "plot_curves",
-           "write_motion_series", "Hand", "hand_mesh"]
+           "write_motion_series", "Hand", "along", "hand_mesh"]

@@ -58,8 +58,9 @@ class Hand:
         return n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
-def _lines(coords, h, snap):
-    """Grid lines of one axis through ``coords``: near ones merged, gaps split to at most ``h``."""
+def _lines(coords, h, snap, fine=()):
+    """Grid lines of one axis through ``coords``: near ones merged, gaps split to at most ``h``, or
+    to the ``h_fine`` of each ``(lo, hi, h_fine)`` in ``fine`` whose interval overlaps the gap (mm)."""
     c = np.unique(np.asarray(coords, float))
     groups = [[c[0]]]
     for v in c[1:]:
@@ -67,22 +68,31 @@ def _lines(coords, h, snap):
     keys = [float(np.mean(g)) for g in groups]
     out = [keys[0]]
     for a, b in zip(keys[:-1], keys[1:]):
-        out.extend(np.linspace(a, b, max(1, int(np.ceil((b - a) / h - 1e-9))) + 1)[1:])
+        size = min([h] + [hf for lo, hi, hf in fine if lo < b and hi > a])
+        out.extend(np.linspace(a, b, max(1, int(np.ceil((b - a) / size - 1e-9))) + 1)[1:])
     return np.asarray(out)
 
 
-def hand_mesh(body: Body, h: float, snap: float = 2.5) -> Hand:
+def hand_mesh(body: Body, h: float, snap: float = 2.5, fine=()) -> Hand:
     """Mesh ``body`` with ``tet10`` elements no longer than ``h`` (mm) along any axis; box faces
-    closer than ``snap`` mm share one grid plane.
+    closer than ``snap`` mm share one grid plane. ``fine``: local refinement, ``(axis, lo, hi,
+    h_fine)`` rows (mm): along ``axis`` (0, 1, 2: x, y, z) the grid's gaps that overlap ``[lo, hi]``
+    are split to at most ``h_fine`` (a slab through the whole grid: e.g. along a finger, beyond the
+    palm, only that finger is refined; :func:`along`).
 
     Raises:
-        MeshError: ``h`` not positive; the volumes not connected; a bone that gets no brick, touches
-            the skin or touches another bone at this ``h`` (make ``h`` smaller).
+        MeshError: ``h`` or an ``h_fine`` not positive, an axis not 0-2; the volumes not connected; a
+            bone that gets no brick, touches the skin or touches another bone at this ``h`` (make ``h``
+            smaller).
     """
     if not h > 0:
         raise MeshError(f"the element size h must be positive (mm), got {h}")
+    for row in fine:
+        if len(row) != 4 or row[0] not in (0, 1, 2) or not row[3] > 0:
+            raise MeshError(f"a refinement is (axis 0-2, lo, hi, h_fine > 0) in mm, got {row}")
     boxes = list(body.volumes.values()) + [b.box for b in body.bones]
-    g = [_lines([v for bx in boxes for v in (bx.lo[a], bx.hi[a])], h, snap) for a in range(3)]
+    g = [_lines([v for bx in boxes for v in (bx.lo[a], bx.hi[a])], h, snap,
+                [(lo, hi, hf) for ax, lo, hi, hf in fine if ax == a]) for a in range(3)]
     n = [len(x) - 1 for x in g]
     centre = [0.5 * (x[1:] + x[:-1]) for x in g]
     Z, Y, X = np.meshgrid(centre[2], centre[1], centre[0], indexing="ij")  # voxel order of jaxfem.box
@@ -103,6 +113,20 @@ def hand_mesh(body: Body, h: float, snap: float = 2.5) -> Hand:
     _check_connected(lin)
     mesh = to_quadratic(lin)
     return _named(body, mesh, float(max(np.diff(x).max() for x in g)))
+
+
+def along(body: Body, names, h_fine: float, axis: int) -> tuple:
+    """The refinement rows of :func:`hand_mesh` that split each named volume along ``axis`` (0, 1,
+    2: x, y, z; a phalanx along its length: the thumb's x, a finger's y) to at most ``h_fine`` mm.
+
+    Raises:
+        MeshError: a name that is not a volume of ``body``.
+    """
+    unknown = sorted(set(names) - set(body.volumes))
+    if unknown:
+        raise MeshError(f"the body has no volume(s) {unknown}; its volumes are {sorted(body.volumes)}")
+    return tuple((axis, float(body.volumes[n].lo[axis]), float(body.volumes[n].hi[axis]), float(h_fine))
+                 for n in names)
 
 
 def _check_connected(mesh: Mesh) -> None:

@@ -16,8 +16,10 @@ Residuals (in noise units, robust: Cauchy weights refreshed every iteration):
   :func:`~refine.correspond.geometry.softmin` over them;
 - (b) each marker's model position (the point of the coarse mesh at its reference position,
   :func:`jaxfem.locate`) minus its measured position.
-They are minimised per frame by Levenberg-Marquardt over ``(w, t, a)`` from the last frame's
-estimate (the first frame from the rest pose), each trial a warm-started solve.
+They are minimised per frame by Levenberg-Marquardt over ``(w, t, a)`` from the constant-velocity
+prediction of the last two fits (the first two frames: from the last fit, the first from the rest
+pose), each trial a warm-started solve; a fit that ends at a high cost tries other starts
+(:mod:`refine.hand.starts`).
 
 Units: mm, radians.
 """
@@ -39,6 +41,7 @@ from jaxfem.hand import HandModel
 from refine.correspond.geometry import boundary_facets, softmin, triangle_distances
 from refine.correspond.model import rotation
 from refine.exceptions import CorrespondenceError
+from refine.hand.starts import fit_vector, predicted, restart_starts
 
 
 @dataclass(frozen=True)
@@ -59,13 +62,17 @@ class TrackConfig:
             shortened): a trust region against jumps to another local minimum.
         pose: fit the global pose (otherwise it stays where it starts).
         seed: seeds the subset of points.
+        predict: start each frame that has two fits before it from their constant-velocity
+            prediction (pose and angles), else from the last fit (a prediction the model cannot
+            solve falls back to the last fit).
         restart_cost: when a frame's fit ends with a robust cost above this per used residual (noise
-            units squared; pure noise gives about 0.9, a lost joint tens), other starts are tried
-            (``inf``: never; 0: every frame): a constant-velocity prediction from the last two fits
-            and, per angle in ``restart_angles`` (default: every fitted angle), the last fit's angles
-            with that one moved by each of ``restart_offsets`` (radians); each start gets
-            ``restart_trials`` Levenberg-Marquardt trials and the lowest cost among them and the
-            first fit is carried on to convergence.
+            units squared; pure noise gives about 0.9, a lost joint tens), other starts are tried in
+            turn (``inf``: never; 0: all of them): the last fit (where the first start was the
+            prediction), then per angle in ``restart_angles`` (default: every fitted angle) the last
+            fit's angles with that one moved by each of ``restart_offsets`` (radians); each start gets
+            ``restart_trials`` Levenberg-Marquardt trials, one that ends below the best cost so far is
+            carried on to convergence and becomes the best, and the search stops at the first such
+            fit whose cost is at most ``restart_cost`` per residual.
     """
 
     noise: float = 0.2
@@ -79,6 +86,7 @@ class TrackConfig:
     max_turn: float = 0.15
     pose: bool = True
     seed: int = 0
+    predict: bool = True
     restart_cost: float = 4.0
     restart_angles: tuple[str, ...] | None = None
     restart_offsets: tuple[float, ...] = (0.2, -0.2)
@@ -92,7 +100,8 @@ class FrameFit:
     distance of the cloud's inliers (mm; NaN without a cloud), ``marker_rms`` (mm; NaN without
     markers), ``iterations`` (trials, restarts' included), ``seconds``, ``cost`` (the robust cost at
     the fit, noise units squared), ``restarted``: whether other starts were tried (and ``restart``:
-    which start won, -1 the first fit)."""
+    which start won, -1 the first fit; :func:`refine.hand.starts.restart_starts`' order),
+    ``predicted``: whether the first start was the constant-velocity prediction."""
 
     angles: np.ndarray
     pose: np.ndarray
@@ -104,6 +113,7 @@ class FrameFit:
     cost: float = float("nan")
     restarted: bool = False
     restart: int = -1
+    predicted: bool = False
 
 
 def _pose_apply(pose, x):
@@ -231,7 +241,7 @@ class HandTracker:
         holes, are left out; above ``max_points`` a random subset is used) and/or ``markers`` =
         ``(reference (m, 3), positions (m, 3))`` (model-frame rest positions; scanner-frame
         positions, NaN where lost: weight 0); ``start``: the last frame's fit (default: rest,
-        identity pose); ``before``: the fit before it (for the constant-velocity restart).
+        identity pose); ``before``: the fit before it (for the constant-velocity prediction).
 
         Raises:
             CorrespondenceError: neither data, an empty frame, a cloud far from the hand, markers
@@ -242,33 +252,23 @@ class HandTracker:
         c, t0 = self.config, time.perf_counter()
         P, wP = self._cloud(cloud)
         mk = self._markers(markers)
-        n_a = len(self.names)
-        q = np.zeros(6 + n_a) if start is None else np.r_[start.pose, start.angles]
-        warm = self._start(start)
+        last, warm, data = fit_vector(start, len(self.names)), self._start(start), (P, wP, mk)
         if cloud is not None:
-            self._check_near(q, warm[0], P[wP > 0])
-        data = (P, wP, mk)
-        state = self._state(q, warm, data)
+            self._check_near(last, warm[0], P[wP > 0])
+        q = predicted(start, before) if c.predict else None
+        state = None if q is None else self._state(q, warm, data)
+        use_prediction = state is not None and "r" in state
+        if not use_prediction:  # no prediction, or one the model cannot solve: from the last fit
+            q, state = last.copy(), self._state(last, warm, data)
         if "r" not in state:
             raise CorrespondenceError(f"the hand model's solve failed at the starting angles "
-                                      f"{np.degrees(q[6:]).round(2)} deg; start from a nearer fit (start=)")
+                                      f"{np.degrees(last[6:]).round(2)} deg; start from a nearer fit (start=)")
         q, state, trials = self._lm(q, state, data, c.iterations)
-        n_used = int(wP.sum()) + 3 * int(mk[3].sum())
-        restarted, won = state["cost"] > c.restart_cost * max(n_used, 1), -1
+        limit = c.restart_cost * max(int(wP.sum()) + 3 * int(mk[3].sum()), 1)
+        restarted, won = state["cost"] > limit, -1
         if restarted:
-            best = (state["cost"], -1, q, state)
-            for i, q0 in enumerate(self._restart_starts(start, before)):
-                s0 = self._state(q0, warm, data)
-                if "r" not in s0:
-                    continue  # a start the model cannot reach is skipped
-                q1, s1, k = self._lm(q0, s0, data, c.restart_trials)
-                trials += k
-                if s1["cost"] < best[0]:
-                    best = (s1["cost"], i, q1, s1)
-            _, won, q, state = best
-            if won >= 0:
-                q, state, k = self._lm(q, state, data, c.iterations)
-                trials += k
+            q, state, won, k = self._restart(q, state, last, use_prediction, warm, data, limit)
+            trials += k
         r = state["r"]
         n_p = int(wP.sum())
         dist = np.abs(r[: c.max_points][wP > 0]) * c.noise
@@ -277,7 +277,8 @@ class HandTracker:
         return FrameFit(q[6:].copy(), q[:6].copy(), np.asarray(state["x"]) - self.model.hand.mesh.nodes,
                         float(np.sqrt(np.mean(inl ** 2))) if n_p and len(inl) else float("nan"),
                         float(np.sqrt(np.mean(np.sum(mr ** 2, axis=1)))) if markers is not None else float("nan"),
-                        trials, time.perf_counter() - t0, float(state["cost"]), bool(restarted), int(won))
+                        trials, time.perf_counter() - t0, float(state["cost"]), bool(restarted), int(won),
+                        bool(use_prediction))
 
     def _state(self, q, warm, data):
         """The evaluation (:meth:`_evaluate`) at ``q``, the solve warm-started from ``warm``."""
@@ -313,19 +314,26 @@ class HandTracker:
                 lam *= 8
         return q, state, trials
 
-    def _restart_starts(self, start: FrameFit | None, before: FrameFit | None):
-        """The other starts ``(6 + n_angles,)`` of a frame whose first fit ended at a high cost: the
-        constant-velocity prediction (``2 start - before``; with both fits), then the last fit's
-        angles with one of ``restart_angles`` moved by each ``restart_offsets`` (the pose kept)."""
+    def _restart(self, q, state, last, include_last, warm, data, limit):
+        """The other starts (:func:`~refine.hand.starts.restart_starts` of the last fit ``last``) in
+        turn after a first fit ``(q, state)`` ended above ``limit`` (the robust cost): each for
+        ``restart_trials`` trials, one below the best cost so far carried on to convergence as the
+        new best; stops at the first such fit at or below ``limit``. Returns ``(q, state, won, trials)``
+        (``won``: the best start's index, -1 the first fit)."""
         c = self.config
-        q = np.zeros(6 + len(self.names)) if start is None else np.r_[start.pose, start.angles]
-        if start is not None and before is not None:
-            yield 2 * q - np.r_[before.pose, before.angles]
-        for name in c.restart_angles or self.names:
-            for d in c.restart_offsets:
-                q0 = q.copy()
-                q0[6 + self.names.index(name)] += d
-                yield q0
+        best, won, trials = (q, state), -1, 0
+        for i, q0 in enumerate(restart_starts(last, self.names, c.restart_angles, c.restart_offsets, include_last)):
+            s0 = self._state(q0, warm, data)
+            if "r" not in s0:
+                continue  # a start the model cannot reach is skipped
+            q1, s1, k = self._lm(q0, s0, data, c.restart_trials)
+            trials += k
+            if s1["cost"] < best[1]["cost"]:
+                q1, s1, k = self._lm(q1, s1, data, c.iterations)
+                best, won, trials = (q1, s1), i, trials + k
+                if s1["cost"] <= limit:
+                    break
+        return best[0], best[1], won, trials
 
     def linearise(self, q, cloud=None, markers=None, start: FrameFit | None = None):
         """The residuals ``(n_r,)`` (noise units; the cloud's padded to ``max_points``, then 3 per
