@@ -39,7 +39,7 @@ from refine.diagnosis.config import DiagnoseConfig
 from refine.diagnosis.findings import Finding, findings
 from refine.diagnosis.fitted import Fitted, NotApplicable, baseline, refit, settle
 from refine.diagnosis.uncertainty import with_discretisation
-from refine.diagnosis.discretisation import discretisation_floor
+from refine.diagnosis.discretisation import discretisation_floor, warm_coarse
 from refine.diagnosis.candidates import data_candidates
 from refine.diagnosis.holes import fit_hole, named_hole
 from refine.diagnosis.laws import ALTERNATIVE_LAWS, fit_law
@@ -196,6 +196,8 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
         chosen = selected = _choose(base, tried, cfg)
         if chosen is not base:  # refit the chosen model on every guide point and every frame
             log(f"refit on every frame: {chosen.describe()}")
+            if cfg.discretisation_error:  # its error bars' coarse mesh: programs compiled beside the refit
+                pool.submit(warm_coarse, chosen, cfg.refit_element)
             chosen = _refit_on_every_frame(chosen, model, full, guide, hold, sigma_eff, cfg)
             if chosen.cause == "softer-region" and chosen.shapes[0].ratio < cfg.hole_refit_below:
                 chosen = _hole_if_as_likely(replace(trials, model=full), chosen, guide)
