@@ -10,7 +10,7 @@ so any misfit between predicted and measured points can be minimised by gradient
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property, partial
+from functools import cached_property
 
 import jax
 import jax.numpy as jnp
@@ -321,11 +321,15 @@ class MeasuredModel:
                 out[i, f] = D.T @ np.asarray(self.solver.adjoint(state, g)["u_D"])
         return out
 
-    def points_vjp(self, U, X, C):
-        """The pull-back of :meth:`at_points` (nodal displacements ``U (n_frames, n_nodes, dim)``
-        at the tracked points of a mesh at ``X``) of ``c`` cotangents ``C (c, n_frames, n_points,
-        dim)``, ``(c, n_frames, n_nodes, dim)``; compiled once per set of sizes (:func:`_points_vjp`)."""
-        return _points_vjp(*self._point_map(), U, X, C)
+    @cached_property
+    def points_vjp(self):
+        """``(U, X, C) -> (c, n_frames, n_nodes, dim)``, compiled once per model: the pull-back
+        of :meth:`at_points` (nodal displacements ``U (n_frames, n_nodes, dim)`` at the tracked
+        points of a mesh at ``X``) of ``c`` cotangents ``C (c, n_frames, n_points, dim)``."""
+        def f(U, X, C):
+            _, pull = jax.vjp(lambda UU: self.at_points(UU, {"X": X}), U)
+            return jax.vmap(lambda c: pull(c)[0])(C)
+        return jax.jit(f)
 
     def at_points_and_derivatives(self, U, dU, X, dX):
         """:meth:`at_points` of ``U (n_frames, n_nodes, dim)`` and its derivatives along ``k``
@@ -337,60 +341,24 @@ class MeasuredModel:
         out = [self.points_jvp(U, dU[i: i + BATCH], X, dX[i: i + BATCH]) for i in range(0, len(dU), BATCH)]
         return np.asarray(out[0][0]), np.concatenate([np.asarray(d) for _, d in out])[:k]
 
-    def points_jvp(self, U, dU, X, dX):
-        """The nodal displacements ``U (n_frames, n_nodes, dim)`` at every tracked point
-        (:meth:`at_points`) and its derivatives along ``k`` directions ``dU (k, n_frames, n_nodes,
-        dim)``, ``dX (k, n_nodes, dim)`` of the displacements and the reference nodes (a morph
-        moves the points' cells), ``(n_frames, n_points, dim)`` and ``(k, n_frames, n_points,
-        dim)``; compiled once per set of sizes (:func:`_points_jvp`; as a program per model with the
-        probe's arrays as its constants it took seconds to compile)."""
-        return _points_jvp(*self._point_map(), U, dU, X, dX)
-
-    def _point_map(self) -> tuple:
-        """``(at, args)``: ``at(args, U, X)`` is :meth:`at_points` (a function of the model's
-        kind, ``args`` its arrays), so that :func:`_points_jvp` and :func:`_points_vjp` compile
-        once for every model of the same sizes; a subclass's own :meth:`at_points` compiles per
-        model."""
-        if type(self).at_points is not MeasuredModel.at_points:
-            return self._own_points, ()
-        p = self.probe
-        moves = self.mesh.element in ("tri3", "tet4", "tri6")  # follow a geometry morph of the reference nodes
-        return _at_moved if moves else _at_fixed, ((p.cells, p.nodes, p.weights, p.neighbours, p.mesh_cells),
-                                                   self.positions)
-
-    def _own_points(self, args, U, X):
-        return self.at_points(U, {"X": X})
+    @cached_property
+    def points_jvp(self):
+        """``(U, dU, X, dX) -> (at points, its derivatives)``, compiled once per model: the
+        nodal displacements ``U (n_frames, n_nodes, dim)`` at every tracked point (:meth:`at_points`)
+        and its derivatives along ``k`` directions ``dU (k, n_frames, n_nodes, dim)``, ``dX (k,
+        n_nodes, dim)`` of the displacements and the reference nodes (a morph moves the points'
+        cells), ``(k, n_frames, n_points, dim)``."""
+        def f(U, dU, X, dX):
+            at = lambda U, X: self.at_points(U, {"X": X})  # noqa: E731
+            pred = at(U, X)
+            return pred, jax.vmap(lambda a, b: jax.jvp(at, (U, X), (a, b))[1])(dU, dX)
+        return jax.jit(f)
 
     def at_points(self, U, theta):
         """Nodal displacements ``U (n_frames, n_nodes, dim)`` (from :meth:`solve_frames`) at every
         tracked point, ``(n_frames, n_points, dim)``: for callers that also need the nodal
         solution (reaction forces in :mod:`refine.diagnosis.forces`, strain maps), so they solve once."""
-        at, args = self._point_map()
-        return at(args, U, theta["X"])
-
-
-def _at_moved(args, U, X):
-    """``U (n_frames, n_nodes, dim)`` at the points of a probe (``args``: the arrays of a
-    :class:`jaxfem.Probe` and the points' positions) on a mesh whose reference nodes moved to
-    ``X``, ``(n_frames, n_points, dim)``."""
-    probe, positions = args
-    return jax.vmap(jf.Probe(*probe).moved(X, positions))(U)
-
-
-def _at_fixed(args, U, X):
-    """:func:`_at_moved` for elements whose points keep their cells and weights."""
-    return jax.vmap(jf.Probe(*args[0]))(U)
-
-
-@partial(jax.jit, static_argnums=0)
-def _points_jvp(at, args, U, dU, X, dX):
-    """:meth:`MeasuredModel.points_jvp` of the interpolation ``at(args, U, X)``."""
-    f = lambda U, X: at(args, U, X)  # noqa: E731
-    return f(U, X), jax.vmap(lambda a, b: jax.jvp(f, (U, X), (a, b))[1])(dU, dX)
-
-
-@partial(jax.jit, static_argnums=0)
-def _points_vjp(at, args, U, X, C):
-    """:meth:`MeasuredModel.points_vjp` of the interpolation ``at(args, U, X)``."""
-    _, pull = jax.vjp(lambda UU: at(args, UU, X), U)
-    return jax.vmap(lambda c: pull(c)[0])(C)
+        probe = self.probe
+        if self.mesh.element in ("tri3", "tet4", "tri6"):  # follow a geometry morph of the reference nodes
+            probe = probe.moved(theta["X"], self.positions)
+        return jax.vmap(probe)(U)
