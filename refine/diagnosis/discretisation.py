@@ -27,27 +27,3 @@ def discretisation_floor(model: MeasuredModel, guide: Bool[np.ndarray, "n_points
         return float("nan")
     return float(4.0 / 3.0 * np.sqrt(np.mean(d**2)))
 
-
-#: how much coarser the mesh of the chosen model's discretisation refit is
-#: (:func:`refine.diagnosis.uncertainty.discretisation_bias`'s ``factor``)
-COARSER = float(np.sqrt(2.0))
-
-
-def warm_coarse(chosen, element: str, factor: float = COARSER) -> None:
-    """Compile ahead the programs of the chosen hypothesis' refit on a mesh ``factor`` times
-    coarser (the mesh's share of its error bars, :func:`~refine.diagnosis.uncertainty.discretisation_bias`):
-    its model at ``chosen``'s shapes, meshed with ``element``, solved once with its Jacobian,
-    so that the solve's programs for that mesh's bucket size (:mod:`jaxfem.padding`) compile
-    while the chosen model is refitted, instead of after it. Speculative: nothing is kept but
-    the compiled programs; a refit that ends elsewhere (another bucket, a hole) compiles its own,
-    and a model that fails here is left to the refit to report."""
-    from dataclasses import replace
-
-    h = chosen.hypothesis
-    if not getattr(chosen, "shapes", ()) or not h.remeshable:
-        return
-    try:
-        compiled, z0 = replace(h.at(chosen.shapes, element), h=factor * chosen.model.h).build()
-        compiled.evaluate(np.zeros(compiled.param.size) if z0 is None else z0)
-    except Exception:  # noqa: BLE001 - speculative: the refit itself reports what fails
-        return

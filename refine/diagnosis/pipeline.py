@@ -39,7 +39,7 @@ from refine.diagnosis.config import DiagnoseConfig
 from refine.diagnosis.findings import Finding, findings
 from refine.diagnosis.fitted import Fitted, NotApplicable, baseline, refit, settle
 from refine.diagnosis.uncertainty import with_discretisation
-from refine.diagnosis.discretisation import discretisation_floor, warm_coarse
+from refine.diagnosis.discretisation import discretisation_floor
 from refine.diagnosis.candidates import data_candidates
 from refine.diagnosis.holes import fit_hole, named_hole
 from refine.diagnosis.laws import ALTERNATIVE_LAWS, fit_law
@@ -196,14 +196,13 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
         chosen = selected = _choose(base, tried, cfg)
         if chosen is not base:  # refit the chosen model on every guide point and every frame
             log(f"refit on every frame: {chosen.describe()}")
-            if cfg.discretisation_error:  # its error bars' coarse mesh: programs compiled beside the refit
-                pool.submit(warm_coarse, chosen, cfg.refit_element)
             chosen = _refit_on_every_frame(chosen, model, full, guide, hold, sigma_eff, cfg)
             if chosen.cause == "softer-region" and chosen.shapes[0].ratio < cfg.hole_refit_below:
                 chosen = _hole_if_as_likely(replace(trials, model=full), chosen, guide)
             chosen = named_hole(chosen, obs.reference, cfg.hole_refit_below)
             if cfg.discretisation_error:  # the mesh's and the drive's share of the error bars: two more fits, side by side
                 t = time.perf_counter()
+                log(f"refitted: {chosen.describe()}; its discretisation error: a coarser mesh, a sparser drive")
                 chosen = with_discretisation(chosen, guide, hold, sigma_eff, pool=pool)
                 log(f"discretisation error estimated ({time.perf_counter() - t:.0f} s)")
     if model is not full:
