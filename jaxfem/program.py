@@ -54,10 +54,8 @@ class Program:
         self.asm, self.lin, self.facet_element = asm, lin, facet_element
         # one call of a shared executable at a time, waited for with the GIL released: a thread
         # that waits inside XLA for a busy executable holds the GIL, which the running one's host
-        # solver callback needs (a diagnosis's two workers hung so, all threads waiting); a lock
-        # per executable (:meth:`lock_for`), so solvers of other bucket sizes run side by side
-        self._locks: dict = {}
-        self._locks_guard = threading.Lock()
+        # solver callback needs (a diagnosis's two workers hung so, all threads waiting)
+        self.lock = threading.Lock()
         self._newton = partial(newton_solve, asm=asm, lin=lin, opts=opts, facet_element=facet_element,
                                finite=finite)
         self.newton = jax.jit(self._newton)
@@ -65,16 +63,6 @@ class Program:
         self.displacement = jax.jit(self._equilibrium)
         self.tangents = jax.jit(self._tangents)
         self.adjoint = jax.jit(self._adjoint)
-
-    def lock_for(self, arrays) -> threading.Lock:
-        """The lock of this program's executables for mesh ``arrays`` (a solver's padded arrays)
-        of these shapes: solvers whose arrays have the same shapes share an executable, and take
-        it one call at a time; other shapes (another bucket) compile and run beside them. A
-        program compiled on first call compiles inside its lock, so a solver of another bucket
-        no longer waits for that compile."""
-        key = tuple(sorted((k, tuple(v.shape)) for k, v in arrays.items()))
-        with self._locks_guard:
-            return self._locks.setdefault(key, threading.Lock())
 
     # ------------------------------------------------------------------ residual and tangent
     def residual(self, u, theta, arrays):

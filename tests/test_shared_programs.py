@@ -215,7 +215,7 @@ def test_host_solves_run_inside_their_programs_lock():
     """Every host solve (PARDISO here: a Python callback that needs the GIL) of what the
     diagnosis runs in its thread pool (a hypothesis's prediction and Jacobian, a model's
     prediction, the drive's Jacobian) runs inside its shared program's lock, where the caller
-    waits for the result with the GIL released (jaxfem.Solver.lock, Program.lock_for): no program of the
+    waits for the result with the GIL released (jaxfem.program.Program.lock): no program of the
     model's own calls back into Python unguarded (a thread waiting for a busy executable while
     holding the GIL hung a diagnosis once)."""
     from jaxfem.linsolve import _base
@@ -226,7 +226,7 @@ def test_host_solves_run_inside_their_programs_lock():
     if "host" not in model.solver.padded_arrays:
         pytest.skip("no host linear solver installed (PARDISO, SuperLU): no callback to guard")
     host = _base._HOSTS[int(model.solver.padded_arrays["host"])]
-    lock, seen = model.solver.lock, []
+    lock, seen = model.solver.program.lock, []
     inner = host._cache
 
     def watched(vals, rhs):

@@ -1,7 +1,7 @@
 """The initial model's discretisation error, part of the null level the diagnosis compares its
 misfit with (:mod:`refine.diagnosis.pipeline`, step 2): the change of its predictions when its
-mesh is halved, found on a second, finer model solved beside the first (a mesh of another bucket
-size: its programs compile and run beside the initial model's, :meth:`jaxfem.program.Program.lock_for`).
+mesh is halved, found on a second, finer model set up in the diagnosis's threads beside the
+first (their solves take the shared program's lock in turn, :mod:`jaxfem.program`).
 
 The chosen model's discretisation error (its mesh and its drive) is
 :func:`refine.diagnosis.uncertainty.with_discretisation`'s.

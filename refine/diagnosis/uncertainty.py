@@ -231,9 +231,9 @@ def with_discretisation(fitted, points: Bool[np.ndarray, "n_points"], hold: Bool
     (:func:`discretisation_bias`) and the drive's (:func:`drive_bias`) in quadrature, two more
     fits; and ``q_disc_parts`` ``{"mesh": rows, "drive": rows}``. Unchanged where there is none
     to give (no shapes, or both refits fail). ``pool``: an executor (e.g. the diagnosis's
-    threads) that fits the coarser mesh while this thread fits the sparser drive (the coarse
-    mesh's programs, of another bucket size, compile beside the drive's fit; the same figures
-    as one after the other); None: one after the other."""
+    threads) that fits the coarser mesh while this thread fits the sparser drive (their solves
+    take the shared program's lock in turn; what overlaps is the rest: meshing, the fits' host
+    side; the same figures as one after the other); None: one after the other."""
     from dataclasses import replace
 
     mesh = pool.submit(discretisation_bias, fitted, points, hold, sigma) if pool is not None else None
