@@ -12,7 +12,8 @@ diagnose``: no program compiled by an earlier case). Each run appends one row to
 (default results/diagnose_speed_rows.jsonl) and rewrites ``--out`` (results/diagnose_speed.json)
 from all rows, with a ``targets`` section (issue 22 item 2: the ~300-point bundles faster than
 the former median of 48 s: the median wall seconds over the cases of one label, the latest row
-per case). See benchmarks/README.md, "diagnose_speed.py".
+per case). Each row keeps the wall and CPU seconds at every progress line of the diagnosis
+(``stages``: where the seconds go, stage by stage). See benchmarks/README.md, "diagnose_speed.py".
 """
 
 from __future__ import annotations
@@ -85,7 +86,12 @@ def run(case_key: str, label: str, cache: str | None, workers: int, linear_solve
     compiles.update(n=0, seconds=0.0, large=0, large_seconds=0.0)  # the diagnosis's, not the bundle's
     load0 = os.getloadavg()[0]
     c0, w0 = _cpu(), time.perf_counter()
-    d = diagnose(bundle, config=DiagnoseConfig(workers=workers, linear_solver=linear_solver), log=lambda m: None)
+    stages = []  # [wall s, CPU s, what] at each progress line: the stages' seconds (a stage ends at its line)
+
+    def log(msg):
+        stages.append([round(time.perf_counter() - w0, 1), round(_cpu() - c0, 1), msg.split("] ", 1)[-1][:60]])
+
+    d = diagnose(bundle, config=DiagnoseConfig(workers=workers, linear_solver=linear_solver), log=log)
     cpu, wall = _cpu() - c0, time.perf_counter() - w0
     s = score(truth, d)
     return {"label": label, "code": _commit(), "case": case_key, "points": int(bundle.observations.n_points),
@@ -94,7 +100,7 @@ def run(case_key: str, label: str, cache: str | None, workers: int, linear_solve
             "large_compiles": compiles["large"], "large_compile_seconds": round(compiles["large_seconds"], 1),
             "load": [round(load0, 2), round(os.getloadavg()[0], 2)], "found": s["found"], "passed": s["passed"],
             "centroid": s["centroid_error"], "ratio": s["ratio_error"], "area": s["area_error"], "gain": s["gain"],
-            "chosen": d.chosen.describe()}
+            "chosen": d.chosen.describe(), "stages": stages}
 
 
 def median_target(rows: list[dict], label: str) -> dict:

@@ -39,6 +39,7 @@ from refine.diagnosis.config import DiagnoseConfig
 from refine.diagnosis.findings import Finding, findings
 from refine.diagnosis.fitted import Fitted, NotApplicable, baseline, refit, settle
 from refine.diagnosis.uncertainty import with_discretisation
+from refine.diagnosis.discretisation import discretisation_floor
 from refine.diagnosis.candidates import data_candidates
 from refine.diagnosis.holes import fit_hole, named_hole
 from refine.diagnosis.laws import ALTERNATIVE_LAWS, fit_law
@@ -139,17 +140,6 @@ def _errors(obs, pred) -> dict:
     return out
 
 
-def _discretisation_floor(model: MeasuredModel, guide) -> float:
-    """Std of the initial model's discretisation error at guide points: the change of its
-    predictions when the mesh is halved, scaled by 4/3 (second-order Richardson)."""
-    fine = MeasuredModel(model.experiment, model.obs, h=0.5 * model.h, linear_solver=model.linear_solver)
-    d = np.asarray(fine.predict(fine.params())) - np.asarray(model.predict(model.params()))
-    d = d[:, guide]
-    if not np.isfinite(d).all():  # a model that cannot be solved: diagnose stops with the solver's message
-        return float("nan")
-    return float(4.0 / 3.0 * np.sqrt(np.mean(d**2)))
-
-
 def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) -> Diagnosis:
     """Diagnose a measurement bundle (see the module docstring)."""
     cfg = config or DiagnoseConfig()
@@ -172,7 +162,7 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
     fit = guide & ~hold
 
     pool = ThreadPoolExecutor(max(1, cfg.workers))
-    floor = pool.submit(_discretisation_floor, model, guide)  # a finer model, compiled beside the initial one
+    floor = pool.submit(discretisation_floor, model, guide)  # a finer model, compiled beside the initial one
     # the initial model on every frame: from the search model's compiled solve where every frame
     # is driven alike (no program of its own), else compiled beside the search's set-up
     alike = drives_alike(model, full)
@@ -181,12 +171,12 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
         pool.shutdown(cancel_futures=True)
         model.raise_solve_failure(model.params())  # e.g. boundary motion that folds the sheet: no fit can help
     sigma = ex.noise_std if ex.noise_std is not None else estimate_noise(obs)
-    sigma_model = floor.result()
+    V = propagated_noise(model, model.params(), sigma, guide, seed=cfg.seed) if sigma > 0 else np.zeros((0,))
+    sigma_model = floor.result()  # (the noise's propagation above ran beside it)
     sigma_eff = float(np.sqrt(sigma**2 + sigma_model**2)) or 1.0
     log(f"noise {sigma:.3g} ({'given' if ex.noise_std is not None else 'estimated'}), model discretisation "
         f"error {sigma_model:.3g}")
     base = baseline(model, fit, hold, sigma_eff)
-    V = propagated_noise(model, model.params(), sigma, guide, seed=cfg.seed) if sigma > 0 else np.zeros((0,))
     at_guide = Residuals.at(model.obs.displacements, guide)
     shape = at_guide.measured.shape
     null = null_test(at_guide.difference(base.predicted), at_guide.valid, sigma, sigma_model,
@@ -210,9 +200,10 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
             if chosen.cause == "softer-region" and chosen.shapes[0].ratio < cfg.hole_refit_below:
                 chosen = _hole_if_as_likely(replace(trials, model=full), chosen, guide)
             chosen = named_hole(chosen, obs.reference, cfg.hole_refit_below)
-            if cfg.discretisation_error:  # the mesh's and the drive's share of the error bars: two more fits
+            if cfg.discretisation_error:  # the mesh's and the drive's share of the error bars: two more fits, side by side
                 t = time.perf_counter()
-                chosen = with_discretisation(chosen, guide, hold, sigma_eff)
+                log(f"refitted: {chosen.describe()}; its discretisation error: a coarser mesh, a sparser drive")
+                chosen = with_discretisation(chosen, guide, hold, sigma_eff, pool=pool)
                 log(f"discretisation error estimated ({time.perf_counter() - t:.0f} s)")
     if model is not full:
         pred = full_compiled.result() if full_compiled is not None else every_frame(model, full, model.params())

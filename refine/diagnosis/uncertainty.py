@@ -225,15 +225,21 @@ def _richardson(fine, coarse, factor: float, order: float) -> Float[np.ndarray, 
 
 
 def with_discretisation(fitted, points: Bool[np.ndarray, "n_points"], hold: Bool[np.ndarray, "n_points"],
-                        sigma: float):
+                        sigma: float, pool=None):
     """``fitted`` (a :class:`~refine.diagnosis.fitted.Fitted` with its shapes' standard errors)
     with ``q_disc``, the discretisation error of every shape's quantities, set: the mesh's
     (:func:`discretisation_bias`) and the drive's (:func:`drive_bias`) in quadrature, two more
     fits; and ``q_disc_parts`` ``{"mesh": rows, "drive": rows}``. Unchanged where there is none
-    to give (no shapes, or both refits fail)."""
+    to give (no shapes, or both refits fail). ``pool``: an executor (e.g. the diagnosis's
+    threads) that fits the coarser mesh while this thread fits the sparser drive (their solves
+    take the shared program's lock in turn; what overlaps is the rest: meshing, the fits' host
+    side; the same figures as one after the other); None: one after the other."""
     from dataclasses import replace
 
-    parts = {"mesh": discretisation_bias(fitted, points, hold, sigma), "drive": drive_bias(fitted, points, hold, sigma)}
+    mesh = pool.submit(discretisation_bias, fitted, points, hold, sigma) if pool is not None else None
+    drive = drive_bias(fitted, points, hold, sigma)
+    parts = {"mesh": mesh.result() if mesh is not None else discretisation_bias(fitted, points, hold, sigma),
+             "drive": drive}
     given = [d for d in parts.values() if d is not None]
     if not given:
         return fitted
