@@ -135,7 +135,8 @@ def run_case(case: dict) -> dict:
     from dataclasses import replace
 
     from refine.diagnosis.fitted import covariance
-    from refine.diagnosis.uncertainty import discretisation_bias, drive_bias, shape_errors, shape_quantities
+    from refine.diagnosis.uncertainty import (discretisation_bias, drive_bias, quantity_jacobian, shape_errors,
+                                              shape_quantities)
     from refine.synthetic.sheet import synthetic_bundle
 
     t0 = time.perf_counter()
@@ -155,14 +156,16 @@ def run_case(case: dict) -> dict:
     guide = bundle.observations.mask("guide")
     std = _std(shape_errors(f)[0])
     std_gn = _std(shape_errors(replace(f, z_cov=covariance(f, guide, f.sigma)))[0])  # before: the fit's points only
+    G = quantity_jacobian(f)  # the first-order (delta method) errors, before the draws through the map
+    std_lin = np.sqrt(np.clip(np.einsum("qk,kl,ql->q", G, f.z_cov, G), 0, None))[: len(QUANTITIES)]
     t1 = time.perf_counter()
     bias = discretisation_bias(f, guide, bundle.observations.mask("validate"), f.sigma)
     bias = np.full(len(QUANTITIES), np.nan) if bias is None else bias[0]
     t2 = time.perf_counter()
     drive = drive_bias(f, guide, bundle.observations.mask("validate"), f.sigma)
     drive = np.full(len(QUANTITIES), np.nan) if drive is None else drive[0]
-    std, std_gn, bias, drive = std[order], std_gn[order], bias[order], drive[order]
-    row.update(bias=bias.tolist(), bias_seconds=t2 - t1, drive=drive.tolist(), drive_seconds=time.perf_counter() - t2)
+    std, std_gn, std_lin, bias, drive = std[order], std_gn[order], std_lin[order], bias[order], drive[order]
+    row.update(std_linear=std_lin.tolist(), bias=bias.tolist(), bias_seconds=t2 - t1, drive=drive.tolist(), drive_seconds=time.perf_counter() - t2)
     use = np.ones(len(QUANTITIES), bool)
     use[4] = abs(q_true[2] - q_true[3]) > 0.05 * max(q_true[2:4])  # a circle's angle is not a quantity
     use[6] = kind != "hole"

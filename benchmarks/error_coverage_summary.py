@@ -20,11 +20,14 @@ def size_of(row: dict) -> str:
     return f"{row['spacing']:g}mm x {row.get('frames', 2)} frames"
 
 
-VARIANTS = ("gauss_newton", "standard_error", "mesh_only", "reported")
+VARIANTS = ("gauss_newton", "standard_error", "mesh_only", "linear_total", "reported")
 """The errors compared: the fit's points alone (before), the standard error (Gauss-Newton plus the
 drive's noise, report.json's ``std``), that and the mesh's discretisation error in quadrature
-(the first total, before the drive's discretisation was counted), and what the diagnosis reports
-as the total (that and the mesh's and the drive's discretisation errors, ``total_std``)."""
+(the first total, before the drive's discretisation was counted), the total with the standard
+error to first order (``std_linear``: the delta method, before the draws of
+:func:`refine.diagnosis.uncertainty.sampled_variance`; rows from 26 Nov on), and what the
+diagnosis reports as the total (the standard error and the mesh's and the drive's discretisation
+errors, ``total_std``; its standard error from the draws in rows from 26 Nov on)."""
 
 
 def scores(row: dict, variant: str) -> list:
@@ -33,8 +36,11 @@ def scores(row: dict, variant: str) -> list:
         return row.get("z_gauss_newton") or [None] * len(QUANTITIES)
     if variant == "standard_error":
         return row["z"]
-    terms = [np.asarray(row["std"], float), np.nan_to_num(np.asarray(row["bias"], float))]
-    if variant == "reported":
+    if variant == "linear_total" and "std_linear" not in row:
+        return [None] * len(QUANTITIES)
+    std = row["std_linear"] if variant == "linear_total" else row["std"]
+    terms = [np.asarray(std, float), np.nan_to_num(np.asarray(row["bias"], float))]
+    if variant in ("reported", "linear_total"):
         terms.append(np.nan_to_num(np.asarray(row["drive"], float)))
     err = np.sqrt(sum(t**2 for t in terms))
     d = np.asarray(row["estimate"]) - np.asarray(row["truth"])
@@ -157,9 +163,11 @@ def _plot(rows: list[dict], summary: dict, path: Path):
     x = np.arange(len(names))
     for k, v in enumerate(VARIANTS):
         per = summary["variants"][v]["per_quantity"]
+        if not all(per[q]["n"] for q in names):
+            continue  # a variant the rows do not measure (older rows)
         val = np.array([per[q]["within_2_std"] for q in names])
         lo, hi = (np.array([per[q]["binomial_95"][e] for q in names]) for e in (0, 1))
-        b.bar(x + (k - 1.5) * 0.2, val, 0.2, yerr=[val - lo, hi - val], capsize=2, label=v.replace("_", " "))
+        b.bar(x + (k - (len(VARIANTS) - 1) / 2) * 0.16, val, 0.16, yerr=[val - lo, hi - val], capsize=2, label=v.replace("_", " "))
     b.axhline(0.95, color="k", lw=0.6)
     b.set_xticks(x, names)
     b.set(ylim=(0, 1.05), ylabel="share within 2 std (binomial 95 %)", title="coverage per quantity")
