@@ -5,8 +5,11 @@ A fit's unknowns z are not the quantities a report gives: a region's are its log
 changes of its shape (for an ellipse the entries of a symmetric matrix, for a rectangle its half
 sides and a scaled angle; :class:`~refine.model.parametrize.ShapeGeometry`). The covariance of z
 (Gauss-Newton, :func:`~refine.diagnosis.fitted.covariance`) is carried to the reported
-quantities by the delta method, ``C_q = G C_z G^T`` with ``G = dq/dz`` by central differences of
-the hypothesis' own map from z to shapes (``shapes_at``, cheap: no solve).
+quantities through the hypothesis' own map from z to shapes (``shapes_at``, cheap: no solve):
+by draws of z (:func:`sampled_variance`), since the map is not linear where it matters (an
+ellipse's axes near a circle, a ratio ``exp(z)`` with a wide log error); the delta method,
+``C_q = G C_z G^T`` with ``G = dq/dz`` by central differences (:func:`quantity_jacobian`), is
+its first order and stands in where the covariance is not finite.
 
 The model is driven by the measured boundary points, which carry the same noise as the points it
 is fitted to: errors in the variables, which the Gauss-Newton covariance ``(J^T J)^-1`` of the
