@@ -5,6 +5,7 @@ ellipse's semi-axes are the eigenvalues of a noisy matrix, which the delta metho
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import pytest
@@ -14,6 +15,12 @@ from refine.diagnosis.uncertainty import QUANTITIES, as_row, sampled_variance, s
 from refine.model.parametrize import ShapeGeometry
 
 
+@lru_cache
+def _geometry(params0: tuple) -> ShapeGeometry:
+    """One ellipse's map from shape changes (scale 1: length units) to its parameters."""
+    return ShapeGeometry(None, np.array([params0], float), scale=1.0, rotate=True)
+
+
 @dataclass(frozen=True)
 class _Region:
     """A one-ellipse region hypothesis without a model: z = (log ratio, shape changes)."""
@@ -21,8 +28,7 @@ class _Region:
     params0: tuple
 
     def shapes_at(self, compiled, z):
-        geo = ShapeGeometry(None, np.array([self.params0], float), scale=1.0, rotate=True)
-        g = geo.shape_params(np.asarray(z[1:], float))[0]
+        g = _geometry(self.params0).shape_params(np.asarray(z[1:], float))[0]
         return (RegionShape((g[0], g[1]), (g[2], g[3]), g[4], "ellipse", float(np.exp(z[0]))),)
 
 
