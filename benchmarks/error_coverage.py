@@ -22,14 +22,15 @@ half sides, angle where the truth is not a circle, area, ratio), which should ho
 of them. Noise-free cases (``--noise 0``) measure the accuracy where data allow it: the ratio
 within 1 % of the truth.
 
-Three errors are scored per quantity (:data:`VARIANTS`): ``gauss_newton``, the fit's points
+The errors scored per quantity (:data:`error_coverage_summary.VARIANTS`): ``gauss_newton``, the fit's points
 alone (the errors before the drive's noise was counted), ``standard_error``, that plus the noise
 of the boundary points driving the model (:func:`refine.diagnosis.uncertainty.drive_covariance`;
 report.json's ``std``), and ``reported``, that plus the discretisation error (the change on a
 sqrt(2) coarser mesh, :func:`refine.diagnosis.uncertainty.discretisation_bias`) in quadrature:
 report.json's ``total_std``, what the targets use, with the drive's discretisation error (a
 refit driven by every other boundary point, :func:`refine.diagnosis.uncertainty.drive_bias`;
-``mesh_only`` leaves it out). Rows written before the drive's term was measured (no ``drive``)
+``mesh_only`` leaves it out; ``linear_total`` is that total with the standard error to first order,
+the delta method, before the draws through the map to shapes). Rows written before the drive's term was measured (no ``drive``)
 are scored apart (``before_the_drive_term``: the mesh's term alone), rows written before any
 discretisation term (no ``bias``) not at all (``rows_without_discretisation``), so that every
 variant is scored on the same cases. Coverage comes with exact binomial 95 % intervals (quantities as independent
