@@ -22,14 +22,15 @@ half sides, angle where the truth is not a circle, area, ratio), which should ho
 of them. Noise-free cases (``--noise 0``) measure the accuracy where data allow it: the ratio
 within 1 % of the truth.
 
-Three errors are scored per quantity (:data:`VARIANTS`): ``gauss_newton``, the fit's points
+The errors scored per quantity (:data:`error_coverage_summary.VARIANTS`): ``gauss_newton``, the fit's points
 alone (the errors before the drive's noise was counted), ``standard_error``, that plus the noise
 of the boundary points driving the model (:func:`refine.diagnosis.uncertainty.drive_covariance`;
 report.json's ``std``), and ``reported``, that plus the discretisation error (the change on a
 sqrt(2) coarser mesh, :func:`refine.diagnosis.uncertainty.discretisation_bias`) in quadrature:
 report.json's ``total_std``, what the targets use, with the drive's discretisation error (a
 refit driven by every other boundary point, :func:`refine.diagnosis.uncertainty.drive_bias`;
-``mesh_only`` leaves it out). Rows written before the drive's term was measured (no ``drive``)
+``mesh_only`` leaves it out; ``linear_total`` is that total with the standard error to first order,
+the delta method, before the draws through the map to shapes). Rows written before the drive's term was measured (no ``drive``)
 are scored apart (``before_the_drive_term``: the mesh's term alone), rows written before any
 discretisation term (no ``bias``) not at all (``rows_without_discretisation``), so that every
 variant is scored on the same cases. Coverage comes with exact binomial 95 % intervals (quantities as independent
@@ -54,12 +55,9 @@ import time
 from pathlib import Path
 
 import numpy as np
+from error_coverage_summary import KINDS, QUANTITIES, _plot, summarise
 
 OUT = Path(__file__).parent / "results"
-KINDS = ("stiffer-region", "softer-region", "hole", "rectangle")
-QUANTITIES = ("cx", "cy", "a", "b", "angle", "area", "ratio")
-COVERAGE_TARGET = (0.90, 0.99)  # about 95 % of truths within 2 standard errors
-NOISE_FREE_RATIO_TOL = 0.01
 
 
 def truth_of(kind: str, seed: int):
@@ -98,21 +96,27 @@ def started(q: np.ndarray, kind: str, spacing: float, rng):
 
 
 def fit_true_kind(bundle, kind: str, start, sigma: float):
-    """The true hypothesis kind fitted from ``start`` and refitted on every guide point with
-    quadratic triangles; returns the refit (its ``z_cov`` set)."""
+    """The true hypothesis kind fitted from ``start`` as the diagnosis fits it (a region also
+    from its restarts at the fitted centre, :func:`refine.diagnosis.restarts.best_of_restarts`,
+    as :func:`refine.diagnosis.regions.fit_regions` does; a hole from its start alone, as
+    :func:`refine.diagnosis.holes.fit_hole` does) and refitted on every guide point with quadratic
+    triangles; returns the refit (its ``z_cov`` set) and the linear triangles' misfits (the
+    fitting points' chi2) from ``start`` and after the restarts (the same where none did better)."""
     from refine.diagnosis.fitted import fit, refit
     from refine.diagnosis.holes import hole_hypothesis
     from refine.diagnosis.regions import regions_hypothesis
+    from refine.diagnosis.restarts import best_of_restarts
     from refine.model.measured import MeasuredModel
 
     obs = bundle.observations
     model = MeasuredModel(bundle.experiment, obs)
     guide, hold = obs.mask("guide"), obs.mask("validate")
     if kind == "hole":
-        hyp = hole_hypothesis(model, start)
+        first = f = fit(hole_hypothesis(model, start), guide, hold, sigma)
     else:
-        hyp = regions_hypothesis(model, [start], [1 if start.ratio > 1 else -1])
-    return refit(fit(hyp, guide, hold, sigma), guide, hold, sigma, element="tri6")
+        first = fit(regions_hypothesis(model, [start], [1 if start.ratio > 1 else -1]), guide, hold, sigma)
+        f = best_of_restarts(first, [start], guide, hold)
+    return refit(f, guide, hold, sigma, element="tri6"), (first.chi2_fit, f.chi2_fit)
 
 
 def matched(q_fit: np.ndarray, q_true: np.ndarray) -> np.ndarray:
@@ -132,7 +136,8 @@ def run_case(case: dict) -> dict:
     from dataclasses import replace
 
     from refine.diagnosis.fitted import covariance
-    from refine.diagnosis.uncertainty import discretisation_bias, drive_bias, shape_errors, shape_quantities
+    from refine.diagnosis.uncertainty import (discretisation_bias, drive_bias, quantity_jacobian, shape_errors,
+                                              shape_quantities)
     from refine.synthetic.sheet import synthetic_bundle
 
     t0 = time.perf_counter()
@@ -143,7 +148,7 @@ def run_case(case: dict) -> dict:
     start = started(q_true, kind, spacing, np.random.default_rng(seed + 1))
     row = {**case, "truth": q_true.tolist()}
     try:
-        f = fit_true_kind(bundle, kind, start, sigma=noise if noise > 0 else 1e-3)
+        f, chi2_first = fit_true_kind(bundle, kind, start, sigma=noise if noise > 0 else 1e-3)
     except Exception as e:  # noqa: BLE001 - a failed fit is recorded as such
         return {**row, "error": f"{type(e).__name__}: {e}", "seconds": time.perf_counter() - t0}
     q_raw = shape_quantities(f.shapes)[0]
@@ -152,14 +157,16 @@ def run_case(case: dict) -> dict:
     guide = bundle.observations.mask("guide")
     std = _std(shape_errors(f)[0])
     std_gn = _std(shape_errors(replace(f, z_cov=covariance(f, guide, f.sigma)))[0])  # before: the fit's points only
+    G = quantity_jacobian(f)  # the first-order (delta method) errors, before the draws through the map
+    std_lin = np.sqrt(np.clip(np.einsum("qk,kl,ql->q", G, f.z_cov, G), 0, None))[: len(QUANTITIES)]
     t1 = time.perf_counter()
     bias = discretisation_bias(f, guide, bundle.observations.mask("validate"), f.sigma)
     bias = np.full(len(QUANTITIES), np.nan) if bias is None else bias[0]
     t2 = time.perf_counter()
     drive = drive_bias(f, guide, bundle.observations.mask("validate"), f.sigma)
     drive = np.full(len(QUANTITIES), np.nan) if drive is None else drive[0]
-    std, std_gn, bias, drive = std[order], std_gn[order], bias[order], drive[order]
-    row.update(bias=bias.tolist(), bias_seconds=t2 - t1, drive=drive.tolist(), drive_seconds=time.perf_counter() - t2)
+    std, std_gn, std_lin, bias, drive = std[order], std_gn[order], std_lin[order], bias[order], drive[order]
+    row.update(std_linear=std_lin.tolist(), bias=bias.tolist(), bias_seconds=t2 - t1, drive=drive.tolist(), drive_seconds=time.perf_counter() - t2)
     use = np.ones(len(QUANTITIES), bool)
     use[4] = abs(q_true[2] - q_true[3]) > 0.05 * max(q_true[2:4])  # a circle's angle is not a quantity
     use[6] = kind != "hole"
@@ -167,7 +174,7 @@ def run_case(case: dict) -> dict:
     row.update(estimate=q_fit.tolist(), std=std.tolist(), z=[float(v) if u else None for v, u in zip(z, use)],
                std_gauss_newton=std_gn.tolist(), z_gauss_newton=[float(v) if u else None for v, u in zip(z_gn, use)],
                ratio_error=None if kind == "hole" else float(q_fit[6] / q_true[6] - 1),
-               area_error=float(q_fit[5] / q_true[5] - 1), chi2=f.chi2_fit, k=f.k,
+               area_error=float(q_fit[5] / q_true[5] - 1), chi2=f.chi2_fit, chi2_first_and_restarted=list(chi2_first), k=f.k,
                seconds=time.perf_counter() - t0, load_average=[round(x, 2) for x in os.getloadavg()],
                fitted=f.describe(), code=_code_version())
     return row
@@ -191,168 +198,6 @@ def _code_version() -> str:
 FRACTIONS = {1: (1.0,), 2: (0.5, 1.0)}
 """The frames of a case (fractions of the final stretch) by their number (rows without
 ``frames`` are the two-frame cases of the first runs)."""
-
-
-def size_of(row: dict) -> str:
-    """A case's size: its grid spacing and frames, e.g. ``"5mm x 2 frames"``."""
-    return f"{row['spacing']:g}mm x {row.get('frames', 2)} frames"
-
-
-VARIANTS = ("gauss_newton", "standard_error", "mesh_only", "reported")
-"""The errors compared: the fit's points alone (before), the standard error (Gauss-Newton plus the
-drive's noise, report.json's ``std``), that and the mesh's discretisation error in quadrature
-(the first total, before the drive's discretisation was counted), and what the diagnosis reports
-as the total (that and the mesh's and the drive's discretisation errors, ``total_std``)."""
-
-
-def scores(row: dict, variant: str) -> list:
-    """``(estimate - truth) / error`` per quantity of a row under ``variant`` (None: not scored)."""
-    if variant == "gauss_newton":
-        return row.get("z_gauss_newton") or [None] * len(QUANTITIES)
-    if variant == "standard_error":
-        return row["z"]
-    terms = [np.asarray(row["std"], float), np.nan_to_num(np.asarray(row["bias"], float))]
-    if variant == "reported":
-        terms.append(np.nan_to_num(np.asarray(row["drive"], float)))
-    err = np.sqrt(sum(t**2 for t in terms))
-    d = np.asarray(row["estimate"]) - np.asarray(row["truth"])
-    return [None if z is None else float(v) for z, v in zip(row["z"], d / err)]
-
-
-def _coverage(zs, cases=None) -> dict:
-    """Share of ``|z| <= 2`` with its exact binomial 95 % interval (quantities as independent
-    trials) and a 95 % interval from resampling whole cases (``cases``: the case of each z; the
-    quantities of one case are correlated)."""
-    from scipy.stats import binomtest
-
-    zs = np.asarray(zs, float)
-    if not zs.size:
-        return {"n": 0, "within_2_std": None}
-    k = int(np.sum(np.abs(zs) <= 2))
-    ci = binomtest(k, zs.size).proportion_ci(0.95, method="exact")
-    out = {"n": int(zs.size), "within_2_std": k / zs.size, "binomial_95": [round(ci.low, 4), round(ci.high, 4)],
-           "median_abs_z": float(np.median(np.abs(zs)))}
-    if cases is not None:
-        cases = np.asarray(cases)
-        ids = np.unique(cases)
-        rng = np.random.default_rng(0)
-        hits = [np.abs(zs[np.isin(cases, rng.choice(ids, ids.size))]) <= 2 for _ in range(2000)]
-        out["case_bootstrap_95"] = [round(float(v), 4) for v in np.quantile([h.mean() for h in hits], [0.025, 0.975])]
-    return out
-
-
-def _per(noisy: list[dict], variant: str, pick) -> dict:
-    zs, cases = [], []
-    for r in noisy:
-        for i, v in enumerate(scores(r, variant)):
-            if v is not None and pick(r, i):
-                zs.append(v)
-                cases.append(r["seed"])
-    return _coverage(zs, cases)
-
-
-def summarise(rows: list[dict]) -> dict:
-    """Coverage per variant of the errors, overall, per quantity and per kind (with binomial and
-    case-bootstrap intervals), the errors' median sizes, and the noise-free ratio accuracy."""
-    ok = [r for r in rows if "z" in r]
-    noisy = [r for r in ok if r["noise"] > 0 and "z_gauss_newton" in r and "drive" in r]
-    older = [r for r in ok if r["noise"] > 0 and "z_gauss_newton" in r and "bias" in r and "drive" not in r]
-    clean = [r for r in ok if r["noise"] == 0]
-    variants = {}
-    for v in VARIANTS:
-        variants[v] = {"overall": _per(noisy, v, lambda r, i: True),
-                       "per_quantity": {q: _per(noisy, v, lambda r, i, j=j: i == j) for j, q in enumerate(QUANTITIES)},
-                       "per_kind": {kind: _per(noisy, v, lambda r, i, k=kind: r["kind"] == k) for kind in KINDS},
-                       "per_size": {size: _per(noisy, v, lambda r, i, z=size: size_of(r) == z)
-                                    for size in sorted({size_of(r) for r in noisy})}}
-    sizes = {}
-    for j, q in enumerate(QUANTITIES):
-        use = [r for r in noisy if r["z"][j] is not None]
-        if use:
-            gn, rep = (np.array([r[key][j] for r in use]) for key in ("std_gauss_newton", "std"))
-            disc = np.hypot(np.nan_to_num([r["bias"][j] for r in use]), np.nan_to_num([r["drive"][j] for r in use]))
-            both = np.hypot(rep, disc)
-            sizes[q] = {"median_std_before": float(np.median(gn)), "median_standard_error": float(np.median(rep)),
-                        "median_discretisation": float(np.median(disc)),
-                        "median_total_reported": float(np.median(both)),
-                        "median_standard_error_over_before": float(np.median(rep / gn)),
-                        "median_total_over_before": float(np.median(both / gn))}
-    ratio_ok = [abs(r["ratio_error"]) <= 0.10 or abs(scores(r, "reported")[6]) <= 2
-                for r in noisy if r["ratio_error"] is not None]
-    clean_err = [abs(r["ratio_error"]) for r in clean if r["ratio_error"] is not None]
-    overall = variants["reported"]["overall"]
-    targets = {
-        "coverage_about_95_percent": {
-            "value": overall["within_2_std"], "range": list(COVERAGE_TARGET), "quantities": overall["n"],
-            "binomial_95": overall.get("binomial_95"),
-            "errors": "reported total (Gauss-Newton, the drive's noise and the discretisation error in quadrature)",
-            "pass": overall["n"] > 0 and bool(COVERAGE_TARGET[0] <= overall["within_2_std"] <= COVERAGE_TARGET[1])},
-        "ratio_within_10_percent_or_2_total_errors": {"value": float(np.mean(ratio_ok)) if ratio_ok else None,
-                                             "target": 0.95, "pass": bool(ratio_ok) and bool(np.mean(ratio_ok) >= 0.95)},
-        "noise_free_ratio_within_1_percent": {"value": max(clean_err) if clean_err else None,
-                                              "cases": len(clean_err), "target": NOISE_FREE_RATIO_TOL,
-                                              "pass": bool(clean_err) and bool(max(clean_err) <= NOISE_FREE_RATIO_TOL)},
-    }
-    ratio_older = [abs(r["ratio_error"]) <= 0.10 or abs(scores(r, "mesh_only")[6]) <= 2
-                   for r in older if r["ratio_error"] is not None]
-    before = {"cases": len(older), "note": "rows fitted before the drive's discretisation was measured: scored "
-                                           "with the standard error and the mesh's discretisation error alone",
-              **{v: _per(older, v, lambda r, i: True) for v in VARIANTS[:3]},
-              "ratio_mesh_only": _per(older, "mesh_only", lambda r, i: i == 6),
-              "ratio_within_10_percent_or_2_mesh_only_totals": float(np.mean(ratio_older)) if ratio_older else None}
-    return {"cases": len(rows), "failed": len(rows) - len(ok), "noisy_cases": len(noisy),
-            "before_the_drive_term": before,
-            "rows_without_discretisation": len([r for r in ok if r["noise"] > 0 and "bias" not in r]),
-            "noise_free_cases": len(clean), "coverage_within_2_std": overall["within_2_std"],
-            "variants": variants, "error_sizes": sizes,
-            "noise_free_ratio_errors": clean_err, "targets": targets,
-            "median_seconds": float(np.median([r["seconds"] for r in ok])) if ok else None,
-            "median_seconds_per_size": {z: float(np.median([r["seconds"] for r in ok if size_of(r) == z]))
-                                        for z in sorted({size_of(r) for r in ok})}}
-
-
-def _plot(rows: list[dict], summary: dict, path: Path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    noisy = [r for r in rows if "z" in r and r["noise"] > 0 and "z_gauss_newton" in r and "drive" in r]
-    if not noisy:
-        return
-    fig, (a, b, c) = plt.subplots(1, 3, figsize=(17, 4), gridspec_kw={"width_ratios": [3, 3, 2]})
-    for i, name in enumerate(QUANTITIES):
-        zs = [v for r in noisy if (v := scores(r, "reported")[i]) is not None]
-        jitter = np.random.default_rng(i).uniform(-0.2, 0.2, len(zs))
-        a.plot(np.full(len(zs), i) + jitter, np.clip(zs, -8, 8), ".", ms=4)
-    a.axhline(2, color="r", lw=0.6)
-    a.axhline(-2, color="r", lw=0.6)
-    a.set_xticks(range(len(QUANTITIES)), QUANTITIES)
-    cov = summary["variants"]["reported"]["overall"]
-    a.set(ylabel="(estimate - truth) / reported total error (clipped at 8)",
-          title=f"{len(noisy)} noisy cases: {100 * (cov['within_2_std'] or 0):.0f} % within 2 total errors")
-    names = [q for q in QUANTITIES if summary["variants"]["reported"]["per_quantity"][q]["n"]]
-    x = np.arange(len(names))
-    for k, v in enumerate(VARIANTS):
-        per = summary["variants"][v]["per_quantity"]
-        val = np.array([per[q]["within_2_std"] for q in names])
-        lo, hi = (np.array([per[q]["binomial_95"][e] for q in names]) for e in (0, 1))
-        b.bar(x + (k - 1.5) * 0.2, val, 0.2, yerr=[val - lo, hi - val], capsize=2, label=v.replace("_", " "))
-    b.axhline(0.95, color="k", lw=0.6)
-    b.set_xticks(x, names)
-    b.set(ylim=(0, 1.05), ylabel="share within 2 std (binomial 95 %)", title="coverage per quantity")
-    b.legend(fontsize=8, loc="lower left")
-    groups = [("kind", k) for k in KINDS] + [("per_size", z) for z in summary["variants"]["reported"]["per_size"]]
-    per = [summary["variants"]["reported"]["per_kind" if g == "kind" else g][k] for g, k in groups]
-    shown = [(k, q) for (_, k), q in zip(groups, per) if q["n"]]
-    val = np.array([q["within_2_std"] for _, q in shown])
-    lo, hi = (np.array([q["binomial_95"][e] for _, q in shown]) for e in (0, 1))
-    c.bar(range(len(shown)), val, 0.6, yerr=[val - lo, hi - val], capsize=2, color="tab:orange")
-    c.axhline(0.95, color="k", lw=0.6)
-    c.set_xticks(range(len(shown)), [f"{k}\n(n={q['n']})" for k, q in shown], rotation=45, ha="right", fontsize=7)
-    c.set(ylim=(0, 1.05), title="reported errors per kind and case size")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110, bbox_inches="tight")
 
 
 def main():

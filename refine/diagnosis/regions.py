@@ -10,6 +10,7 @@ import numpy as np
 import jaxfem as jf
 
 from refine.diagnosis.fitted import Fitted, NotApplicable, fit
+from refine.diagnosis.restarts import RESTARTS, best_of_restarts
 from refine.diagnosis.shapes import RegionShape
 from refine.exceptions import RefineError
 from refine.model.measured import MeasuredModel, domain_mesh
@@ -140,13 +141,17 @@ def regions_hypothesis(base: MeasuredModel, shapes, signs, geometry: bool = True
 
 
 def fit_regions(base: MeasuredModel, shapes, signs, fit_mask, hold_mask, sigma, geometry: bool = True,
-                h: float | None = None, element: str = "tri3") -> Fitted:
+                h: float | None = None, element: str = "tri3", restarts=RESTARTS) -> Fitted:
     """Regions of other stiffness (:func:`regions_hypothesis`) with fitted log moduli and, with
-    ``geometry``, fitted centres, axes or sides, and orientations.
+    ``geometry``, fitted centres, axes or sides, and orientations; refitted from ``restarts``
+    at the fitted centres (:func:`~refine.diagnosis.restarts.best_of_restarts`: a fit started
+    off the centre can stop in a local minimum of the trade between outline, size and ratio),
+    the lowest misfit kept.
 
     A rectangle is worth its own hypothesis: fitted as an ellipse, a stiff rectangle (the paper's
     scar) comes out larger and too soft, its corners' load paths missing."""
-    return fit(regions_hypothesis(base, shapes, signs, geometry, h, element), fit_mask, hold_mask, sigma)
+    f = fit(regions_hypothesis(base, shapes, signs, geometry, h, element), fit_mask, hold_mask, sigma)
+    return best_of_restarts(f, shapes, fit_mask, hold_mask, restarts if geometry else ())
 
 
 def remeshed(f: Fitted, fit_mask, hold_mask, max_remesh: int = 1, start=None) -> Fitted:
@@ -182,7 +187,7 @@ def fit_rectangle(base: MeasuredModel, region: Fitted, turn: float, fit_mask, ho
     ellipse = region.shapes[0]
     start = RegionShape(ellipse.centre, (RECTANGLE_SIDE * ellipse.axes[0], RECTANGLE_SIDE * ellipse.axes[1]),
                         ellipse.angle + turn, "rectangle", ellipse.ratio)
-    f = fit_regions(base, [start], [1 if ellipse.ratio > 1 else -1], fit_mask, hold_mask, sigma)
+    f = fit_regions(base, [start], [1 if ellipse.ratio > 1 else -1], fit_mask, hold_mask, sigma, restarts=())
     return remeshed(f, fit_mask, hold_mask, max_remesh, start=[start])
 
 

@@ -5,8 +5,11 @@ A fit's unknowns z are not the quantities a report gives: a region's are its log
 changes of its shape (for an ellipse the entries of a symmetric matrix, for a rectangle its half
 sides and a scaled angle; :class:`~refine.model.parametrize.ShapeGeometry`). The covariance of z
 (Gauss-Newton, :func:`~refine.diagnosis.fitted.covariance`) is carried to the reported
-quantities by the delta method, ``C_q = G C_z G^T`` with ``G = dq/dz`` by central differences of
-the hypothesis' own map from z to shapes (``shapes_at``, cheap: no solve).
+quantities through the hypothesis' own map from z to shapes (``shapes_at``, cheap: no solve):
+by draws of z (:func:`sampled_variance`), since the map is not linear where it matters (an
+ellipse's axes near a circle, a ratio ``exp(z)`` with a wide log error); the delta method,
+``C_q = G C_z G^T`` with ``G = dq/dz`` by central differences (:func:`quantity_jacobian`), is
+its first order and stands in where the covariance is not finite.
 
 The model is driven by the measured boundary points, which carry the same noise as the points it
 is fitted to: errors in the variables, which the Gauss-Newton covariance ``(J^T J)^-1`` of the
@@ -100,9 +103,42 @@ def shape_errors(fitted) -> list[ShapeErrors] | None:
         return None
     G = quantity_jacobian(fitted)
     var = np.einsum("qk,kl,ql->q", G, cov, G).reshape(len(fitted.shapes), len(QUANTITIES))
+    sampled = sampled_variance(fitted, cov)
+    if sampled is not None:
+        var = np.where(np.isfinite(sampled), sampled, var)
     std = np.sqrt(np.clip(var, 0, None))
     std[~np.isfinite(var)] = np.nan
     return [errors_of(s, shape) for s, shape in zip(std, fitted.shapes)]
+
+
+SAMPLES = 1000
+"""Draws of the fitted unknowns in :func:`sampled_variance` (a relative error of about 2 % in a
+standard error; fixed seed, so a report is reproducible)."""
+
+
+def sampled_variance(fitted, cov: Float[np.ndarray, "k k"], draws: int = SAMPLES, seed: int = 0
+                     ) -> Float[np.ndarray, "shapes 7"] | None:
+    """The mean square change of every reported quantity (:data:`QUANTITIES`, one row per shape)
+    when the fitted unknowns z are drawn from ``N(z, cov)`` and carried through the hypothesis'
+    own map to shapes (``shapes_at``: no solve): the delta method without its linearisation.
+
+    The map is far from linear where it matters: an ellipse's semi-axes are the eigenvalues of
+    the fitted matrix M (:class:`~refine.model.parametrize.ShapeGeometry`), and near a circle (a
+    stiff circle, a round hole) noise on M splits them in every direction, while the delta
+    method sees only the split along the fitted axes (on a noisy circle it covered 90 % of the
+    truths within 2 errors, the draws 97 %); a ratio ``exp(z)`` with a log error of 0.4 is
+    skewed. Angle changes wrapped to half a turn. None where ``cov`` is not finite."""
+    cov = np.asarray(cov, float)
+    z = np.asarray(fitted.z, float)
+    if not np.all(np.isfinite(cov)):
+        return None
+    w, V = np.linalg.eigh((cov + cov.T) / 2)
+    root = V * np.sqrt(np.clip(w, 0, None))
+    dz = np.random.default_rng(seed).standard_normal((draws, z.size)) @ root.T
+    q0 = shape_quantities(fitted.shapes)
+    d = np.stack([shape_quantities(fitted.hypothesis.shapes_at(fitted.compiled, z + e)) for e in dz]) - q0
+    d[..., 4] = np.angle(np.exp(2j * d[..., 4])) / 2  # an orientation is defined modulo pi
+    return np.mean(d**2, axis=0)
 
 
 def errors_of(row: Float[np.ndarray, "7"], shape) -> ShapeErrors:

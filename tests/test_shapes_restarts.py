@@ -1,0 +1,100 @@
+"""Restarts of a region or hole fit from its fitted centre (refine.diagnosis.restarts): which
+shapes they start from, and that the fit with the lowest misfit is kept (the fits here are
+stand-ins with a misfit of their start; benchmarks/error_coverage.py measures real ones)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pytest
+
+import refine.diagnosis.fitted as fitted_module
+from refine.diagnosis.restarts import RESTARTS, best_of_restarts, restart_shapes
+from refine.diagnosis.shapes import Hole, RegionShape
+
+
+def test_a_recentred_restart_is_the_start_outline_at_the_fitted_centre_with_the_fitted_ratio():
+    start = RegionShape((40.0, 30.0), (8.0, 5.0), 0.3, "ellipse", 6.0)
+    fitted = RegionShape((43.0, 28.0), (10.0, 4.0), -0.2, "ellipse", 12.0)
+    [s] = restart_shapes("recentred", [start], [fitted])
+    assert s.centre == (43.0, 28.0) and s.axes == (8.0, 5.0) and s.angle == 0.3 and s.ratio == 12.0
+    assert s.kind == "ellipse"
+
+
+def test_a_round_restart_keeps_the_fitted_area_and_a_hole_stays_a_hole():
+    fitted = Hole((43.0, 28.0), (9.0, 4.0), 0.5)
+    [s] = restart_shapes("round", [Hole((40.0, 30.0), (6.0, 6.0), 0.0)], [fitted])
+    assert isinstance(s, Hole) and s.centre == (43.0, 28.0)
+    assert np.pi * s.axes[0] * s.axes[1] == pytest.approx(np.pi * 9.0 * 4.0)
+    rect = RegionShape((1.0, 2.0), (4.0, 1.0), 0.1, "rectangle", 3.0)
+    [r] = restart_shapes("round", [rect], [rect])
+    assert r.kind == "rectangle" and r.axes == (2.0, 2.0) and r.ratio == 3.0
+    with pytest.raises(ValueError, match="unknown restart"):
+        restart_shapes("sideways", [rect], [rect])
+
+
+@dataclass(frozen=True)
+class _Hypothesis:
+    remeshable = True
+    element = "tri3"
+    shapes: tuple = ()
+
+    def at(self, shapes, element):
+        return _Hypothesis(tuple(shapes))
+
+
+@dataclass(frozen=True)
+class _Model:
+    h: float = 2.0
+
+
+@dataclass(frozen=True)
+class _Fit:
+    hypothesis: _Hypothesis
+    shapes: tuple
+    chi2_fit: float
+    sigma: float = 0.02
+    model: _Model = _Model()
+
+
+def _stand_in(misfit):
+    """A fit that settles where it starts, with misfit ``misfit(shape)`` (raises where None)."""
+    tried = []
+
+    def fit(hypothesis, fit_mask, hold_mask, sigma):
+        tried.append(hypothesis.shapes)
+        chi2 = misfit(hypothesis.shapes[0])
+        if chi2 is None:
+            raise RuntimeError("nonlinear solve failed")
+        return _Fit(hypothesis, hypothesis.shapes, chi2)
+
+    return fit, tried
+
+
+def test_the_restart_with_the_lowest_misfit_is_kept(monkeypatch):
+    start = RegionShape((40.0, 30.0), (8.0, 8.0), 0.0, "ellipse", 9.0)
+    first = _Fit(_Hypothesis(), (RegionShape((41.0, 31.0), (12.0, 4.0), 0.0, "ellipse", 16.0),), 75.0)
+    fit, tried = _stand_in(lambda s: 60.0 if s.axes == (8.0, 8.0) else 70.0)
+    monkeypatch.setattr(fitted_module, "fit", fit)
+    best = best_of_restarts(first, [start], None, None)
+    assert best.chi2_fit == 60.0 and best.shapes[0].centre == (41.0, 31.0)
+    assert len(tried) == len(RESTARTS)
+
+
+def test_a_restart_that_fails_or_misfits_more_leaves_the_first_fit(monkeypatch):
+    start = RegionShape((40.0, 30.0), (8.0, 8.0), 0.0, "ellipse", 9.0)
+    first = _Fit(_Hypothesis(), (RegionShape((44.0, 31.0), (12.0, 4.0), 0.0, "ellipse", 16.0),), 75.0)
+    fit, tried = _stand_in(lambda s: None if s.axes == (8.0, 8.0) else 88.0)
+    monkeypatch.setattr(fitted_module, "fit", fit)
+    assert best_of_restarts(first, [start], None, None) is first
+    assert len(tried) == 2
+
+
+def test_a_restart_where_the_fit_already_is_is_not_fitted(monkeypatch):
+    # the fit stayed at its start and is nearly round: neither restart would start elsewhere
+    shape = RegionShape((40.0, 30.0), (8.0, 7.9), 0.0, "ellipse", 9.0)
+    first = _Fit(_Hypothesis(), (replace(shape, centre=(40.1, 30.0)),), 75.0)
+    fit, tried = _stand_in(lambda s: 1.0)
+    monkeypatch.setattr(fitted_module, "fit", fit)
+    assert best_of_restarts(first, [shape], None, None) is first and tried == []
