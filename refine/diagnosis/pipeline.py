@@ -44,6 +44,7 @@ from refine.diagnosis.candidates import data_candidates
 from refine.diagnosis.holes import fit_hole, named_hole
 from refine.diagnosis.laws import ALTERNATIVE_LAWS, fit_law
 from refine.diagnosis.regions import fit_rectangle, fit_regions, refit_ellipse
+from refine.diagnosis.restarts import best_of_restarts
 from refine.diagnosis.shapes import RegionShape, report_row
 from refine.diagnosis.localize import Candidate, fit_field
 from refine.diagnosis.scale import at_frames, drives_alike, every_frame, mesh_size, on_frames, search_frames
@@ -194,6 +195,8 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
         trials = Trials(model, fit, hold, sigma_eff, cfg, null, n_res, log, pool)
         tried += _try_hypotheses(trials, candidates)
         chosen = selected = _choose(base, tried, cfg)
+        if chosen.cause in ("stiffer-region", "softer-region", "regions"):  # the search fits once; the chosen
+            chosen = best_of_restarts(chosen, chosen.shapes, fit, hold, ("round",))  # region also from a circle
         if chosen is not base:  # refit the chosen model on every guide point and every frame
             log(f"refit on every frame: {chosen.describe()}")
             chosen = _refit_on_every_frame(chosen, model, full, guide, hold, sigma_eff, cfg)
@@ -327,7 +330,7 @@ def _try_hypotheses(trials: Trials, candidates: list[Candidate]) -> list[Fitted]
         # close to the last one (a start at /3 could send a spurious second region's fit astray)
         shapes = [*(best.shapes if used else ()), _shape_of(c, (1.5 if used else 3.0) ** c.sign)]
         signs = [k.sign for k in trial]
-        jobs = {"ellipse": lambda: fit_regions(model, shapes, signs, fit, hold, sigma)}
+        jobs = {"ellipse": lambda: fit_regions(model, shapes, signs, fit, hold, sigma, restarts=())}
         if c.sign < 0 and not used:
             jobs["hole"] = lambda: fit_hole(model, _shape_of(c, None), fit, hold, sigma)
         fits = side_by_side(**jobs)
