@@ -41,6 +41,7 @@ from refine.diagnosis.fitted import Fitted, NotApplicable, baseline, refit, sett
 from refine.diagnosis.uncertainty import with_discretisation
 from refine.diagnosis.candidates import data_candidates
 from refine.diagnosis.holes import fit_hole, named_hole
+from refine.diagnosis.hole_law import hole_law_jobs
 from refine.diagnosis.laws import ALTERNATIVE_LAWS, fit_law
 from refine.diagnosis.regions import fit_rectangle, fit_regions, refit_ellipse
 from refine.diagnosis.shapes import RegionShape, report_row
@@ -374,6 +375,7 @@ def _try_hypotheses(trials: Trials, candidates: list[Candidate]) -> list[Fitted]
     if cfg.try_laws and (best is None or not trials.explains(best)):
         side_by_side(**{law: (lambda law=law: fit_law(model, law, fit, hold, sigma))
                         for law in ALTERNATIVE_LAWS.get(model.experiment.law, ())})
+        side_by_side(**hole_law_jobs(model, out, fit, hold, sigma))  # a hole in the law that fitted best
     return out
 
 
