@@ -18,7 +18,7 @@ held-out validation points. The isotropic initial model fits a zero-stiffness re
 hole and the ring of material around it better than the hole alone (the laminate strains more
 there than an isotropic plate would); the diagnosis names the hole because the hole in the law
 that fitted best alone (the fibre-reinforced law, refine.diagnosis.hole_law) fits better still.
-The area shortfall (issue 22's CFRP figures: +26 %) is then tested
+The area shortfall (the 25 Nov run's hole: +26 %) is then tested
 (:func:`shortfall`): the laminate's anisotropy (the fibre-reinforced law fitted with the image's
 hole in the model; the hole fitted in a fibre-reinforced material, target: area within 10 %), how
 far the hole's edge lies from the nearest tracked points, and the noise estimate against the
@@ -158,8 +158,8 @@ def _search_setup(bundle, cfg, frames, sigma: float):
 
 
 def shortfall(bundle, setup, centre, area: float, log=print) -> dict:
-    """Why the found hole is too large (issue 22's CFRP shortfall), each cause tested on the
-    search's frames and points: the laminate's anisotropy (the fibre-reinforced law fitted with
+    """What sets the found hole's size (issue 22's CFRP shortfall: the 25 Nov run's hole came out
+    +26 %), each cause tested on the search's frames and points: the laminate's anisotropy (the fibre-reinforced law fitted with
     the image's hole in the model, and the hole fitted in a fibre-reinforced material), how far
     the nearest tracked points lie from the hole's edge, and the noise estimate against the
     noise's correlation between neighbouring (overlapping-subset) points."""
