@@ -121,7 +121,7 @@ def test_the_search_tries_the_best_hole_in_the_best_law_only_where_both_were_tri
     assert calls == [(near, "fibre-reinforced")]  # the hole of the lowest BIC + held-out misfit
 
 
-@pytest.mark.slow  # a whole diagnosis with the fibre law's fits: 757 s at load 9-12 on the shared 2 cores
+@pytest.mark.slow  # a whole diagnosis with the fibre law's fits: 247 s at load 3-5 (757 s at load 9-12) on 2 cores
 def test_a_hole_in_a_laminate_is_named_a_hole_with_the_laminates_law():
     """A random hole in a fibre-reinforced sheet (seed 24: fibres at a random angle and
     stiffness), diagnosed with an isotropic initial model that forgot the hole: the cause named
