@@ -2,7 +2,9 @@
 end to end: track the speckle images, diagnose with an initial model that forgot the hole (the
 domain left whole, ``--keep-holes``), then with the found hole in the model.
 
-    python benchmarks/cfrp.py             # ~40-60 minutes on 2 cores (the whole domain's diagnosis is most of it)
+    python benchmarks/cfrp.py             # ~70-80 minutes on 2 cores at load ~12 (the whole domain's diagnosis ~35)
+    python benchmarks/cfrp.py --tracked B --workers 1
+                                          # a bundle tracked before (B), the diagnoses' fits one at a time
     python benchmarks/cfrp.py --tracked B --previous results/cfrp.json [--shortfall-only]
                                           # keep a previous run's diagnoses, redo the later stages
     python benchmarks/cfrp.py --tracked B --previous results/cfrp.json --subsets-only
@@ -12,7 +14,11 @@ Targets (issue 22, item 6): the hole is named, its centre within 2 % of the spec
 its area within 10 % of the hole seen in the reference image (a dark disc measured from the
 pixels, apart from the tracker and the diagnosis); with the hole in the model, the diagnosis
 says what is left (a material law, a region, or nothing beyond the noise) with the gain on the
-held-out validation points. The area shortfall (issue 22's CFRP figures: +26 %) is then tested
+held-out validation points. The isotropic initial model fits a zero-stiffness region over the
+hole and the ring of material around it better than the hole alone (the laminate strains more
+there than an isotropic plate would); the diagnosis names the hole because the hole in the law
+that fitted best alone (the fibre-reinforced law, refine.diagnosis.hole_law) fits better still.
+The area shortfall (the 25 Nov run's hole: +26 %) is then tested
 (:func:`shortfall`): the laminate's anisotropy (the fibre-reinforced law fitted with the image's
 hole in the model; the hole fitted in a fibre-reinforced material, target: area within 10 %), how
 far the hole's edge lies from the nearest tracked points, and the noise estimate against the
@@ -152,8 +158,8 @@ def _search_setup(bundle, cfg, frames, sigma: float):
 
 
 def shortfall(bundle, setup, centre, area: float, log=print) -> dict:
-    """Why the found hole is too large (issue 22's CFRP shortfall), each cause tested on the
-    search's frames and points: the laminate's anisotropy (the fibre-reinforced law fitted with
+    """What sets the found hole's size (issue 22's CFRP shortfall: the 25 Nov run's hole came out
+    +26 %), each cause tested on the search's frames and points: the laminate's anisotropy (the fibre-reinforced law fitted with
     the image's hole in the model, and the hole fitted in a fibre-reinforced material), how far
     the nearest tracked points lie from the hole's edge, and the noise estimate against the
     noise's correlation between neighbouring (overlapping-subset) points."""

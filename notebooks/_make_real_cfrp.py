@@ -74,10 +74,18 @@ display(fig)
 for c in missing_point_regions(obs.reference, bundle.experiment.domain):
     print(f"gap in the points at ({c.centroid[0]:.1f}, {c.centroid[1]:.1f}), area {c.strength:.0f} px^2 "
           f"(a start for a hole's fit)")"""),
-    ("md", """## 3. Diagnose with the hole forgotten"""),
+    ("md", """## 3. Diagnose with the hole forgotten
+
+The gap in the points starts a hole; a hole keeps half a DIC subset away from every tracked point
+(the bundle's `measurement.subset`: each point's whole subset was correlated on material). An
+isotropic model with the hole leaves the ring around it straining more than it says (the laminate
+is orthotropic), and a zero-stiffness region over the hole and that ring would fit it better than
+the hole alone; the diagnosis therefore also fits the hole in the material law that fitted best
+alone (here the fibre-reinforced law), the law's parameters and the hole together, and compares
+all of them on held-out points. A hole found with another law is reported with that law."""),
     ("code", """whole = diagnose(bundle)
 for f in whole.findings:
-    print(f.cause, f.region and (f.region.centroid, f.region.area), f.relative_elasticity)
+    print(f.cause, f.region and (f.region.centroid, f.region.area), f.relative_elasticity, f.law or "")
 hole = [f for f in whole.findings if f.cause == "hole"]
 if hole:
     r = hole[0].region
@@ -88,9 +96,9 @@ print(f"validation error {whole.errors['baseline']['validation_error']:.4g} -> "
 display(diagnosis_strain_figure(whole))"""),
     ("md", """## 4. The hole in the model: what is left?
 
-The found hole becomes a known hole of the domain, and the diagnosis runs again. The isotropic
-laws it can try are the alternatives of jaxfem's registry (an anisotropic law for the laminate is
-not one of them yet), besides regions of other stiffness; "none" means the holed model explains
+The found hole becomes a known hole of the domain, and the diagnosis runs again. The laws it can
+try are the alternatives of jaxfem's registry (the fibre-reinforced law among them: the
+laminate's anisotropy), besides regions of other stiffness; "none" means the holed model explains
 the motion within the noise and its propagation."""),
     ("code", """domain = replace(bundle.experiment.domain, holes=(tuple(map(tuple, hole[0].region.polygon)),))
 holed = diagnose(Bundle(replace(bundle.experiment, domain=domain), obs, bundle.root))

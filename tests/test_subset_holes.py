@@ -238,7 +238,7 @@ def test_a_hole_fitted_with_a_law_starts_where_the_subsets_put_it(monkeypatch):
     with pytest.raises(Started) as caught:
         hole_law.fit_hole_with_law(base, off, "fibre-reinforced", None, None, 0.02,
                                    start={"fibre_angle": 0.3, "fibre_stiffness": 2.0})
-    start = caught.value.args[0].hole.hole
+    start = caught.value.args[0].hole
     assert subset_distance(obs.reference, start.params, subset).min() > 0
     assert np.hypot(start.cx - hole.cx, start.cy - hole.cy) < 0.25 * spacing
     assert start.rx * start.ry > 0.8 * hole.rx * hole.ry

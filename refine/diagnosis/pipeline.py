@@ -42,6 +42,7 @@ from refine.diagnosis.uncertainty import with_discretisation
 from refine.diagnosis.discretisation import discretisation_floor
 from refine.diagnosis.candidates import data_candidates
 from refine.diagnosis.holes import fit_hole, named_hole
+from refine.diagnosis.hole_law import hole_law_jobs
 from refine.diagnosis.laws import ALTERNATIVE_LAWS, fit_law
 from refine.diagnosis.regions import fit_rectangle, fit_regions, refit_ellipse
 from refine.diagnosis.restarts import best_of_restarts
@@ -298,7 +299,7 @@ def _try_hypotheses(trials: Trials, candidates: list[Candidate]) -> list[Fitted]
     """Greedy: the strongest candidate region first (as a stiffer/softer region, and as a hole
     when softer, the two fitted side by side); add the next candidate only while the misfit is
     still above the null level; other material laws (side by side) only if no region explains
-    the data."""
+    the data, then the best hole in the law that fitted best (:func:`hole_law_jobs`)."""
     out = []
     model, fit, hold, sigma, cfg, log = trials.model, trials.fit, trials.hold, trials.sigma, trials.cfg, trials.log
 
@@ -368,6 +369,7 @@ def _try_hypotheses(trials: Trials, candidates: list[Candidate]) -> list[Fitted]
     if cfg.try_laws and (best is None or not trials.explains(best)):
         side_by_side(**{law: (lambda law=law: fit_law(model, law, fit, hold, sigma))
                         for law in ALTERNATIVE_LAWS.get(model.experiment.law, ())})
+        side_by_side(**hole_law_jobs(model, out, fit, hold, sigma))  # a hole in the law that fitted best
     return out
 
 
