@@ -237,11 +237,11 @@ def refit_whole(bundle: Bundle, local: Local, hole: Hole, sigma: float, cfg: Sol
     whole = Whole(local.shape, local.experiment, held, local.force, local.h, local.linear_solver)
     guide = (held.roles == "guide") & on
     validate = held.roles == "validate"
-    e = jf.Ellipse(*hole.centre, *hole.axes, hole.angle)
+    e, E = jf.Ellipse(*hole.centre, *hole.axes, hole.angle), None
     starts = [] if edge is None else bracket_starts(local, edge)
     if starts:
-        e = best_start(whole, starts, guide, sigma, log)
-    start = SolidHole(whole, e, cfg.global_modulus, edge)
+        e, E = best_start(whole, starts, guide, sigma, log)
+    start = SolidHole(whole, e, cfg.global_modulus, edge, E)
     return refit(fit(start, guide, validate, sigma), guide, validate, sigma, max_remesh=cfg.max_remesh, element="tet10")
 
 
