@@ -133,7 +133,8 @@ def test_a_step_into_a_constraint_slides_along_it(seed):
     target = np.array([1.0, 0.0]) + rng.uniform(0.5, 2.0, 2)  # beyond the wall
     W = np.diag(rng.uniform(0.5, 3.0, 2))  # unequal weights: the constrained minimum is not the projection
     res = lambda z: W @ (z - target)  # noqa: E731
-    best = target - np.linalg.solve(W.T @ W, np.ones(2)) * ((target.sum() - 1) / np.linalg.solve(W.T @ W, np.ones(2)).sum())
+    w = np.linalg.solve(W.T @ W, np.ones(2))
+    best = target - w * (target.sum() - 1) / w.sum()  # the minimum on the wall
     slid = minimise(res, lambda z: W, _Wall(True), np.zeros(2), rtol=1e-12, chi2_tol=1e-12)
     np.testing.assert_allclose(slid.values["z"], best, atol=1e-5)
     stalled = minimise(res, lambda z: W, _Wall(False), np.zeros(2), rtol=1e-12, chi2_tol=1e-12)

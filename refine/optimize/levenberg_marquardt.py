@@ -112,5 +112,6 @@ def constrained_step(constraints: Callable[[Vector], np.ndarray], z: Vector, dz:
     r = optimize.minimize(lambda d: g @ d + 0.5 * d @ A @ d, np.zeros_like(dz), jac=lambda d: g + A @ d,
                           constraints=[{"type": "ineq", "fun": lambda d: constraints(z + d)}], method="SLSQP",
                           options={"maxiter": 100})
-    return np.asarray(r.x, float) if r.success else dz  # the caller checks it again (SLSQP ends on the constraints up to round-off)
+    # the caller checks it again: SLSQP ends on the constraints up to round-off (-6e-8)
+    return np.asarray(r.x, float) if r.success else dz
 
