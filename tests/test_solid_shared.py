@@ -54,7 +54,7 @@ def hole_model(tmp_path_factory):
     return hyp, compiled
 
 
-@pytest.mark.slow  # the frame scan's forward-mode Jacobian compiled: ~80 s at load 13 on 2 shared cores
+@pytest.mark.slow  # the frame scan's forward-mode Jacobian compiled: 23 s at load 3, 80 s at load 13 (2 cores)
 def test_shared_programs_carry_each_frames_pressure_as_the_frame_scan_does(hole_model):
     hyp, compiled = hole_model
     model = compiled.model
@@ -72,7 +72,7 @@ def test_shared_programs_carry_each_frames_pressure_as_the_frame_scan_does(hole_
     assert (np.abs(J).reshape(-1, J.shape[-1]).max(0) > 1e-4 * np.abs(J).max()).all()
 
 
-@pytest.mark.slow  # the frame scan's drive Jacobian compiled: ~150 s at load 13
+@pytest.mark.slow  # the frame scan's drive Jacobian compiled: 33 s at load 3, 150 s at load 13
 def test_the_drives_pull_back_loads_each_frame(hole_model):
     _, compiled = hole_model
     model = compiled.model
