@@ -80,6 +80,7 @@ def errors_of(row: dict, truth, g) -> None:
         row["area_error_pct"] = 100 * (f["area"] / truth.area - 1)
         row["area_std_pct"] = None if not f.get("std") else 100 * f["std"]["area"] / truth.area
         row["local_area_error_pct"] = 100 * (f["local_model"]["area"] / truth.area - 1)
+        row["modulus"] = f.get("E")  # the uniform modulus fitted beside the hole (true: the experiment's E)
         if f.get("edge") and f["edge"]["area_range"]:  # what the painted grid alone says of the area
             row["edge_area_range_pct"] = [100 * (a / truth.area - 1) for a in f["edge"]["area_range"]]
 

@@ -107,3 +107,53 @@ def test_the_grids_area_bracket_searched_from_a_consistent_hole_holds_the_truth(
     ev = evidence_near(grid_lattice(xy), [truth.cx, truth.cy], 5.0, G.r_in, slack=0.15)
     lo, hi = ev.area_range(truth.params)  # from the truth, which is consistent
     assert lo <= truth.area <= hi
+
+
+class _Wall:
+    """A toy parametrisation: two unknowns kept to ``z0 + z1 <= 1`` (a hole kept off a tracked point)."""
+
+    size, z0 = 2, np.zeros(2)
+
+    def __init__(self, slide: bool):
+        if slide:
+            self.constraints = lambda z: np.array([1.0 - z[0] - z[1]])
+
+    def infeasibility(self, z):
+        return "over the wall" if z[0] + z[1] > 1.0 else None
+
+    def values(self, z):
+        return {}
+
+
+@pytest.mark.parametrize("seed", [41, 42])
+def test_a_step_into_a_constraint_slides_along_it(seed):
+    from refine.optimize.levenberg_marquardt import minimise
+
+    rng = np.random.default_rng(seed)
+    target = np.array([1.0, 0.0]) + rng.uniform(0.5, 2.0, 2)  # beyond the wall
+    W = np.diag(rng.uniform(0.5, 3.0, 2))  # unequal weights: the constrained minimum is not the projection
+    res = lambda z: W @ (z - target)  # noqa: E731
+    w = np.linalg.solve(W.T @ W, np.ones(2))
+    best = target - w * (target.sum() - 1) / w.sum()  # the minimum on the wall
+    slid = minimise(res, lambda z: W, _Wall(True), np.zeros(2), rtol=1e-12, chi2_tol=1e-12)
+    np.testing.assert_allclose(slid.values["z"], best, atol=1e-5)
+    stalled = minimise(res, lambda z: W, _Wall(False), np.zeros(2), rtol=1e-12, chi2_tol=1e-12)
+    assert np.linalg.norm(stalled.values["z"] - best) > 1e-2  # rejected whole, the steps stop short
+
+
+def test_the_hole_geometry_constraints_agree_with_its_check():
+    xy, truth = bottom(24)
+    lat = grid_lattice(xy)
+    ev = evidence_near(lat, (truth.cx, truth.cy), max(truth.rx, truth.ry) + 2 * lat.step, G.r_in, slack=0.75)
+    e = jf.Ellipse(*ev.ellipse)
+    geo = EdgeGeometry(ExtrudedMorph.of(jf.cup.cup_bottom(G.r_in, G.r_out, G.bottom, 2.5, e)), e.params[None],
+                       scale=0.6, rotate=True, outside=xy, edge=ev, slack=max(ev.slack, ev.missing_outside(e.params)))
+    rng = np.random.default_rng(24)
+    seen = set()
+    for z in rng.normal(0, 1.0, (120, 5)):
+        ok = np.min(geo.constraints(z)) >= 0
+        why = geo.infeasibility(z)
+        if ok:  # within the constraints: no tracked point covered, no missing crossing left out
+            assert why is None or "squash" in why
+        seen.add((ok, why is None))
+    assert {(True, True), (False, False)} <= seen  # both sides drawn

@@ -68,6 +68,12 @@ def domain_mesh(experiment: Experiment, h: float, element: str = "tri3", inclusi
     return domain(Outline(np.asarray(dom.vertices)), h, holes=holes, inclusions=inclusions, element=element)
 
 
+def frame_traction(T, frame: int) -> dict:
+    """The loads of ``frame`` from :meth:`MeasuredModel.frame_tractions` ``T``: ``{"traction":
+    T[frame]}``, none where ``T`` is None (the parameter ``traction`` holds in every frame)."""
+    return {} if T is None else {"traction": T[frame]}
+
+
 @dataclass(frozen=True, eq=False)
 class FrameDrive:
     """How one frame's boundary motion is imposed: prescribed values = ``matrix @ U_boundary``.
@@ -222,6 +228,13 @@ class MeasuredModel:
         programs (:mod:`jaxfem.program`), which compiles nothing per model."""
         return type(self)._solve_frames is MeasuredModel._solve_frames
 
+    def frame_tractions(self, X):
+        """Each frame's traction on the traction facets at the reference nodes ``X``, ``(n_frames,
+        n_facets, dim)``, where a subclass loads its frames so (:class:`refine.solid.LoadedModel`:
+        a measured force over a face's area at ``X``); None here: the parameter ``traction`` in every
+        frame. The frame-by-frame solves on the shared programs take it (:func:`frame_traction`)."""
+        return None
+
     def frame_starts(self, theta):
         """Where each frame's solve starts: ``(u0 (n_dofs,), loads0)``, the undeformed state of the
         first frame's loads other than ``u_D``; later frames start from the one before."""
@@ -230,11 +243,11 @@ class MeasuredModel:
 
     def _solve_eager(self, theta, B, frames=None):
         frames = range(self.obs.n_frames) if frames is None else frames
-        start, out = self.frame_starts(theta), []
+        start, out, T = self.frame_starts(theta), [], self.frame_tractions(theta["X"])
         for f in frames:
-            u_D = self.drives[f].matrix @ B[f]
-            u = np.asarray(self.solver.displacement({**theta, "u_D": u_D}, start=start))
-            start = (u.reshape(-1), {**start[1], "u_D": u_D})
+            loads = {"u_D": self.drives[f].matrix @ B[f], **frame_traction(T, f)}
+            u = np.asarray(self.solver.displacement({**theta, **loads}, start=start))
+            start = (u.reshape(-1), {**start[1], **loads})
             out.append(u)
         return np.stack(out)
 
@@ -283,12 +296,12 @@ class MeasuredModel:
             return np.asarray(jax.jit(jax.jacfwd(lambda b: self.predict(theta, boundary=b)))(B))
         n_f, m = B.shape
         zero = {k: np.zeros((m,) + np.shape(v)) for k, v in theta.items() if k != "u_D"}
-        start, U, dU = self.frame_starts(theta), [], []
+        start, U, dU, T = self.frame_starts(theta), [], [], self.frame_tractions(theta["X"])
         for f in range(n_f):
             D = self.drives[f].matrix  # (n_fixed, m): u_D = D @ B[f], so the directions are its columns
-            u_D = D @ B[f]
-            u, du, _ = self.solver.solve_with_tangents({**theta, "u_D": u_D}, {**zero, "u_D": D.T}, start=start)
-            start = (np.asarray(u).reshape(-1), {**start[1], "u_D": u_D})
+            loads = {"u_D": D @ B[f], **frame_traction(T, f)}
+            u, du, _ = self.solver.solve_with_tangents({**theta, **loads}, {**zero, "u_D": D.T}, start=start)
+            start = (np.asarray(u).reshape(-1), {**start[1], **loads})
             U.append(u)
             dU.append(du)
         dU = np.stack(dU, 1)  # (m, frames, n_nodes, dim)
@@ -311,11 +324,12 @@ class MeasuredModel:
         C = np.asarray(cotangents, np.float64)
         B = self.measured_boundary()
         start, out = self.frame_starts(theta), np.zeros(C.shape[:2] + (B.shape[1],))
+        T = self.frame_tractions(theta["X"])
         for f in range(len(B)):
             D = self.drives[f].matrix  # (n_fixed, m): u_D = D @ B[f]
-            u_D = D @ B[f]
-            u, state = self.solver.solve_for_adjoint({**theta, "u_D": u_D}, start=start)
-            start = (np.asarray(u).reshape(-1), {**start[1], "u_D": u_D})
+            loads = {"u_D": D @ B[f], **frame_traction(T, f)}
+            u, state = self.solver.solve_for_adjoint({**theta, **loads}, start=start)
+            start = (np.asarray(u).reshape(-1), {**start[1], **loads})
             gU = np.asarray(self.points_vjp(np.asarray(u)[None], theta["X"], C[:, f:f + 1]))[:, 0]  # (c, nodes, dim)
             for i, g in enumerate(gU):
                 out[i, f] = D.T @ np.asarray(self.solver.adjoint(state, g)["u_D"])

@@ -18,7 +18,7 @@ import numpy as np
 from jaxtyping import Float
 
 from refine.measures import Residuals, displacement_error
-from refine.model.measured import MeasuredModel
+from refine.model.measured import MeasuredModel, frame_traction
 
 
 class Objective:
@@ -106,7 +106,7 @@ class Objective:
         :class:`~refine.model.MeasuredModel` does and the misfit is this class's, else one program
         compiled per objective."""
         if self.model.shares_programs and type(self).value is Objective.value \
-                and type(self).residuals is Objective.residuals:
+                and type(self).residuals is Objective.residuals and self.model.frame_tractions(self.theta["X"]) is None:
             return self._shared_value_and_grad
         return jax.jit(jax.value_and_grad(self.value))
 
@@ -173,6 +173,12 @@ class Compiled:
             return th, jax.jacfwd(param.apply, argnums=1)(self.theta, z)
 
         self._apply = jax.jit(apply)
+        self._tractions = None
+        if model.frame_tractions(self.theta["X"]) is not None:  # each frame's load follows the geometry
+            def tractions(z):
+                return model.frame_tractions(param.apply(self.theta, z)["X"])
+
+            self._tractions = jax.jit(lambda z: (tractions(z), jax.jacfwd(tractions)(z)))
         if not model.shares_programs:  # a model that solves its frames its own way: one program per model
             def f(z):
                 y = model.predict(param.apply(self.theta, z))
@@ -191,11 +197,13 @@ class Compiled:
         dirs = {key: np.moveaxis(np.asarray(v), -1, 0) for key, v in T.items()}
         dirs["u_D"] = np.zeros((k, len(model.problem.fixed)))  # the drive does not depend on z
         B, start = model.measured_boundary(), model.frame_starts(theta)
+        T, dT = (None, None) if self._tractions is None else self._tractions(np.asarray(z, float))
         U, dU = [], []
         for f in range(model.obs.n_frames):
-            u_D = model.drives[f].matrix @ B[f]
-            u, du, _ = model.solver.solve_with_tangents({**theta, "u_D": u_D}, dirs, start=start)
-            start = (np.asarray(u).reshape(-1), {**start[1], "u_D": u_D})
+            loads = {"u_D": model.drives[f].matrix @ B[f], **frame_traction(T, f)}
+            d = dirs if T is None else {**dirs, "traction": np.moveaxis(np.asarray(dT[f]), -1, 0)}
+            u, du, _ = model.solver.solve_with_tangents({**theta, **loads}, d, start=start)
+            start = (np.asarray(u).reshape(-1), {**start[1], **loads})
             U.append(u)
             dU.append(du)
         return np.stack(U), np.stack(dU, 1), theta, np.asarray(dirs["X"])

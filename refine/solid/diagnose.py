@@ -228,7 +228,8 @@ def refit_whole(bundle: Bundle, local: Local, hole: Hole, sigma: float, cfg: Sol
     held by the fixture's points, on every bottom point but the ``validate`` ones, scored on all
     ``validate`` points. With the grid's ``edge`` evidence the refit starts from the best of a few
     ellipses along its bracket (:mod:`refine.solid.start`; the local model, which leaves the wall
-    out, sizes the hole wrongly: -37 % to +92 % on the benchmark's cases) and keeps to it."""
+    out, sizes the hole wrongly: -37 % to +92 % on the benchmark's cases), from the modulus that
+    start fitted, and keeps to it."""
     obs = bundle.observations
     tol = 0.05 * point_spacing(obs.reference)
     held = held_by_fixture(obs, local.shape, tol)
@@ -237,11 +238,11 @@ def refit_whole(bundle: Bundle, local: Local, hole: Hole, sigma: float, cfg: Sol
     whole = Whole(local.shape, local.experiment, held, local.force, local.h, local.linear_solver)
     guide = (held.roles == "guide") & on
     validate = held.roles == "validate"
-    e = jf.Ellipse(*hole.centre, *hole.axes, hole.angle)
+    e, E = jf.Ellipse(*hole.centre, *hole.axes, hole.angle), None
     starts = [] if edge is None else bracket_starts(local, edge)
     if starts:
-        e = best_start(whole, starts, guide, sigma, log)
-    start = SolidHole(whole, e, cfg.global_modulus, edge)
+        e, E = best_start(whole, starts, guide, sigma, log)
+    start = SolidHole(whole, e, cfg.global_modulus, edge, E)
     return refit(fit(start, guide, validate, sigma), guide, validate, sigma, max_remesh=cfg.max_remesh, element="tet10")
 
 

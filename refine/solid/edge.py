@@ -173,6 +173,21 @@ class EdgeGeometry(ShapeGeometry):
     edge: EdgeEvidence | None = None
     slack: float = 0.0
 
+    def constraints(self, z) -> np.ndarray:
+        """Values ``>= 0`` where the hole at ``z`` keeps off the tracked points near it (by a
+        hundredth of ``scale``), keeps its gap's missing sites within the slack and both semi-axes
+        above ``min_axis``; cheap (no solve): the fit's steps slide along them
+        (:func:`refine.optimize.levenberg_marquardt.constrained_step`)."""
+        p = self.shape_params(z)[0]
+        margin = max(self.min_axis, 1e-3 * self.scale)
+        out = [p[2:4] - margin]
+        if self.outside is not None and len(self.outside):
+            d = subset_distance(self.outside, p, 0.0)
+            out.append(np.sort(d)[:64] - 0.01 * self.scale)  # those a step can reach
+        if self.edge is not None:
+            out.append(self.slack - subset_distance(self.edge.missing, p, 0.0))
+        return np.concatenate(out)
+
     def infeasibility(self, z) -> str | None:
         why = super().infeasibility(z)
         if why or self.edge is None:

@@ -77,6 +77,19 @@ class LoadedModel(MeasuredModel):
         per_area = jnp.asarray(self.force) / face_area(X, self.facets)
         return jnp.broadcast_to(per_area[:, None, :], (len(self.force), len(self.facets), 3))
 
+    def frame_tractions(self, X) -> jnp.ndarray:
+        """:meth:`tractions`: the frame-by-frame solves on :mod:`jaxfem.program`'s shared programs
+        (:class:`~refine.model.objective.Compiled`, :meth:`predict`, the drive's pull-back) load
+        each frame with it."""
+        return self.tractions(X)
+
+    @property
+    def shares_programs(self) -> bool:
+        """True: concrete parameters are solved frame by frame on the solver's shared programs,
+        each frame loaded by :meth:`frame_tractions` (a remesh compiles no solve again); traced
+        ones (forward or reverse mode through :meth:`predict`) by :meth:`_solve_frames`' scan."""
+        return True
+
     def _solve_frames(self, theta, B, frames=None):
         frames = tuple(range(self.obs.n_frames)) if frames is None else frames
         U_D = jnp.stack([jnp.asarray(self.drives[f].matrix) @ B[f] for f in frames])

@@ -22,6 +22,7 @@ from refine.bundle.observations import Observations
 from refine.bundle.roles import point_spacing
 from refine.diagnosis.fitted import NotApplicable
 from refine.diagnosis.holes import HoleShape, hole_hypothesis
+from refine.diagnosis.shapes import Hole
 from refine.model.objective import Compiled
 from refine.model.parametrize import Combined, UniformParameter
 from refine.solid.cup import CupShape
@@ -88,6 +89,24 @@ class Whole(Local):
         return model, cup
 
 
+@dataclass(frozen=True)
+class ModulusHole(Hole):
+    """A hole fitted with a uniform modulus ``E`` beside it (the experiment's unit): a remesh at it
+    starts from that modulus (:meth:`SolidHole.at`)."""
+
+    E: float | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class WithModulus(Combined):
+    """A hole's geometry (:class:`~refine.solid.edge.EdgeGeometry`) and a uniform modulus (the
+    last unknown): the geometry's :meth:`~refine.solid.edge.EdgeGeometry.constraints` on its
+    unknowns, so the fit's steps slide along them."""
+
+    def constraints(self, z) -> np.ndarray:
+        return self.parts[0].constraints(np.asarray(z, float)[:-1])
+
+
 @dataclass(frozen=True, eq=False)
 class SolidHole(HoleShape):
     """The hypothesis of an elliptic hole through the bottom at ``hole`` (cup frame): the local
@@ -95,7 +114,8 @@ class SolidHole(HoleShape):
     orientation fitted through an extruded morph
     (:class:`~refine.solid.morph.ExtrudedMorph`), remeshed at fitted shapes by
     :func:`refine.diagnosis.fitted.refit`. ``free_modulus``: a uniform modulus is fitted too (the
-    last unknown; between half and twice the experiment's E). ``edge``: the painted grid's
+    last unknown; between half and twice the experiment's E, started at ``E_start``, by default E,
+    and after a remesh where the fit left it). ``edge``: the painted grid's
     evidence of the hole (:class:`~refine.solid.edge.EdgeEvidence`): every missing crossing of its
     gap is kept within the evidence's slack of the hole (:class:`~refine.solid.edge.EdgeGeometry`)."""
 
@@ -103,6 +123,7 @@ class SolidHole(HoleShape):
     hole: jf.Ellipse
     free_modulus: bool = False
     edge: EdgeEvidence | None = None
+    E_start: float | None = None
     remeshable = True
 
     @property
@@ -118,14 +139,18 @@ class SolidHole(HoleShape):
                              edge=self.edge, slack=slack)
         if self.free_modulus:
             E = float(self.local.experiment.E)
-            param = Combined((param, UniformParameter("E", E, 0.5 * E, 2.0 * E)))
+            start = float(np.clip(self.E_start or E, 0.55 * E, 1.9 * E))  # inside the bounds' sigmoid
+            param = WithModulus((param, UniformParameter("E", start, 0.5 * E, 2.0 * E)))
         return Compiled(model, param), None
 
     def shapes_at(self, compiled: Compiled, z):
         if self.free_modulus:
-            return super().shapes_at(SimpleNamespace(param=compiled.param.parts[0]), np.asarray(z)[:-1])
+            s = super().shapes_at(SimpleNamespace(param=compiled.param.parts[0]), np.asarray(z)[:-1])[0]
+            E = float(compiled.param.parts[1].value(np.asarray(z)[-1:]))
+            return (ModulusHole(s.centre, s.axes, s.angle, E),)
         return super().shapes_at(compiled, z)
 
     def at(self, shapes, element: str = "tet10") -> SolidHole:
         s = shapes[0]
-        return SolidHole(self.local, jf.Ellipse(*s.centre, *s.axes, s.angle), self.free_modulus, self.edge)
+        return SolidHole(self.local, jf.Ellipse(*s.centre, *s.axes, s.angle), self.free_modulus, self.edge,
+                         getattr(s, "E", None))

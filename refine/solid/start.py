@@ -46,13 +46,14 @@ def bracket_starts(local: Local, edge: EdgeEvidence, offsets=OFFSETS) -> list[jf
     return out
 
 
-def best_start(whole: Local, starts: list[jf.Ellipse], points, sigma: float, log=print) -> jf.Ellipse:
+def best_start(whole: Local, starts: list[jf.Ellipse], points, sigma: float,
+               log=print) -> tuple[jf.Ellipse, float]:
     """The start among ``starts`` whose global model (``whole``'s, the hole cut) fits the
     ``points`` (mask) best at the noise ``sigma`` after one solve, its modulus scaled to fit
     (displacements under a measured force scale as 1/E: the prediction times a factor in
-    [0.5, 2], least squares)."""
+    [0.5, 2], least squares), and that modulus (the experiment's unit): the hole fit starts there."""
     at = Residuals.at(whole.obs.displacements, points, sigma)
-    best, chi2_best = starts[0], np.inf
+    best, chi2_best, E = starts[0], np.inf, float(whole.experiment.E)
     for e in starts:
         model, _ = whole.model(e)
         pred = np.asarray(model.predict(model.params()))
@@ -64,5 +65,5 @@ def best_start(whole: Local, starts: list[jf.Ellipse], points, sigma: float, log
         log(f"  global start: axes ({e.rx:.2f}, {e.ry:.2f}), area {np.pi * e.rx * e.ry:.2f}, modulus x {1 / s:.3f}: "
             f"chi2 {chi2:.0f}")
         if chi2 < chi2_best:
-            best, chi2_best = e, chi2
-    return best
+            best, chi2_best, E = e, chi2, float(whole.experiment.E) / s
+    return best, E
