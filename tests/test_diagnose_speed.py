@@ -37,25 +37,12 @@ def test_the_discretisation_fits_side_by_side_give_the_figures_of_one_after_the_
     """A stiffer ellipse of random place, size and ratio in a sheet, data from the finer quadratic
     solve with noise; the chosen model's mesh and drive estimates (with_discretisation) fitted in
     a pool equal those fitted one after the other (to the solver's tolerance)."""
-    from refine.diagnosis.fitted import fit, refit
-    from refine.diagnosis.regions import regions_hypothesis
-    from refine.diagnosis.shapes import RegionShape
-    from refine.diagnosis.uncertainty import with_discretisation
-    from refine.model.measured import MeasuredModel
-    from refine.synthetic.sheet import Inclusion, Truth, synthetic_bundle
+    from tests._ellipse_fit import fitted_ellipse
 
-    rng = np.random.default_rng(57)
-    cx, cy, angle = rng.uniform(17, 23), rng.uniform(13, 17), rng.uniform(0, 3)
-    a, b, ratio = rng.uniform(3.5, 4.5), rng.uniform(2.5, 3.5), float(rng.uniform(3, 6))
-    truth = Truth(inclusions=(Inclusion(jf.Ellipse(cx, cy, a, b, angle), ratio),))
-    bundle = synthetic_bundle(truth, seed=57, roi=(5.0, 5.0, 35.0, 25.0), sheet=(0.0, 0.0, 40.0, 30.0), spacing=2.5,
-                              noise=0.005, fractions=(1.0,), h=1.0)
-    obs = bundle.observations
-    guide, hold = obs.mask("guide"), obs.mask("validate")
-    model = MeasuredModel(bundle.experiment, obs)
+    from refine.diagnosis.uncertainty import with_discretisation
+
     sigma = 0.005
-    start = RegionShape((cx, cy), (a, b), angle, "ellipse", ratio)
-    f = refit(fit(regions_hypothesis(model, [start], [1]), guide, hold, sigma), guide, hold, sigma, element="tri6")
+    f, guide, hold, _ = fitted_ellipse(57, noise=0.005, sigma=sigma)
     one_by_one = with_discretisation(f, guide, hold, sigma)
     with ThreadPoolExecutor(2) as pool:
         side_by_side = with_discretisation(f, guide, hold, sigma, pool=pool)
