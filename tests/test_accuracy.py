@@ -15,7 +15,7 @@ import pytest
 import jaxfem as jf
 from refine.diagnosis.findings import findings
 from refine.diagnosis.shapes import Hole, RegionShape
-from refine.diagnosis.uncertainty import QUANTITIES, shape_errors, shape_quantities
+from refine.diagnosis.uncertainty import QUANTITIES, quantity_jacobian, shape_errors, shape_quantities
 
 
 class _Linear:
@@ -33,7 +33,9 @@ class _Linear:
 @pytest.mark.parametrize("kind", ["ellipse", "rectangle", "hole"])
 def test_errors_are_the_covariance_carried_to_every_quantity(kind):
     """The delta method on a map whose derivatives are known: ratio e^z0 (std ratio x std z0),
-    area pi a b or 4 a b (std from both axes and their correlation), the rest as given."""
+    area pi a b or 4 a b (std from both axes and their correlation), the rest as given; the
+    reported errors (from draws through the map: shape_errors) agree with it within the draws'
+    own scatter (1000 draws: about 2 % of a standard error), the map being nearly linear here."""
     rng = np.random.default_rng(3)
     z = np.array([np.log(rng.uniform(2, 8)), *rng.uniform(30, 60, 2), *rng.uniform(5, 12, 2), rng.uniform(0, 1)])
     L = rng.normal(size=(6, 6)) * 0.05
@@ -41,16 +43,20 @@ def test_errors_are_the_covariance_carried_to_every_quantity(kind):
     hyp = _Linear(kind)
     f = SimpleNamespace(hypothesis=hyp, compiled=None, z=z, z_cov=cov, shapes=hyp.shapes_at(None, z))
     f.compiled = object()
-    [e] = shape_errors(f)
+    G = quantity_jacobian(f)
+    linear = np.sqrt(np.einsum("qk,kl,ql->q", G, cov, G))
     sd = np.sqrt(np.diag(cov))
-    assert np.allclose([*e.centroid, *e.axes, e.angle], sd[1:], rtol=1e-5)
+    assert np.allclose(linear[:5], sd[1:], rtol=1e-5)
     c = np.pi if kind != "rectangle" else 4.0
     g = c * np.array([z[4], z[3]])  # d area / d (a, b)
-    assert e.area == pytest.approx(np.sqrt(g @ cov[3:5, 3:5] @ g), rel=1e-5)
+    assert linear[5] == pytest.approx(np.sqrt(g @ cov[3:5, 3:5] @ g), rel=1e-5)
+    [e] = shape_errors(f)
+    assert np.allclose([*e.centroid, *e.axes, e.angle, e.area], linear[:6], rtol=0.08)
     if kind == "hole":
         assert e.relative_elasticity is None
     else:
-        assert e.relative_elasticity == pytest.approx(np.exp(z[0]) * sd[0], rel=1e-5)
+        assert linear[6] == pytest.approx(np.exp(z[0]) * sd[0], rel=1e-5)
+        assert e.relative_elasticity == pytest.approx(linear[6], rel=0.08)
     assert len(shape_quantities(f.shapes)[0]) == len(QUANTITIES)
 
 
