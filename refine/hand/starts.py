@@ -23,7 +23,8 @@ def predicted(start, before) -> np.ndarray | None:
     last two fits (:class:`~refine.hand.FrameFit`), ``None`` without both."""
     if start is None or before is None:
         return None
-    return 2 * np.r_[start.pose, start.angles] - np.r_[before.pose, before.angles]
+    n = len(start.angles)
+    return 2 * fit_vector(start, n) - fit_vector(before, n)
 
 
 def restart_starts(last: np.ndarray, names, angles, offsets, include_last: bool):
