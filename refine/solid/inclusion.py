@@ -31,6 +31,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Float
 
+from jaxfem.probe import solve_small
+
 from refine.model.measured import MeasuredModel
 from refine.model.objective import Compiled
 
@@ -127,7 +129,9 @@ class EllipsoidModulus:
     def fraction(self, z):
         """``(n_cells,)``: the smooth share of each cell inside the ellipsoid at ``z``."""
         _, c, M = self.geometry(z)
-        Minv = jnp.linalg.inv(M)
+        # M^-1 by the closed form (its columns solve M x = e_i), not LAPACK in compiled code
+        # (see jaxfem.probe.solve_small)
+        Minv = solve_small(jnp.broadcast_to(M, (3, 3, 3)), jnp.eye(3)).T
         p = (jnp.asarray(self.samples) - c) @ Minv.T
         rho = jnp.sqrt(jnp.sum(p * p, -1) + 1e-12)
         grad = (p @ Minv) / rho[..., None]  # d rho / dx: a function of the direction from c alone
