@@ -37,21 +37,33 @@ RANGES = (1.0, 1.5, 2.0)
 #: motions whose normal range is longer than the standard one, x its range: a normal wrist extends to
 #: ~70 degrees (AAOS; the standard up-down motion: 45), so 1.5 x 45 = 67.5 is inside the normal range
 LONGER = {"wrist up-down": 1.5}
+#: where the up-down motion's area maximum sits (the palm-side skin of the wrist, y -16..0, on the
+#: coarse mesh at x = -13 then +16 mm): slabs ``(axis, lo, hi)`` (mm) of ``jaxfem.hand.hand_mesh(fine=...)``
+#: split to the refinement's h (the wrist and 8 mm beyond it along y; the palm-side tissue under the
+#: skin along z; the area's strip along x): a model refined where the maximum strain sits
+WRIST_SLABS = ((1, -24.0, 8.0), (2, -14.0, -4.5), (0, -16.0, 16.0))
 
 
-def _tag(name: str, h: float, frames: int, scale: float) -> str:
-    return f"{name.replace(' ', '_')}_h{h:g}_f{frames}_x{scale:g}"
+def wrist_refined(h_fine: float | None) -> tuple:
+    """The ``fine`` rows of :func:`jaxfem.hand.hand_mesh` that split :data:`WRIST_SLABS` to at most
+    ``h_fine`` mm (none for ``None``: the uniform mesh)."""
+    return () if h_fine is None else tuple((a, lo, hi, float(h_fine)) for a, lo, hi in WRIST_SLABS)
 
 
-def mesh_curve(name: str, h: float, frames: int = FRAMES, scale: float = 1.0, cache: Path | None = None) -> dict:
+def _tag(name: str, h: float, frames: int, scale: float, wrist: float | None = None) -> str:
+    return f"{name.replace(' ', '_')}_h{h:g}_f{frames}_x{scale:g}" + ("" if wrist is None else f"_w{wrist:g}")
+
+
+def mesh_curve(name: str, h: float, frames: int = FRAMES, scale: float = 1.0, cache: Path | None = None,
+               wrist: float | None = None) -> dict:
     """The motion ``name`` of :func:`jaxfem.hand.standard_motions` at ``scale`` x its range on the
-    paper-size hand meshed at ``h`` mm: the arrays of the module's docstring (from ``cache`` if
-    there, solved and saved there otherwise)."""
-    path = None if cache is None else Path(cache) / f"{_tag(name, h, frames, scale)}.npz"
+    paper-size hand meshed at ``h`` mm (its wrist refined to ``wrist`` mm: :func:`wrist_refined`):
+    the arrays of the module's docstring (from ``cache`` if there, solved and saved there otherwise)."""
+    path = None if cache is None else Path(cache) / f"{_tag(name, h, frames, scale, wrist)}.npz"
     if path is not None and path.exists():
         return dict(np.load(path))
     t0 = time.perf_counter()
-    hand = hand_mesh(default_body(PAPER), h, SNAP)
+    hand = hand_mesh(default_body(PAPER), h, SNAP, wrist_refined(wrist))
     model = HandModel(hand)
     motion = standard_motions(hand.body, frames)[name]
     motion = replace(motion, angles={k: v * scale for k, v in motion.angles.items()})
@@ -59,7 +71,7 @@ def mesh_curve(name: str, h: float, frames: int = FRAMES, scale: float = 1.0, ca
     out = {"x": r.displacement, "skin": r.skin_strain, "centres": hand.mesh.nodes[hand.skin_facets[:, :3]].mean(axis=1),
            "elements": np.array(hand.mesh.n_cells), "seconds": r.seconds, "reached": np.array(r.reached),
            "load": np.array(float(open("/proc/loadavg").read().split()[0]))}
-    print("threshold mesh", _tag(name, h, frames, scale), hand.mesh.n_cells, "elements,",
+    print("threshold mesh", _tag(name, h, frames, scale, wrist), hand.mesh.n_cells, "elements,",
           f"{time.perf_counter() - t0:.0f} s", flush=True)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
