@@ -37,6 +37,13 @@ RANGES = (1.0, 1.5, 2.0)
 #: motions whose normal range is longer than the standard one, x its range: a normal wrist extends to
 #: ~70 degrees (AAOS; the standard up-down motion: 45), so 1.5 x 45 = 67.5 is inside the normal range
 LONGER = {"wrist up-down": 1.5}
+#: the estimate's model for the longer motions: the paper-size hand with its wrist refined to WRIST_H mm
+#: (:func:`wrist_refined`; at 8 mm its grid there would be the h = 8 mm truth's own, so 12: coarser than the
+#: truth everywhere, other grid lines across and through the skin); the hinge also at each of WRIST_STUDY
+WRIST_H = 12.0
+WRIST_STUDY = (12.0, 8.0, 6.0)
+#: draws per score of the refined model's section (the 50 of the others left a sampling error of ~6 %)
+REFINED_DRAWS = 200
 #: where the up-down motion's area maximum sits (the palm-side skin of the wrist, y -16..0, on the
 #: coarse mesh at x = -13 then +16 mm): slabs ``(axis, lo, hi)`` (mm) of ``jaxfem.hand.hand_mesh(fine=...)``
 #: split to the refinement's h (the wrist and 8 mm beyond it along y; the palm-side tissue under the
@@ -186,6 +193,59 @@ def longer_motions(coarse, areas: dict, cache: Path, scales: dict = LONGER, fram
         truths[name] = (*_area_curve(c, areas[name]), int(c["elements"]))
     out = threshold_truth(data, {n: areas[n] for n in scales}, truths=truths)
     return out | {"scales": dict(scales), "meshes": meshes}
+
+
+def refined_model(wrist: float, h: float = SIZES[0]) -> HandModel:
+    """The paper-size hand at ``h`` mm with its wrist refined to ``wrist`` mm (:func:`wrist_refined`)."""
+    return HandModel(hand_mesh(default_body(PAPER), h, SNAP, wrist_refined(wrist)))
+
+
+def _estimate_data(model, scales: dict, frames: int, path: Path) -> dict:
+    """The estimate's curves for :func:`_hand_threshold.threshold_truth` (``coarse/*`` keys): ``model``'s
+    ``frames``-step curve at each of ``scales`` and its Jacobian, seconds per frame and for the
+    Jacobian; cached at ``path``."""
+    if path.exists():
+        return dict(np.load(path))
+    strains = skin_strain_function(model)
+    data = {"step_deg": np.array(_hand_threshold.STEP_DEG), "coarse/elements": np.array(model.hand.mesh.n_cells),
+            "coarse/nodes": np.array(model.hand.mesh.n_nodes),
+            "coarse/centres": model.hand.mesh.nodes[model.hand.skin_facets[:, :3]].mean(axis=1)}
+    for name, scale in scales.items():
+        motion = standard_motions(model.hand.body, frames)[name]
+        motion = replace(motion, angles={k: v * scale for k, v in motion.angles.items()})
+        c = run_motion(model, motion, strains=strains)
+        t0 = time.perf_counter()
+        disp, skin = perturbed_skin(model, motion, c, strains)
+        data |= {f"{name}/coarse_x": c.displacement, f"{name}/coarse_skin": c.skin_strain, f"{name}/seconds": c.seconds,
+                 f"{name}/jacobian_s": np.array(time.perf_counter() - t0), f"{name}/perturbed_x": disp,
+                 f"{name}/perturbed_skin": skin, f"{name}/load": np.array(float(open("/proc/loadavg").read().split()[0]))}
+        print("threshold estimate", name, model.hand.mesh.n_cells, "elements", flush=True)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(path, **data)
+    return data
+
+
+def longer_refined(previous: dict, areas: dict, cache: Path, wrist: float = WRIST_H, study=WRIST_STUDY,
+                   draws: int = REFINED_DRAWS, frames: int = 20) -> dict:
+    """The longer motions' threshold section again with the estimate's model refined at the wrist,
+    where the area's maximum strain sits (:func:`refined_model` at ``wrist`` mm; its curve and
+    Jacobian cached in ``cache/longer_w<wrist>.npz``), ``draws`` draws per score, against the
+    truth of ``previous`` (the ``longer`` section: the finest mesh's curve, as in its JSON); and
+    the hinge of the wrist-refined hand at each of ``study`` (mm; 24 steps, noise-free)."""
+    scales = previous["scales"]
+    data = _estimate_data(refined_model(wrist), scales, frames, Path(cache) / f"longer_w{wrist:g}.npz")
+    truths = {n: (np.asarray(previous[n]["fine_curve"]["displacement_mm"]),
+                  np.asarray(previous[n]["fine_curve"]["area_max_strain"]), previous["fine_elements"][0]) for n in scales}
+    out = threshold_truth(data, {n: areas[n] for n in scales}, truths=truths, draws=draws)
+    for n, scale in scales.items():
+        rows = [{"wrist_h_mm": w, "elements": int(c["elements"]), "s_per_frame": float(np.median(c["seconds"])),
+                 "load": float(c["load"])} | hinge(*_area_curve(c, areas[n]))
+                for w in study for c in [mesh_curve(n, SIZES[0], FRAMES, scale, cache, wrist=w)]]
+        out[n] |= {"wrist_study": rows, "model": {
+            "wrist_h_mm": wrist, "elements": int(data["coarse/elements"]), "nodes": int(data["coarse/nodes"]),
+            "s_per_frame": float(np.median(data[f"{n}/seconds"])), "jacobian_s": float(data[f"{n}/jacobian_s"]),
+            "load": float(data[f"{n}/load"])}}
+    return out | {"scales": dict(scales), "wrist_h_mm": wrist}
 
 
 def targets(conv: dict) -> dict:

@@ -146,7 +146,7 @@ class Finding:
         why = [f"no significant change of the growth rate (F test p = {h.p_value:.2g} >= {r.alpha:g})"] * (
             h.p_value >= r.alpha)
         why += [f"the growth rate rises only {h.rise:.3g}x at the best hinge ({100 * h.fraction:.0f} % of the motion), "
-                f"< {r.min_rise:g}x: the curve bends evenly"] * (h.rise < r.min_rise)
+                f"< {r.min_rise:g}x: no drastic speed-up"] * (h.rise < r.min_rise)
         return "; ".join(why)
 
     def to_json(self) -> dict:
