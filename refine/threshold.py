@@ -145,7 +145,8 @@ class Finding:
         h, r = self.hinge, self.rule
         why = [f"no significant change of the growth rate (F test p = {h.p_value:.2g} >= {r.alpha:g})"] * (
             h.p_value >= r.alpha)
-        why += [f"the growth rate rises only {h.rise:.3g}x at the best hinge ({100 * h.fraction:.0f} % of the motion), "
+        rises = f"rises only {h.rise:.3g}x" if h.rise > 1 else "does not rise"
+        why += [f"the growth rate {rises} at the best hinge ({100 * h.fraction:.0f} % of the motion), "
                 f"< {r.min_rise:g}x: no drastic speed-up"] * (h.rise < r.min_rise)
         return "; ".join(why)
 

@@ -94,5 +94,7 @@ def test_a_finding_reports_the_threshold_with_its_interval_or_none_with_why_and_
     assert no["hinge"]["fraction"] == bend.hinge.fraction  # the hinge's place is kept, not called a threshold
     line = rule.find(x, 0.003 * x + rng.normal(0.0, 0.01, x.size))
     assert not line.found and "F test" in line.why_none
+    slows = rule.find(x, np.minimum(x, x[15]) * 0.003)  # growth that stops: no faster growth anywhere
+    assert not slows.found and slows.hinge.rise == 1.0 and "does not rise" in slows.why_none
     with pytest.raises(ObservationError, match="at least 6 samples"):
         rule.find(x[:4], s[:4])
