@@ -27,7 +27,6 @@ import numpy as np
 
 from jaxfem.hand import PAPER, HandModel, default_body, hand_mesh, run_motion, skin_strain_function, standard_motions
 from refine.exceptions import ObservationError
-from refine.threshold import strain_threshold
 
 import _hand_threshold
 from _hand_threshold import RULE, perturbed_skin, threshold_truth
@@ -97,11 +96,12 @@ def hinge(x, s) -> dict:
     """The rising hinge of a noise-free curve as JSON, with its ``rise`` and whether it is a
     threshold by :data:`RULE` (an ``error`` where the curve cannot be read)."""
     try:
-        th = strain_threshold(x, s, rising=True)
+        found = RULE.find(x, s)
     except ObservationError as e:
         return {"error": str(e)}
+    th = found.hinge
     return {"fraction": th.fraction, "interval": list(th.fraction_interval), "rise": th.rise, "p_value": th.p_value,
-            "threshold": RULE.holds(th)}
+            "threshold": found.found}
 
 
 def _area_curve(c: dict, box):
@@ -225,7 +225,8 @@ def _estimate_data(model, scales: dict, frames: int, path: Path) -> dict:
         disp, skin = perturbed_skin(model, motion, c, strains)
         data |= {f"{name}/coarse_x": c.displacement, f"{name}/coarse_skin": c.skin_strain, f"{name}/seconds": c.seconds,
                  f"{name}/jacobian_s": np.array(time.perf_counter() - t0), f"{name}/perturbed_x": disp,
-                 f"{name}/perturbed_skin": skin, f"{name}/load": np.array(float(open("/proc/loadavg").read().split()[0]))}
+                 f"{name}/perturbed_skin": skin,
+                 f"{name}/load": np.array(float(open("/proc/loadavg").read().split()[0]))}
         print("threshold estimate", name, model.hand.mesh.n_cells, "elements", flush=True)
     path.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(path, **data)
@@ -242,16 +243,17 @@ def longer_refined(previous: dict, areas: dict, cache: Path, wrist: float = WRIS
     scores of the estimate on the models refined to each of ``others`` (mm), ``other_wrist_models``."""
     out = _refined(previous, areas, cache, wrist, study, draws, frames)
     keys = ("truth_fraction", "coarse_noise_free_fraction", "coarse_noise_free_has_threshold", "tracked", "raw", "model")
-    other = {f"{w:g}": {n: {k: sec[n][k] for k in keys} for n in previous["scales"]} | {"coarse_elements": sec["coarse_elements"]}
-             for w in others for sec in [_refined(previous, areas, cache, w, (), draws, frames)]}
+    other = {f"{w:g}": {n: {k: sec[n][k] for k in keys} for n in previous["scales"]}
+             | {"coarse_elements": sec["coarse_elements"]} for w in others for sec in [_refined(previous, areas, cache, w, (), draws, frames)]}
     return out | {"other_wrist_models": other}
 
 
 def _refined(previous: dict, areas: dict, cache: Path, wrist: float, study, draws: int, frames: int) -> dict:
     scales = previous["scales"]
     data = _estimate_data(refined_model(wrist), scales, frames, Path(cache) / f"longer_w{wrist:g}.npz")
-    truths = {n: (np.asarray(previous[n]["fine_curve"]["displacement_mm"]),
-                  np.asarray(previous[n]["fine_curve"]["area_max_strain"]), previous["fine_elements"][0]) for n in scales}
+    fine = {n: previous[n]["fine_curve"] for n in scales}
+    truths = {n: (np.asarray(f["displacement_mm"]), np.asarray(f["area_max_strain"]), previous["fine_elements"][0])
+              for n, f in fine.items()}
     out = threshold_truth(data, {n: areas[n] for n in scales}, truths=truths, draws=draws)
     for n, scale in scales.items():
         rows = [{"wrist_h_mm": w, "elements": int(c["elements"]), "s_per_frame": float(np.median(c["seconds"])),

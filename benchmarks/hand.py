@@ -329,9 +329,9 @@ def main(argv=None):
            "scars": {k: {"outline": v.outline.params.tolist(), "depth_mm": v.depth, "ratio": v.ratio}
                      for k, v in SCARS.items()},
            "area_of_interest": {"box_mm": [AREA.lo, AREA.hi], "others": {k: [b.lo, b.hi] for k, b in OTHER_AREAS.items()}},
-           "threshold": "refine.threshold.ThresholdRule.find on the area's max strain vs the marked point's displacement "
-                        "(jaxfem.hand.run_motion(detector=...)): a threshold (fraction of the motion, 95 % interval) "
-                        "or none with why",
+           "threshold": "refine.threshold.ThresholdRule.find on the area's max strain vs the marked point's "
+                        "displacement (jaxfem.hand.run_motion(detector=...)): a threshold (fraction of the motion, "
+                        "95 % interval) or none with why",
            "sizes": {}}
     hand, model, res["sizes"]["paper"] = build(PAPER, 24.0, 4.5)
     print("paper-size hand", res["sizes"]["paper"], flush=True)

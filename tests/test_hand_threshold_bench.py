@@ -108,7 +108,8 @@ def test_the_targets_read_the_finest_truth_and_the_longer_motions_apart(bench):
     res["longer"] |= {"coarse_elements": 4, "draws": 50}
     t = ht.targets(res | {"longer_wrist_refined": refined})
     longer = t["threshold_within_5pct_longer_motion"]
-    assert longer["pass"] and longer["share_agreeing"] == {"m": 0.85} and "refined at the wrist to 12 mm" in longer["target"]
+    assert longer["pass"] and longer["share_agreeing"] == {"m": 0.85}
+    assert "refined at the wrist to 12 mm" in longer["target"]
     assert longer["paper_size_model"]["share_agreeing"] == {"m": 0.7} and longer["model"]["m"]["elements"] == 7
 
 
@@ -130,7 +131,8 @@ def test_threshold_found_reports_each_motions_answer_and_passes_only_where_it_is
     se = 0.003 * xe * (1 + 0.1 * xe / 160.0) + rng.normal(0.0, 1e-5, xe.size)  # rate +10 %, evenly
     curve = lambda x, s: {"displacement_mm": x.tolist(), "area_max_strain": s.tolist()}  # noqa: E731
     sec = {"jump": {"truth_has_threshold": True, "truth_fraction": f, "truth_rise": 2.0, "coarse_curve": curve(xj, sj)},
-           "even": {"truth_has_threshold": False, "truth_fraction": 0.5, "truth_rise": 1.1, "coarse_curve": curve(xe, se)}}
+           "even": {"truth_has_threshold": False, "truth_fraction": 0.5, "truth_rise": 1.1,
+                    "coarse_curve": curve(xe, se)}}
     run = {"curve": curve(xj, sj), "threshold": {"fraction": 0.1, "p_value": 1e-9}}  # a stale detection
     paper = {"jump": {"none": run, "small": run | {"curve": curve(xe, se)}}, "compile_s": 3.0}
     res = {"threshold_truth": {"against_finest_mesh": sec}, "paper": ht.redetect(paper)}
@@ -140,7 +142,8 @@ def test_threshold_found_reports_each_motions_answer_and_passes_only_where_it_is
     t = ht.found_target(res)["threshold_found"]
     assert t["pass"] and t["motions"]["jump"]["agrees"] and t["motions"]["even"]["agrees"]
     jump, even = t["motions"]["jump"]["model"], t["motions"]["even"]["model"]
-    assert abs(jump["fraction"] - f) <= 0.05 and jump["fraction_interval"][0] < jump["fraction"] < jump["fraction_interval"][1]
+    assert abs(jump["fraction"] - f) <= 0.05
+    assert jump["fraction_interval"][0] < jump["fraction"] < jump["fraction_interval"][1]
     assert "fraction" not in even and "rises only" in even["why_none"] and "jump: a threshold at" in t["found"]
     assert t["paper_runs_over_wrist_area"]["jump"]["small"]["has_threshold"] is False
     sec["even"]["truth_has_threshold"] = True  # a truth the model's answer does not give: the target fails
