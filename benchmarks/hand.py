@@ -25,9 +25,10 @@ overhanging the wrist), where strain is mesh-dependent, and barely feels a scar.
 OTHER_AREAS are reported too, from the same solves.
 
 The strain threshold (the change of growth rate the paper finds at 80-90 % of a motion) is found
-per run by refine.threshold.strain_threshold through ``jaxfem.hand.run_motion(detector=...)``, on
-the area's maximum strain against the marked point's displacement: its ``fraction`` of the motion
-with the 95 % profile-likelihood interval and the F test's p-value of a change at all.
+per run by refine.threshold.ThresholdRule.find (the one definition: the rising hinge, a threshold
+only where the rate rises >= 1.25x with p < 0.01) through ``jaxfem.hand.run_motion(detector=...)``,
+on the area's maximum strain against the marked point's displacement: a threshold with its
+``fraction`` of the motion and 95 % profile-likelihood interval, or none with why (the hinge kept).
 
 Tracking (issue 25 item 5, ``_hand_tracking.py``): a synthetic range sequence of the moving hand
 (a finer mesh, random angles and pose, depth noise, part of the hand unseen) tracked by
@@ -42,6 +43,8 @@ placed on the wrist of a hand meshed fine enough to hold it, with a strain limit
 literature (STRAIN_LIMIT).
 
     python benchmarks/hand.py --only tracking threshold found-scar   # these sections into the last hand.json
+    python benchmarks/hand.py --only threshold-refined               # the longer up-down motion's estimate on
+                                                                     # the model refined at the wrist (_threshold_mesh)
     python benchmarks/hand.py --only threshold --reuse-curves        # the threshold analysed again from
                                                                      # results/hand_threshold.npz or hand.json
 
@@ -69,8 +72,6 @@ import jaxfem as jf  # noqa: E402
 from jaxfem.hand import (PAPER, Box, HandDimensions, HandModel, Scar, default_body, hand_mesh,  # noqa: E402
                          plot_curves, reachable, run_motion, scar_cells, skin_area, skin_strain_function,
                          standard_motions, write_motion_series)
-from refine.exceptions import ObservationError  # noqa: E402
-from refine.threshold import strain_threshold  # noqa: E402
 
 import _hand_threshold  # noqa: E402
 import _hand_tracking  # noqa: E402
@@ -116,12 +117,7 @@ def build(dims: HandDimensions, h: float, snap: float):
                          "skin_facets": len(hand.skin_facets), "build_s": time.perf_counter() - t}
 
 
-def detect(x, strain):
-    """refine's threshold of a strain curve as JSON (an ``error`` where the curve is too short)."""
-    try:
-        return strain_threshold(x, strain).to_json()
-    except ObservationError as e:
-        return {"error": str(e)}
+detect = _hand_threshold.detect_json  # a threshold with its interval or none (ThresholdRule.find), as JSON
 
 
 def row(r, hand) -> dict:
@@ -259,18 +255,18 @@ def targets(res) -> dict:
                              "pass": res["sizes"]["large"]["elements"] >= 3 * paper["elements"]
                              and res["large_motion"]["reached"] == 1.0}
     rise = {m: {s: res["paper"][m][s]["area_change_pct"] for s in SCARS} for m in motions if m.startswith("wrist")}
-    t["scar_raises_max_strain"] = {"target": "each wrist motion's maximum strain over the area of interest rises "
-                                             "with each wrist scar", "area_change_pct": rise,
-                                   "pass": all(v > 0 for r in rise.values() for v in r.values())}
-    th = {m: {s: res["paper"][m][s]["threshold"].get("fraction") for s in ("none", *SCARS)} for m in motions}
-    t["threshold_found"] = {"target": "a strain threshold (refine.threshold, F test p < 0.01) in each normal motion; "
-                                      "the paper: at 80-90 % of the motion", "fraction": th,
-                            "p_value": {m: res["paper"][m]["none"]["threshold"].get("p_value") for m in motions},
-                            "pass": all((res["paper"][m]["none"]["threshold"].get("p_value") or 1) < 0.01
-                                        for m in motions)}
+    t["scar_raises_max_strain"] = {  # the issue: the scar "raises the maximum strain of some motions"
+        "target": "each wrist scar raises the maximum strain over the area of interest of some (at least one) wrist "
+                  "motion (the paper: +6 % side-to-side with a small scar, +64.44 % up-down, +148.43 % a large one)",
+        "area_change_pct": rise, "each_motion_each_scar": all(v > 0 for r in rise.values() for v in r.values()),
+        "pass": all(any(r[s] > 0 for r in rise.values()) for s in SCARS)}
+    t |= _hand_threshold.found_target(res)
     big = {m: res["paper"][m]["large"]["reached"] for m in motions}
-    t["large_scar_restricts"] = {"target": "the large scar restricts at least one motion (the paper: side-to-side)",
-                                 "reached": big, "pass": any(v < 1 for v in big.values())}
+    t["large_scar_restricts"] = {  # no pass: the issue's target with a stated limit is ..._at_literature_limit
+        "informational": f"the large scar's reachable share at {LIMIT}x the normal hand's full-range maximum over the "
+                         "area (and at tighter relative limits); a relative limit is not the issue's, whose target "
+                         "with a stated limit is large_scar_restricts_at_literature_limit",
+        "reached": big, "reached_at_limit": {m: res["paper"][m]["large"].get("reached_at_limit") for m in motions}}
     spf = res["paper"][motions[0]]["none"]["s_per_frame"]
     t["seconds_per_frame"] = {"target": "< 10 s per frame at paper size on 2 shared cores", "s": spf,
                               "load": res["load"], "pass": spf is not None and spf < 10}
@@ -310,8 +306,9 @@ def main(argv=None):
     ap.add_argument("--fine-only", action="store_true", help="rerun only the finer mesh's wrist motions and update "
                     "mesh_dependence in the last hand.json")
     ap.add_argument("--series", default=None, help="folder for the ParaView series (not written by default)")
-    ap.add_argument("--only", nargs="+", choices=("tracking", "threshold", "found-scar"), default=None,
-                    help="run only these sections, into the last hand.json")
+    ap.add_argument("--only", nargs="+", choices=("tracking", "threshold", "threshold-refined", "found-scar"),
+                    default=None, help="run only these sections, into the last hand.json (threshold-refined: the "
+                    "longer motion's estimate on the wrist-refined model alone)")
     ap.add_argument("--reuse-curves", action="store_true", help="--only threshold: analyse the solves saved in "
                     "results/hand_threshold.npz (or, without it, the curves in the last hand.json) again instead of "
                     "solving")
@@ -332,8 +329,9 @@ def main(argv=None):
            "scars": {k: {"outline": v.outline.params.tolist(), "depth_mm": v.depth, "ratio": v.ratio}
                      for k, v in SCARS.items()},
            "area_of_interest": {"box_mm": [AREA.lo, AREA.hi], "others": {k: [b.lo, b.hi] for k, b in OTHER_AREAS.items()}},
-           "threshold": "refine.threshold.strain_threshold on the area's max strain vs the marked point's displacement "
-                        "(jaxfem.hand.run_motion(detector=...)); fraction of the motion, 95 % profile-likelihood interval",
+           "threshold": "refine.threshold.ThresholdRule.find on the area's max strain vs the marked point's "
+                        "displacement (jaxfem.hand.run_motion(detector=...)): a threshold (fraction of the motion, "
+                        "95 % interval) or none with why",
            "sizes": {}}
     hand, model, res["sizes"]["paper"] = build(PAPER, 24.0, 4.5)
     print("paper-size hand", res["sizes"]["paper"], flush=True)
@@ -390,6 +388,10 @@ def sections(only, frames, reuse=False, seeds=None, thumb_h=None):
                                                          lambda: _threshold_mesh.finest_curves(THRESHOLD_AREAS, cache))
         res["threshold_truth"]["mesh"] = _threshold_mesh.convergence(THRESHOLD_AREAS, cache)
         res["threshold_truth"]["longer"] = _threshold_mesh.longer_motions(model, THRESHOLD_AREAS, cache)
+    if "threshold" in only or "threshold-refined" in only:  # the longer motion's estimate refined at the wrist
+        res["paper"] = _hand_threshold.redetect(res["paper"])
+        res["threshold_truth"]["longer_wrist_refined"] = _threshold_mesh.longer_refined(
+            res["threshold_truth"]["longer"], THRESHOLD_AREAS, OUT / "hand_threshold_mesh") | {"load": load()}
     if "found-scar" in only:
         res["found_scar"] = found_scar_section(fine, fine_size, frames) | {"load": load()}
     res["targets"] = targets(res)

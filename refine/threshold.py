@@ -22,6 +22,10 @@ rise by at least ``min_rise`` at the hinge (the paper: strains "increase drastic
 threshold) and the change must be significant (``p_value < alpha``). A curve whose rate rises by
 8 % over its motion then has no threshold, rather than one at a place that noise decides.
 
+The one definition, for every curve a report or a benchmark reads: :meth:`ThresholdRule.find`
+(the rising hinge, judged by the rule) gives a :class:`Finding`: a threshold with its interval, or
+none (with why), the hinge's own figures kept beside either answer.
+
 A pure function of arrays, no model: layer 0 of refine, beside :mod:`refine.measures`.
 """
 
@@ -98,6 +102,62 @@ class ThresholdRule:
     def holds(self, threshold: Threshold) -> bool:
         """Whether ``threshold`` is one by this rule."""
         return threshold.p_value < self.alpha and threshold.rise >= self.min_rise
+
+    def find(self, motion: Float[np.ndarray, "n"], strain: Float[np.ndarray, "n"], level: float = 0.95) -> Finding:
+        """The threshold of the curve ``strain`` (e.g. the maximum strain per frame) against ``motion``
+        (any unit, strictly monotone), or none: the rising hinge (:func:`strain_threshold` with
+        ``rising=True``, interval at ``level``) judged by this rule.
+
+        Raises:
+            ObservationError: as :func:`strain_threshold` (too few samples, shapes, non-finite
+                values, a motion that is not strictly monotone).
+        """
+        hinge = strain_threshold(motion, strain, level=level, rising=True)
+        return Finding(hinge, self.holds(hinge), self)
+
+    def to_json(self) -> dict:
+        return {"min_rise": self.min_rise, "alpha": self.alpha}
+
+
+@dataclass(frozen=True)
+class Finding:
+    """What :meth:`ThresholdRule.find` says of a curve.
+
+    Attributes:
+        hinge: the rising hinge (:class:`Threshold`), whether or not it is a threshold.
+        found: whether the curve has a threshold by ``rule``; rule: the :class:`ThresholdRule`.
+    """
+
+    hinge: Threshold
+    found: bool
+    rule: ThresholdRule
+
+    @property
+    def threshold(self) -> Threshold | None:
+        """The threshold (its place and interval), ``None`` where the curve has none."""
+        return self.hinge if self.found else None
+
+    @property
+    def why_none(self) -> str | None:
+        """Why the curve has no threshold (``None`` where it has one)."""
+        if self.found:
+            return None
+        h, r = self.hinge, self.rule
+        why = [f"no significant change of the growth rate (F test p = {h.p_value:.2g} >= {r.alpha:g})"] * (
+            h.p_value >= r.alpha)
+        rises = f"rises only {h.rise:.3g}x" if h.rise > 1 else "does not rise"
+        why += [f"the growth rate {rises} at the best hinge ({100 * h.fraction:.0f} % of the motion), "
+                f"< {r.min_rise:g}x: no drastic speed-up"] * (h.rise < r.min_rise)
+        return "; ".join(why)
+
+    def to_json(self) -> dict:
+        """``has_threshold``; where there is one its place ``motion`` (motion's unit) and ``fraction``
+        with their 95 % ``interval`` / ``fraction_interval`` and ``std`` (as :meth:`Threshold.to_json`,
+        at the top level); where there is none ``why_none``; always the ``hinge`` and the ``rule``."""
+        top = {k: v for k, v in self.hinge.to_json().items() if k in ("motion", "interval", "fraction",
+                                                                       "fraction_interval", "std", "level")}
+        return ({"has_threshold": self.found} | (top if self.found else {"why_none": self.why_none})
+                | {"hinge": self.hinge.to_json(), "rule": self.rule.to_json()})
 
 
 def strain_threshold(motion: Float[np.ndarray, "n"], strain: Float[np.ndarray, "n"], level: float = 0.95,

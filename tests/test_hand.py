@@ -20,7 +20,7 @@ from jaxfem.hand import (Body, Bone, Box, HandModel, Joint, Motion, Scar, Tissue
                          default_body, hand_mesh, plot_curves, reachable, run_motion, scar_cells, skin_area,
                          write_motion_series)
 from jaxfem.io import read_pvd
-from refine.threshold import strain_threshold
+from refine.threshold import ThresholdRule
 from tests._hand_util import COARSE, coarse_hand
 
 
@@ -136,14 +136,14 @@ def test_threshold_of_a_motion_that_changes_speed(model, seed):
     assert 0 < wrist.sum() < len(wrist)
     limit = 2e-3  # a stated strain limit over the area of interest, passed early in this motion
     r = run_motion(model, motion, area=wrist, against="time", strain_limit=limit,
-                   detector=lambda x, s: strain_threshold(x, s).to_json())
+                   detector=lambda x, s: ThresholdRule().find(x, s).to_json())
     assert len(r.time) == frames + 1 and np.all(r.area_max_strain <= r.max_strain + 1e-15)
     assert r.restricted and r.limited_by == "strain limit"  # the frames past it are still solved and kept
     assert r.reached == pytest.approx(reachable(r.fraction, r.area_max_strain, limit))
-    t = r.threshold
-    assert abs(t["fraction"] - at) < 0.05, (t, at)
-    assert t["fraction_interval"][0] < t["fraction"] < t["fraction_interval"][1] and t["p_value"] < 1e-3
-    assert t["slopes"][1] > 1.5 * t["slopes"][0]  # it speeds up
+    t = r.threshold  # the one definition (refine.threshold.ThresholdRule.find): a threshold with its interval
+    assert t["has_threshold"] and abs(t["fraction"] - at) < 0.05, (t, at)
+    assert t["fraction_interval"][0] < t["fraction"] < t["fraction_interval"][1] and t["hinge"]["p_value"] < 1e-3
+    assert t["hinge"]["rise"] > 1.5  # it speeds up
     with pytest.raises(jf.ProblemError, match="schedule"):
         Motion("bad", {"wrist_flexion": 5.0}, "thumb tip", 2, (0.6, 0.5))
     with pytest.raises(jf.ProblemError, match="area of interest"):

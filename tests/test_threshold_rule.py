@@ -34,10 +34,10 @@ def test_a_jump_of_the_growth_rate_is_a_threshold_and_an_even_bend_of_8_percent_
     jumps, bends, near = [], [], []
     for _ in range(40):
         x, s, f = _hinge(rng, rng.uniform(1.6, 4.0))
-        th = strain_threshold(x, s, rising=True)
-        jumps.append(rule.holds(th))
-        near.append(abs(th.fraction - f) <= 0.05)
-        bends.append(rule.holds(strain_threshold(*_even_bend(rng, 1.08), rising=True)))
+        found = rule.find(x, s)
+        jumps.append(found.found)
+        near.append(abs(found.hinge.fraction - f) <= 0.05)
+        bends.append(rule.find(*_even_bend(rng, 1.08)).found)
     assert np.mean(jumps) >= 0.95 and np.mean(near) >= 0.9, (np.mean(jumps), np.mean(near))
     assert np.mean(bends) <= 0.1, np.mean(bends)
 
@@ -70,3 +70,31 @@ def test_rise_is_the_ratio_of_the_slopes_for_either_direction_of_motion():
 def test_a_rule_that_cannot_be_met_is_a_clear_error(kwargs, words):
     with pytest.raises(ObservationError, match=words):
         ThresholdRule(**kwargs)
+
+
+def test_a_finding_reports_the_threshold_with_its_interval_or_none_with_why_and_keeps_the_hinge():
+    """ThresholdRule.find, the one definition: the rising hinge judged by the rule; its JSON puts a
+    threshold's place and interval at the top (what jaxfem.hand.plot_curves draws) and says why
+    where there is none, the hinge's figures beside either answer."""
+    rng = np.random.default_rng(11)
+    rule = ThresholdRule()
+    x, s, f = _hinge(rng, rng.uniform(2.0, 3.0), n=30)
+    yes = rule.find(x, s)
+    assert yes.found and yes.threshold is yes.hinge and yes.why_none is None
+    assert yes.hinge == strain_threshold(x, s, rising=True) and yes.hinge.fraction == pytest.approx(f, abs=0.05)
+    j = yes.to_json()
+    assert j["has_threshold"] and j["fraction"] == yes.hinge.fraction and j["motion"] == yes.hinge.motion
+    assert j["interval"][0] < j["motion"] < j["interval"][1] and j["std"] > 0
+    assert j["hinge"]["rise"] == yes.hinge.rise and j["rule"] == {"min_rise": 1.25, "alpha": 0.01}
+    xb = np.linspace(0.0, 60.0, 30)
+    bend = rule.find(xb, 0.004 * xb * (1 + 0.08 * xb / 120.0) + rng.normal(0.0, 1e-5, xb.size))  # rate +8 %, evenly
+    no = bend.to_json()
+    assert not bend.found and bend.threshold is None and not no["has_threshold"] and bend.hinge.p_value < 0.01
+    assert "motion" not in no and "fraction" not in no and no["why_none"].startswith("the growth rate rises only")
+    assert no["hinge"]["fraction"] == bend.hinge.fraction  # the hinge's place is kept, not called a threshold
+    line = rule.find(x, 0.003 * x + rng.normal(0.0, 0.01, x.size))
+    assert not line.found and "F test" in line.why_none
+    slows = rule.find(x, np.minimum(x, x[15]) * 0.003)  # growth that stops: no faster growth anywhere
+    assert not slows.found and slows.hinge.rise == 1.0 and "does not rise" in slows.why_none
+    with pytest.raises(ObservationError, match="at least 6 samples"):
+        rule.find(x[:4], s[:4])
