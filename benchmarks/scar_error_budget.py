@@ -2,6 +2,7 @@
 2.69 reported std off): what the diagnosis's final fit errs by, split into its sources.
 
     python benchmarks/scar_error_budget.py --seed 1 --draws 12      # ~10 min at load ~11
+    python benchmarks/scar_error_budget.py --seed 3 --out scar_error_budget_seed3
 
 For one seed of :func:`refine.synthetic.skin.random_scar` the chosen hypothesis (the true kind,
 started at the truth: the search is not measured here) is fitted as the diagnosis's final refit
@@ -25,7 +26,8 @@ bundle with its noise and on the same bundle without noise. Measured:
 
 Targets: the noise-free error within 2 estimated discretisation errors; the reported standard
 error inside the 95 % interval of the draws' standard deviation (chi-square, draws - 1 degrees of
-freedom), and so each part's. Writes results/scar_error_budget.json and scar_error_budget.png.
+freedom), and so each part's. Writes results/scar_error_budget.json and scar_error_budget.png
+(``--out`` names them).
 """
 
 from __future__ import annotations
@@ -146,6 +148,7 @@ def main():
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--draws", type=int, default=12)
     p.add_argument("--part-draws", type=int, default=8, help="fresh draws of each part of the noise")
+    p.add_argument("--out", default="scar_error_budget", help="name of the JSON and PNG in results/")
     args = p.parse_args()
     t0 = time.perf_counter()
     truth = random_scar(np.random.default_rng(args.seed))
@@ -176,8 +179,8 @@ def main():
             **{f"reported_{k}_std_inside_its_draws_interval": _inside(split[k]) for k in ("drive", "fitted")}},
     }
     OUT.mkdir(exist_ok=True)
-    (OUT / "scar_error_budget.json").write_text(json.dumps(result, indent=1, default=_plain))
-    _plot(result, OUT / "scar_error_budget.png")
+    (OUT / f"{args.out}.json").write_text(json.dumps(result, indent=1, default=_plain))
+    _plot(result, OUT / f"{args.out}.png")
     print(json.dumps(result["targets"], indent=1, default=_plain))
 
 
