@@ -64,3 +64,23 @@ def test_std_interval_holds_the_true_std_95_percent_of_the_time(modules):
         lo, hi = budget.std_interval(float(np.std(rng.normal(0, sigma, n), ddof=1)), n)
         hits += lo <= sigma <= hi
     assert 0.93 <= hits / trials <= 0.97
+
+
+@pytest.mark.slow  # a fit and five refits of a small scar (a few minutes on 2 shared cores)
+def test_the_noise_split_adds_up_and_each_part_is_within_its_reported_error(modules):
+    from dataclasses import replace
+
+    from refine.synthetic.skin import SKIN, random_scar, skin_bundle
+
+    _, budget = modules
+    setting = replace(SKIN, spacing=4.0, h=1.6)  # a coarser grid and data mesh than the benchmark's
+    truth = random_scar(np.random.default_rng(11), setting)
+    noisy = skin_bundle(truth, seed=11, setting=setting)
+    clean = budget.final_fit(skin_bundle(truth, seed=11, setting=replace(setting, noise=0.0)), truth, setting.noise)
+    split = budget.split_the_noise(noisy, clean, setting.noise, part_draws=2, seed=0)
+    std = np.hypot(split["drive"]["reported_std"], split["fitted"]["reported_std"])
+    assert split["drive"]["reported_std"] > 0 and split["fitted"]["reported_std"] > 0
+    assert abs(split["sum_of_parts"] - split["whole"]) < 0.1 * std, split  # linear in the noise at this level
+    for part in ("drive", "fitted"):
+        assert abs(split[part]["z"]) < 4, split
+        assert len(split[part]["draws"]) == 2 and split[part]["draws_std"] > 0
