@@ -1,0 +1,86 @@
+"""The scar benchmarks' error checks (issue 25: the relative elasticity "within its reported
+uncertainty"): benchmarks/scar.py's coverage of the ratio's z over seeds, and
+benchmarks/scar_error_budget.py's split of the noise by where it sits and the interval of a
+standard deviation from draws. Fast: no solve (the fits themselves are what the benchmarks run)."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.stats import norm
+
+BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+@pytest.fixture(scope="module")
+def modules():
+    sys.path.insert(0, str(BENCH))
+    try:
+        yield importlib.import_module("scar"), importlib.import_module("scar_error_budget")
+    finally:
+        sys.path.remove(str(BENCH))
+
+
+def test_coverage_passes_right_errors_and_fails_too_small_or_too_large_ones(modules):
+    scar, _ = modules
+    z = np.random.default_rng(7).standard_normal(300)
+    right = scar.coverage(z)
+    assert right["pass"] and right["n"] == 300
+    assert abs(right["outside"] - right["expected_outside"]) < 3 * np.sqrt(right["expected_outside"])
+    short = scar.coverage(1.4 * z)  # errors reported 1.4 times too small
+    assert not short["pass"] and short["p_outside"] < 0.05 and short["p_sum_z2"] < 0.05
+    wide = scar.coverage(z / 2)  # errors reported twice too large: sum z^2 far too small
+    assert not wide["pass"] and wide["p_sum_z2"] < 0.05
+
+
+def test_coverage_of_two_seeds_one_outside_is_the_binomial_probability(modules):
+    scar, _ = modules
+    c = scar.coverage([2.35, -0.82])
+    p = 2 * norm.sf(2.0)
+    assert c["outside"] == 1 and c["n"] == 2
+    assert c["p_outside"] == pytest.approx(1 - (1 - p) ** 2, rel=1e-12)
+    assert c["sum_z2"] == pytest.approx(2.35**2 + 0.82**2)
+
+
+def test_noise_sources_partition_the_points_into_drive_and_fitted(modules):
+    _, budget = modules
+    roles = np.array(["boundary", "guide", "validate", "boundary", "guide"])
+    parts = budget.noise_sources(roles)
+    assert set(parts) == {"drive", "fitted"}
+    assert np.array_equal(parts["drive"], roles == "boundary")
+    assert not np.any(parts["drive"] & parts["fitted"]) and np.all(parts["drive"] | parts["fitted"])
+
+
+def test_std_interval_holds_the_true_std_95_percent_of_the_time(modules):
+    _, budget = modules
+    rng = np.random.default_rng(3)
+    sigma, n, trials = 0.017, 12, 2000
+    hits = 0
+    for _ in range(trials):
+        lo, hi = budget.std_interval(float(np.std(rng.normal(0, sigma, n), ddof=1)), n)
+        hits += lo <= sigma <= hi
+    assert 0.93 <= hits / trials <= 0.97
+
+
+@pytest.mark.slow  # a fit and five refits of a small scar (a few minutes on 2 shared cores)
+def test_the_noise_split_adds_up_and_each_part_is_within_its_reported_error(modules):
+    from dataclasses import replace
+
+    from refine.synthetic.skin import SKIN, random_scar, skin_bundle
+
+    _, budget = modules
+    setting = replace(SKIN, spacing=4.0, h=1.6)  # a coarser grid and data mesh than the benchmark's
+    truth = random_scar(np.random.default_rng(11), setting)
+    noisy = skin_bundle(truth, seed=11, setting=setting)
+    clean = budget.final_fit(skin_bundle(truth, seed=11, setting=replace(setting, noise=0.0)), truth, setting.noise)
+    split = budget.split_the_noise(noisy, clean, setting.noise, part_draws=2, seed=0)
+    std = np.hypot(split["drive"]["reported_std"], split["fitted"]["reported_std"])
+    assert split["drive"]["reported_std"] > 0 and split["fitted"]["reported_std"] > 0
+    assert abs(split["sum_of_parts"] - split["whole"]) < 0.1 * std, split  # linear in the noise at this level
+    for part in ("drive", "fitted"):
+        assert abs(split[part]["z"]) < 4, split
+        assert len(split[part]["draws"]) == 2 and split[part]["draws_std"] > 0
