@@ -112,8 +112,12 @@ def findings(chosen, evidence: str, background_modulus: float | None) -> list[Fi
              for k, d in (getattr(chosen, "q_disc_parts", None) or {}).items()}
     for i, shape in enumerate(chosen.shapes):
         # z holds the log ratios first, then the geometry unknowns: ratio i's standard error is std[i]
+        # the same standard error as the total's (the draws through the map, where there are
+        # errors); else the linearised ratio * std(log ratio)
         std = None
-        if chosen.z_std is not None and shape.kind != "hole":
+        if errors[i] is not None and errors[i].relative_elasticity is not None and shape.kind != "hole":
+            std = round(float(errors[i].relative_elasticity), 4)
+        elif chosen.z_std is not None and shape.kind != "hole":
             std = round(float(shape.ratio * chosen.z_std[i]), 4)
         area, polygon = shape.outline()
         region = FoundRegion((round(float(shape.centre[0]), 4), round(float(shape.centre[1]), 4)), round(area, 4),
