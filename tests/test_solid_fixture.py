@@ -50,7 +50,7 @@ def test_every_rim_node_is_driven_by_the_fixtures_points(seed):
     assert fixture_nodes(cup.mesh, Observations(held.ids, off, held.roles, held.displacements), 0.02) is None
 
 
-@pytest.mark.slow  # a 3D tet10 solve of the data and of the model: ~1-2 minutes on 2 shared cores
+@pytest.mark.slow  # a 3D tet10 solve of the data and of the model: 29 s at load 9 (2 cores)
 def test_the_global_model_on_the_datas_mesh_reproduces_noise_free_data():
     """With the data's own mesh and the true hole the global model IS the data's solve: where it was
     driven only near the rim's points its guide misfit was 0.71 x the noise's (0.004 mm RMS) at
@@ -58,7 +58,9 @@ def test_the_global_model_on_the_datas_mesh_reproduces_noise_free_data():
     rng = np.random.default_rng(5)
     hole = random_hole(G, 5)
     h, forces = 2.0, (1.0, 3.0)
-    X, roles = _points(G, hole, 1.0, rng)
+    X, roles = _points(G, hole, 0.5, rng)  # rings 1.2 mm apart: the rim's mid-edge nodes 0.45 mm off them
+    keep = (X[:, 2] == 0) | (X[:, 2] == G.height)  # the wall's rings lie off a coarse mesh's polygon
+    X, roles = X[keep], roles[keep]
     U = solve_cup(G, hole, forces, h, X)
     w, held = whole(X, roles, U, forces, h)
     model, _ = w.model(hole)
