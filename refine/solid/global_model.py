@@ -92,8 +92,9 @@ def rim_fixture(obs: Observations, shape: CupShape) -> Observations:
 def fixture_nodes(mesh: jf.Mesh, obs: Observations, tol: float) -> np.ndarray | None:
     """``(k,)`` the surface nodes the fixture's points drive: every node of the plane face
     (normal to the axis z) their ``boundary`` points lie on, each within ``tol`` (length unit; at
-    least their depth noise, less than an element) of its plane (the rim; mesh and points in one frame). None where the boundary points do not share
-    one such plane (then the model drives the nodes near them).
+    least their depth noise, less than an element) of its plane (the rim; mesh and points in one
+    frame). None where the boundary points do not share one such plane (then the model drives
+    the nodes near them).
 
     Why: driven only near its points, the rim's mid-edge nodes between the fixture's three rings
     of points were free (148 of 420 at h 1.2): the global model's wall was softer than the clamped
