@@ -89,6 +89,25 @@ def rim_fixture(obs: Observations, shape: CupShape) -> Observations:
                         np.concatenate([obs.displacements, U], axis=1), forces=obs.forces)
 
 
+def fixture_nodes(mesh: jf.Mesh, obs: Observations, tol: float) -> np.ndarray | None:
+    """``(k,)`` the surface nodes the fixture's points drive: every node of the plane face
+    (normal to the axis z) their ``boundary`` points lie on, each within ``tol`` (length unit; at
+    least their depth noise, less than an element) of its plane (the rim; mesh and points in one
+    frame). None where the boundary points do not share one such plane (then the model drives
+    the nodes near them).
+
+    Why: driven only near its points, the rim's mid-edge nodes between the fixture's three rings
+    of points were free (148 of 420 at h 1.2): the global model's wall was softer than the clamped
+    rim of the data, and a hole fitted in it came out 8-13 % too large (noise-free data, the data's
+    own mesh and the true hole: guide misfit 0.71 x the noise's, 0 with the whole rim held)."""
+    z = obs.reference[obs.roles == "boundary", 2]
+    if not len(z) or np.abs(z - np.median(z)).max() > tol:
+        return None
+    b = mesh.boundary_nodes()
+    on = b[np.abs(mesh.nodes[b, 2] - np.median(z)) <= tol]
+    return on if len(on) >= 3 else None
+
+
 def global_check(bundle: Bundle, shape: CupShape, force, meshes: dict, tol: float,
                  linear_solver: str = "auto") -> dict:
     """Each global model of ``meshes`` (name -> mesh) held by the fixture's points and squeezed
@@ -97,11 +116,12 @@ def global_check(bundle: Bundle, shape: CupShape, force, meshes: dict, tol: floa
     obs = held_by_fixture(bundle.observations, shape, tol)
     on = bottom_points(shape, obs.reference, tol)
     validate = obs.roles == "validate"  # the fixture's points are boundary ones
+    plane_tol = max(4 * (bundle.experiment.noise_std or 0.0), tol)
     out = {}
     for name, mesh in meshes.items():
         t0 = time.perf_counter()
         model = LoadedModel(bundle.experiment, obs, mesh, mesh.side_facets("back"), force,
-                            linear_solver=linear_solver)
+                            linear_solver=linear_solver, driven=fixture_nodes(mesh, obs, plane_tol))
         pred = np.asarray(model.predict(model.params()))
         err = np.linalg.norm(pred - obs.displacements, axis=2)  # (frames, points)
         rms = lambda m: float(np.sqrt(np.nanmean(err[:, m] ** 2))) if m.any() else None  # noqa: E731

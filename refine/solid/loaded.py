@@ -58,19 +58,29 @@ class LoadedModel(MeasuredModel):
     total ``force (n_frames, 3)`` (the bundle's force unit) spread uniformly over ``facets`` (dead
     load per reference area). ``mesh`` must have straight edges where it is morphed.
 
+    ``driven``: the surface nodes the boundary points drive ``(k,)`` (each interpolated from its
+    nearest points, :func:`jaxfem.surface.surface_interpolation`), e.g. every node of the face a
+    fixture holds; None: those within 0.75 point spacings of a boundary point (which leaves nodes
+    between rows of points free: the cup holder's rim between its rings of points).
+
     The other arguments are :class:`~refine.model.MeasuredModel`'s; the points are compared with
     the model where :func:`refine.model.boundary.place_surface_points` puts them (on the surface, within
     the placement's tolerance)."""
 
     def __init__(self, experiment, observations, mesh: jf.Mesh, facets, force, h: float | None = None,
-                 linear_solver: str = "auto"):
+                 linear_solver: str = "auto", driven=None):
         force = np.asarray(force, float).reshape(observations.n_frames, 3)
         if not np.isfinite(force).all():
             raise ObservationError("the measured forces must be finite numbers in every frame")
         self.force = force
         self.facets = np.asarray(facets, np.int64)
+        self.driven = None if driven is None else np.asarray(driven, np.int64)
         super().__init__(experiment, observations, mesh=mesh, h=h, linear_solver=linear_solver,
                          traction_facets=self.facets)
+
+    def _interpolation(self, points, nodes=None, names=None):
+        """:meth:`MeasuredModel._interpolation` onto :attr:`driven` where given."""
+        return super()._interpolation(points, nodes=self.driven if nodes is None else nodes, names=names)
 
     def tractions(self, X) -> jnp.ndarray:
         """``(n_frames, n_facets, 3)``: each frame's pressure on the loaded face at geometry ``X``."""

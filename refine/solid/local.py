@@ -27,6 +27,7 @@ from refine.model.objective import Compiled
 from refine.model.parametrize import Combined, UniformParameter
 from refine.solid.cup import CupShape
 from refine.solid.edge import EdgeEvidence, EdgeGeometry
+from refine.solid.global_model import fixture_nodes
 from refine.solid.loaded import LoadedModel
 from refine.solid.morph import ExtrudedMorph
 
@@ -84,8 +85,9 @@ class Whole(Local):
     def model(self, hole: jf.Ellipse | None = None) -> tuple[LoadedModel, jf.CupHolder]:
         s = self.shape
         cup = jf.cup_holder(s.r_in, s.r_out, s.height, s.bottom, self.h, hole=hole)
+        driven = fixture_nodes(cup.mesh, self.obs, max(4 * (self.experiment.noise_std or 0.0), 0.05 * self.h))
         model = LoadedModel(self.experiment, self.obs, cup.mesh, cup.bottom_outer_facets, self.force, h=self.h,
-                            linear_solver=self.linear_solver)
+                            linear_solver=self.linear_solver, driven=driven)
         return model, cup
 
 
