@@ -56,6 +56,8 @@ class Program:
         # that waits inside XLA for a busy executable holds the GIL, which the running one's host
         # solver callback needs (a diagnosis's two workers hung so, all threads waiting)
         self.lock = threading.Lock()
+        self._ready, self._compiling = set(), {}  # compiled shapes; a lock per shape being compiled
+        self._guard = threading.Lock()
         self._newton = partial(newton_solve, asm=asm, lin=lin, opts=opts, facet_element=facet_element,
                                finite=finite)
         self.newton = jax.jit(self._newton)
@@ -63,6 +65,32 @@ class Program:
         self.displacement = jax.jit(self._equilibrium)
         self.tangents = jax.jit(self._tangents)
         self.adjoint = jax.jit(self._adjoint)
+
+    # ------------------------------------------------------------------ running a piece
+    def run(self, name: str, *args):
+        """``getattr(self, name)(*args)``, its outputs computed (``block_until_ready``), run inside
+        :attr:`lock` and compiled outside it (:meth:`compile`): a thread compiling a new shape
+        does not hold up another that runs an executable of this program (two hypotheses, or the
+        discretisation fits of two mesh sizes, side by side); their runs still take turns."""
+        self.compile(name, *args)
+        with self.lock:  # wait inside the lock: a later np.asarray would wait holding the GIL
+            return jax.block_until_ready(getattr(self, name)(*args))
+
+    def compile(self, name: str, *args) -> None:
+        """Compile the jitted piece ``name`` for the shapes of ``args`` unless done (``lower`` and
+        ``compile``, which fill the jitted function's caches: its next call with such arguments
+        compiles nothing). One thread compiles a shape; another that needs it waits for it, one
+        that needs another shape compiles beside it."""
+        leaves, tree = jax.tree.flatten(args)
+        key = (name, tree, tuple(jax.typeof(x) for x in leaves))
+        if key in self._ready:
+            return
+        with self._guard:
+            lock = self._compiling.setdefault(key, threading.Lock())
+        with lock:
+            if key not in self._ready:
+                getattr(self, name).lower(*args).compile()
+                self._ready.add(key)
 
     # ------------------------------------------------------------------ residual and tangent
     def residual(self, u, theta, arrays):
