@@ -56,8 +56,6 @@ class Program:
         # that waits inside XLA for a busy executable holds the GIL, which the running one's host
         # solver callback needs (a diagnosis's two workers hung so, all threads waiting)
         self.lock = threading.Lock()
-        self._ready, self._compiling = set(), {}  # compiled shapes; a lock per shape being compiled
-        self._guard = threading.Lock()
         self._newton = partial(newton_solve, asm=asm, lin=lin, opts=opts, facet_element=facet_element,
                                finite=finite)
         self.newton = jax.jit(self._newton)
@@ -77,20 +75,8 @@ class Program:
             return jax.block_until_ready(getattr(self, name)(*args))
 
     def compile(self, name: str, *args) -> None:
-        """Compile the jitted piece ``name`` for the shapes of ``args`` unless done (``lower`` and
-        ``compile``, which fill the jitted function's caches: its next call with such arguments
-        compiles nothing). One thread compiles a shape; another that needs it waits for it, one
-        that needs another shape compiles beside it."""
-        leaves, tree = jax.tree.flatten(args)
-        key = (name, tree, tuple(jax.typeof(x) for x in leaves))
-        if key in self._ready:
-            return
-        with self._guard:
-            lock = self._compiling.setdefault(key, threading.Lock())
-        with lock:
-            if key not in self._ready:
-                getattr(self, name).lower(*args).compile()
-                self._ready.add(key)
+        """Compile the jitted piece ``name`` for the shapes of ``args`` unless done (:func:`compile_once`)."""
+        compile_once(getattr(self, name), *args)
 
     # ------------------------------------------------------------------ residual and tangent
     def residual(self, u, theta, arrays):
@@ -173,6 +159,29 @@ class Program:
         """The parameters' cotangent (a pytree like ``theta``) of the cotangent ``g (n_dofs,)`` of
         the converged ``u``: one adjoint solve (the transpose of :meth:`_solve_tangent`)."""
         return jax.vjp(lambda th: self._implicit(th, u, vals, arrays), theta)[1](g)[0]
+
+
+_READY: set = set()  # (jitted function, argument types, static arguments) compiled by compile_once
+_COMPILING: dict = {}  # a lock per such key
+_GUARD = threading.Lock()
+
+
+def compile_once(fn, *args, **static) -> None:
+    """Compile the jitted ``fn`` for the types of ``args`` (and the ``static`` keyword arguments)
+    unless done: ``lower`` and ``compile``, which fill ``fn``'s caches (its next call with such
+    arguments compiles nothing). One thread compiles a key; another that needs it waits for it (two
+    threads calling a jitted function of a new shape at once would each compile it), one that
+    needs another key compiles beside it. Takes no program's lock."""
+    leaves, tree = jax.tree.flatten(args)
+    key = (fn, tree, tuple(jax.typeof(x) for x in leaves), tuple(sorted(static.items())))
+    if key in _READY:
+        return
+    with _GUARD:
+        lock = _COMPILING.setdefault(key, threading.Lock())
+    with lock:
+        if key not in _READY:
+            fn.lower(*args, **static).compile()
+            _READY.add(key)
 
 
 _PROGRAMS: dict = {}

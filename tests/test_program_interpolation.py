@@ -85,3 +85,32 @@ def test_a_second_model_of_the_bucket_compiles_no_interpolation():
     cached = interpolation.frame_jvp._cache_size(), interpolation.frame_vjp._cache_size()
     run(m2)
     assert (interpolation.frame_jvp._cache_size(), interpolation.frame_vjp._cache_size()) == cached
+
+
+def test_two_threads_needing_one_new_interpolation_compile_it_once():
+    """Two hypotheses fitted side by side whose models need the same new interpolation program at
+    once (a bucket no model compiled before): one compilation."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from jaxfem import program
+
+    rng = np.random.default_rng(37)
+    m1, m2 = _models(rng, "tri6")
+    assert m1._shared_interpolation[1] == m2._shared_interpolation[1]
+    seen = []
+    jax.monitoring.register_event_duration_secs_listener(
+        lambda event, duration, **kw: seen.append(kw.get("fun_name"))
+        if event.endswith("backend_compile_duration") else None)
+
+    def run(m):
+        n = m.mesh.n_nodes
+        U, dU, dX = np.ones((1, n, 2)), np.ones((3, 1, n, 2)), np.zeros((3, n, 2))
+        return m.at_points_and_derivatives(U, dU, m.mesh.nodes, dX)
+
+    # forget what earlier tests compiled (their buckets may be these)
+    interpolation.frame_jvp.clear_cache()
+    program._READY.difference_update({k for k in program._READY if k[0] is interpolation.frame_jvp})
+    with ThreadPoolExecutor(2) as pool:
+        list(pool.map(run, (m1, m2)))
+    assert interpolation.frame_jvp._cache_size() == 1
+    assert sum("frame_jvp" in str(name) for name in seen) == 1, seen

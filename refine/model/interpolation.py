@@ -7,7 +7,8 @@ comes as arguments, padded to bucket sizes (:func:`jaxfem.padding.bucket`: nodes
 candidate cells per point), and the frames one at a time, so that the models of one diagnosis
 (its hypotheses, remeshes, the discretisation fits) compile these programs once per element and
 bucket instead of once per model and number of frames (2-9 s each at load 3-10 when the probe's
-arrays were constants of a program compiled per model). The values are those of
+arrays were constants of a program compiled per model), and once when two hypotheses fitted side
+by side need one at the same time (:func:`jaxfem.program.compile_once`). The values are those of
 :meth:`MeasuredModel.at_points`: padding nodes and cells are never looked up, and a padding
 candidate cell repeats the point's own cell (the first of the tied candidates wins, as before).
 """
@@ -20,6 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxfem.padding import BATCH, bucket, pad_batch
+from jaxfem.program import compile_once
 from jaxfem.probe import Probe
 
 
@@ -82,7 +84,8 @@ def points_and_derivatives(arrays, n_nodes_p, moved, U, dU, X, dX):
     pred, der = [], []
     for f in range(len(U)):
         Uf = pad_nodes(U[f], n_nodes_p)
-        out = [frame_jvp(Uf, dUp[i: i + BATCH, f], Xp, dXp[i: i + BATCH], arrays, moved)
+        compile_once(frame_jvp, Uf, dUp[:BATCH, f], Xp, dXp[:BATCH], arrays, moved=moved)
+        out = [frame_jvp(Uf, dUp[i: i + BATCH, f], Xp, dXp[i: i + BATCH], arrays, moved=moved)
                for i in range(0, len(dUp), BATCH)]
         pred.append(np.asarray(out[0][0]))
         der.append(np.concatenate([np.asarray(d) for _, d in out])[:k])
@@ -97,6 +100,7 @@ def points_pullback(arrays, n_nodes_p, moved, U, X, C):
     out = []
     for f in range(len(U)):
         Uf = pad_nodes(U[f], n_nodes_p)
-        g = [np.asarray(frame_vjp(Uf, Xp, Cp[i: i + BATCH, f], arrays, moved)) for i in range(0, len(Cp), BATCH)]
+        compile_once(frame_vjp, Uf, Xp, Cp[:BATCH, f], arrays, moved=moved)
+        g = [np.asarray(frame_vjp(Uf, Xp, Cp[i: i + BATCH, f], arrays, moved=moved)) for i in range(0, len(Cp), BATCH)]
         out.append(np.concatenate(g)[:c, :n_nodes])
     return np.stack(out, axis=1)
