@@ -13,7 +13,8 @@ diagnose``: no program compiled by an earlier case). Each run appends one row to
 from all rows, with a ``targets`` section (issue 22 item 2: the ~300-point bundles faster than
 the former median of 48 s: the median wall seconds over the cases of one label, the latest row
 per case). Each row keeps the wall and CPU seconds at every progress line of the diagnosis
-(``stages``: where the seconds go, stage by stage). See benchmarks/README.md, "diagnose_speed.py".
+(``stages``: where the seconds go, stage by stage) and the compilations so far there
+(``stage_compiles``: all, and those over 1 s). See benchmarks/README.md, "diagnose_speed.py".
 """
 
 from __future__ import annotations
