@@ -85,9 +85,9 @@ def test_a_second_model_of_the_bucket_compiles_no_interpolation():
         m._points_vjp(U[:1], m.mesh.nodes, rng.normal(size=(6, 1, m.obs.n_points, 2)))
 
     run(m1)
-    cached = interpolation.frame_jvp._cache_size(), interpolation.frame_vjp._cache_size()
+    cached = interpolation.weights_jvp._cache_size()
     run(m2)
-    assert (interpolation.frame_jvp._cache_size(), interpolation.frame_vjp._cache_size()) == cached
+    assert interpolation.weights_jvp._cache_size() == cached
 
 
 def test_two_threads_needing_one_new_interpolation_compile_it_once():
@@ -110,9 +110,9 @@ def test_two_threads_needing_one_new_interpolation_compile_it_once():
         return m.at_points_and_derivatives(U, dU, m.mesh.nodes, dX)
 
     # forget what earlier tests compiled (their buckets may be these)
-    interpolation.frame_jvp.clear_cache()
-    program._READY.difference_update({k for k in program._READY if k[0] is interpolation.frame_jvp})
+    interpolation.weights_jvp.clear_cache()
+    program._READY.difference_update({k for k in program._READY if k[0] is interpolation.weights_jvp})
     with ThreadPoolExecutor(2) as pool:
         list(pool.map(run, (model, model)))
-    assert interpolation.frame_jvp._cache_size() == 1
-    assert sum("frame_jvp" in str(name) for name in seen) == 1, seen
+    assert interpolation.weights_jvp._cache_size() == 1
+    assert sum("weights_jvp" in str(name) for name in seen) == 1, seen

@@ -4,13 +4,16 @@ MeasuredModel.points_vjp`).
 
 A model's probe (cells, shape-function weights, the cells a point may move into under a morph)
 comes as arguments, padded to bucket sizes (:func:`jaxfem.padding.bucket`: nodes, cells, the
-candidate cells per point), and the frames one at a time, so that the models of one diagnosis
+candidate cells per point), so that the models of one diagnosis
 (its hypotheses, remeshes, the discretisation fits) compile these programs once per element and
 bucket instead of once per model and number of frames (2-9 s each at load 3-10 when the probe's
 arrays were constants of a program compiled per model), and once when two hypotheses fitted side
-by side need one at the same time (:func:`jaxfem.program.compile_once`). The values are those of
-:meth:`MeasuredModel.at_points`: padding nodes and cells are never looked up, and a padding
-candidate cell repeats the point's own cell (the first of the tied candidates wins, as before).
+by side need one at the same time (:func:`jaxfem.program.compile_once`). What is compiled is the
+points' weights on the (morphed) mesh and their derivatives; the frames are read with them on
+the host (a product of weights and nodal values, linear in the values). The values are those of
+:meth:`MeasuredModel.at_points` to rounding: padding nodes and cells are never looked up, and a
+padding candidate cell repeats the point's own cell (the first of the tied candidates wins, as
+before).
 """
 
 from __future__ import annotations
@@ -49,58 +52,61 @@ def pad_nodes(a, n_nodes_p: int, axis: int = 0) -> np.ndarray:
     return np.pad(a, width)
 
 
-def _at(U, X, arrays, moved: bool):
-    """One frame's nodal displacements ``U (n_nodes_p, dim)`` at the points, ``(n_points, dim)``."""
+def _probe(X, arrays, moved: bool) -> Probe:
+    """The probe at the reference nodes ``X (n_nodes_p, dim)`` (moved with them where ``moved``)."""
     probe = Probe(arrays["cells"], arrays["nodes"], arrays["weights"], arrays.get("neighbours"),
                   arrays.get("mesh_cells"))
-    if moved:  # follow a geometry morph of the reference nodes
-        probe = probe.moved(X, arrays["positions"])
-    return probe(U)
+    return probe.moved(X, arrays["positions"]) if moved else probe
 
 
 @partial(jax.jit, static_argnames="moved")
-def frame_jvp(U, dU, X, dX, arrays, moved: bool):
-    """One frame at the points and its derivatives along a batch of directions ``dU, dX (b,
-    n_nodes_p, dim)``: ``((n_points, dim), (b, n_points, dim))``."""
-    at = lambda UU, XX: _at(UU, XX, arrays, moved)  # noqa: E731
-    return at(U, X), jax.vmap(lambda a, b: jax.jvp(at, (U, X), (a, b))[1])(dU, dX)
+def weights_jvp(X, dX, arrays, moved: bool):
+    """Each point's nodes ``(n_points, k)`` and shape-function weights ``(n_points, k)`` on the
+    mesh at ``X (n_nodes_p, dim)``, and the weights' derivatives along a batch of directions
+    ``dX (b, n_nodes_p, dim)``, ``(b, n_points, k)`` (the nodes a point is read from are
+    piecewise constant in X: a morph moves the weights)."""
+    probe = _probe(X, arrays, moved)
+    if not moved:
+        return probe.nodes, probe.weights, jnp.zeros((dX.shape[0],) + probe.weights.shape)
+    w = lambda XX: _probe(XX, arrays, moved).weights  # noqa: E731
+    return probe.nodes, probe.weights, jax.vmap(lambda d: jax.jvp(w, (X,), (d,))[1])(dX)
 
 
-@partial(jax.jit, static_argnames="moved")
-def frame_vjp(U, X, C, arrays, moved: bool):
-    """The pull-back of one frame's interpolation at ``U (n_nodes_p, dim)`` of a batch of
-    cotangents ``C (b, n_points, dim)``: ``(b, n_nodes_p, dim)``."""
-    _, pull = jax.vjp(lambda UU: _at(UU, X, arrays, moved), U)
-    return jax.vmap(lambda c: pull(c)[0])(C)
+def _weights(arrays, n_nodes_p, moved, X, dX):
+    """:func:`weights_jvp` (compiled once per key whatever threads ask, :func:`compile_once`) on
+    host arrays: ``(nodes, W, dW)`` as host numpy."""
+    args = (pad_nodes(X, n_nodes_p), pad_nodes(dX, n_nodes_p, axis=1), arrays)
+    compile_once(weights_jvp, *args, moved=moved)
+    nodes, W, dW = weights_jvp(*args, moved=moved)
+    return np.asarray(nodes), np.asarray(W), np.asarray(dW)
 
 
 def points_and_derivatives(arrays, n_nodes_p, moved, U, dU, X, dX):
-    """:func:`frame_jvp` over every frame of ``U (n_frames, n_nodes, dim)`` and every batch of the
-    ``k`` directions ``dU (k, n_frames, n_nodes, dim)``, ``dX (k, n_nodes, dim)``:
-    ``(n_frames, n_points, dim)`` and ``(k, n_frames, n_points, dim)`` (host numpy)."""
+    """The nodal displacements ``U (n_frames, n_nodes, dim)`` at the points and their derivatives
+    along ``k`` directions ``dU (k, n_frames, n_nodes, dim)``, ``dX (k, n_nodes, dim)``:
+    ``(n_frames, n_points, dim)`` and ``(k, n_frames, n_points, dim)`` (host numpy). The weights
+    and their derivatives once per batch of directions (:func:`weights_jvp`), then every frame
+    by the product rule, ``d(W u) = dW u + W du``."""
     k = len(dU)
-    Xp = pad_nodes(X, n_nodes_p)
-    dUp, dXp = pad_batch(pad_nodes(dU, n_nodes_p, axis=2), k), pad_batch(pad_nodes(dX, n_nodes_p, axis=1), k)
-    pred, der = [], []
-    for f in range(len(U)):
-        Uf = pad_nodes(U[f], n_nodes_p)
-        compile_once(frame_jvp, Uf, dUp[:BATCH, f], Xp, dXp[:BATCH], arrays, moved=moved)
-        out = [frame_jvp(Uf, dUp[i: i + BATCH, f], Xp, dXp[i: i + BATCH], arrays, moved=moved)
-               for i in range(0, len(dUp), BATCH)]
-        pred.append(np.asarray(out[0][0]))
-        der.append(np.concatenate([np.asarray(d) for _, d in out])[:k])
-    return np.stack(pred), np.stack(der, axis=1)
+    dXp = pad_batch(np.asarray(dX, np.float64), k)
+    parts = [_weights(arrays, n_nodes_p, moved, X, dXp[i: i + BATCH]) for i in range(0, len(dXp), BATCH)]
+    nodes, W = parts[0][0], parts[0][1]
+    dW = np.concatenate([p[2] for p in parts])[:k]
+    at = np.asarray(U, np.float64)[:, nodes]  # (frames, points, k, dim)
+    pred = np.einsum("pk,fpkd->fpd", W, at)
+    der = np.einsum("ipk,fpkd->ifpd", dW, at) + np.einsum("pk,ifpkd->ifpd", W, np.asarray(dU, np.float64)[:, :, nodes])
+    return pred, der
 
 
 def points_pullback(arrays, n_nodes_p, moved, U, X, C):
-    """:func:`frame_vjp` over every frame of ``U (n_frames, n_nodes, dim)`` for the cotangents
-    ``C (c, n_frames, n_points, dim)``: ``(c, n_frames, n_nodes, dim)`` (host numpy)."""
-    c, n_nodes = len(C), np.shape(U)[1]
-    Xp, Cp = pad_nodes(X, n_nodes_p), pad_batch(np.asarray(C, np.float64), c)
-    out = []
-    for f in range(len(U)):
-        Uf = pad_nodes(U[f], n_nodes_p)
-        compile_once(frame_vjp, Uf, Xp, Cp[:BATCH, f], arrays, moved=moved)
-        g = [np.asarray(frame_vjp(Uf, Xp, Cp[i: i + BATCH, f], arrays, moved=moved)) for i in range(0, len(Cp), BATCH)]
-        out.append(np.concatenate(g)[:c, :n_nodes])
-    return np.stack(out, axis=1)
+    """The pull-back of the interpolation of ``U (n_frames, n_nodes, dim)`` (linear in U: the
+    transposed weights) of the cotangents ``C (c, n_frames, n_points, dim)``: ``(c, n_frames,
+    n_nodes, dim)`` (host numpy)."""
+    U = np.asarray(U)
+    nodes, W, _ = _weights(arrays, n_nodes_p, moved, X, np.zeros((BATCH,) + np.shape(X)))
+    C = np.asarray(C, np.float64)
+    out = np.zeros(C.shape[:2] + U.shape[1:])
+    for i in range(len(C)):
+        for f in range(C.shape[1]):
+            np.add.at(out[i, f], nodes, W[..., None] * C[i, f][:, None, :])
+    return out
