@@ -119,7 +119,10 @@ def summarise(rows: list[dict]) -> dict:
                                              "target": 0.95, "pass": bool(ratio_ok) and bool(np.mean(ratio_ok) >= 0.95)},
         "noise_free_ratio_within_1_percent": {"value": max(clean_err) if clean_err else None,
                                               "cases": len(clean_err), "target": NOISE_FREE_RATIO_TOL,
-                                              "pass": bool(clean_err) and bool(max(clean_err) <= NOISE_FREE_RATIO_TOL)},
+                                              "pass": bool(clean_err) and bool(max(clean_err) <= NOISE_FREE_RATIO_TOL),
+                                              "rows": [{"kind": r["kind"], "seed": r["seed"], "size": size_of(r),
+                                                        "code": r.get("code"), "ratio_error": r["ratio_error"]}
+                                                       for r in clean if r["ratio_error"] is not None]},
     }
     ratio_older = [abs(r["ratio_error"]) <= 0.10 or abs(scores(r, "mesh_only")[6]) <= 2
                    for r in older if r["ratio_error"] is not None]
