@@ -20,7 +20,10 @@ what is measured is whether the reported standard errors (:mod:`refine.diagnosis
 cover the truth: ``|estimate - truth| <= 2 std`` for every quantity (centre x and y, axes or
 half sides, angle where the truth is not a circle, area, ratio), which should hold for about 95 %
 of them. Noise-free cases (``--noise 0``) measure the accuracy where data allow it: the ratio
-within 1 % of the truth.
+within 1 % of the truth (their rows: ``results/error_coverage_rows_noise_free.jsonl``, merged
+into the summary with the noisy rows, ``--merge NOISY.jsonl results/error_coverage_rows_noise_free.jsonl``).
+``error_coverage_spread.py`` refits one case over fresh noise draws: its estimates' scatter
+against its reported errors.
 
 The errors scored per quantity (:data:`error_coverage_summary.VARIANTS`): ``gauss_newton``, the fit's points
 alone (the errors before the drive's noise was counted), ``standard_error``, that plus the noise

@@ -6,7 +6,9 @@ Whether a quantity that ``error_coverage.py`` finds outside 2 errors more often 
 (the orientation on seeds 9300-9329: 70 %) misses because its error is too small or because the
 case was unlucky: the case's noise-free data (the same independent finer solve) get ``--draws``
 fresh Gaussian noise draws (``--noise`` mm on every displacement, boundary points included),
-each fitted as ``error_coverage.fit_true_kind`` fits it, from the same start; per quantity the
+each fitted as ``error_coverage.fit_true_kind`` fits it, from the same start (draw k's noise from
+``default_rng([seed, k])``; numpy's ``SeedSequence([seed, 0])`` is ``SeedSequence(seed)``, so draw 0
+is the benchmark's own noise of the case); per quantity the
 standard deviation of the estimates over the draws (with its chi-square 95 % interval) is set
 beside the median reported standard error (:func:`refine.diagnosis.uncertainty.shape_errors`:
 the fit's points and the drive's noise; the discretisation terms, a few per cent of the angle's,
@@ -25,7 +27,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from error_coverage import FRACTIONS, _std, fit_true_kind, matched, started, true_quantities, truth_of
+from error_coverage import FRACTIONS, _code_version, _std, fit_true_kind, matched, started, true_quantities, truth_of
 from error_coverage_summary import QUANTITIES
 
 OUT = Path(__file__).parent / "results"
@@ -54,7 +56,8 @@ def run_draw(kind: str, seed: int, draw: int, noise: float, spacing: float, fram
         std = std[[0, 1, 3, 2, 4, 5, 6]]
     return {"kind": kind, "seed": seed, "draw": draw, "noise": noise, "spacing": spacing, "frames": frames,
             "truth": q_true.tolist(), "estimate": q.tolist(), "std": std.tolist(), "chi2_first_and_restarted": list(chi2),
-            "seconds": time.perf_counter() - t0, "load_average": [round(x, 2) for x in os.getloadavg()]}
+            "seconds": time.perf_counter() - t0, "load_average": [round(x, 2) for x in os.getloadavg()],
+            "code": _code_version()}
 
 
 def summarise(rows: list[dict]) -> dict:
