@@ -9,11 +9,12 @@ from pathlib import Path
 
 import numpy as np
 
+from refine.diagnosis.report import UNDETERMINED_ORIENTATION
+
 KINDS = ("stiffer-region", "softer-region", "hole", "rectangle")
 QUANTITIES = ("cx", "cy", "a", "b", "angle", "area", "ratio")
 COVERAGE_TARGET = (0.90, 0.99)  # about 95 % of truths within 2 standard errors
 NOISE_FREE_RATIO_TOL = 0.01
-UNDETERMINED_ORIENTATION = np.pi / 4  # as refine.diagnosis.report's (benchmarks import no more of refine here)
 
 
 def size_of(row: dict) -> str:
