@@ -71,3 +71,13 @@ def test_the_summary_gives_an_orientation_with_its_error_or_says_it_is_undetermi
     assert "orientation undetermined" in orientation(finding)
     assert orientation({"region": {"angle": angle}}) == f", axis a at {np.degrees(angle):.0f} deg"  # no errors
     assert orientation({"region": {"axes": [1.0, 1.0]}}) == ""  # an older finding without an angle
+
+
+def test_the_orientation_error_does_not_depend_on_which_axis_is_called_a():
+    # the same ellipse with its axes named the other way round (b > a, turned a quarter)
+    rng = np.random.default_rng(6)
+    q0 = _as_quantities(np.array([[1.5, 0.5]]))
+    q = _as_quantities(np.array([[1.5, 0.5]]) + 0.4 * rng.standard_normal((1000, 1, 2)))
+    swapped = lambda x: x[..., [0, 1, 3, 2, 4, 5, 6]] + np.eye(7)[4] * np.pi / 2  # noqa: E731
+    np.testing.assert_allclose(orientation_variance(swapped(q0), swapped(q)), orientation_variance(q0, q), rtol=1e-9)
+    assert np.sqrt(orientation_variance(q0, q)[0]) < 0.3

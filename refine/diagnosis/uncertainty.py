@@ -172,7 +172,10 @@ def orientation_variance(q0: Float[np.ndarray, "shapes 7"], q: Float[np.ndarray,
     length2 = np.sum(v0**2, axis=-1)
     shorter = np.sqrt(np.clip(length2 - np.mean(np.sum(e**2, axis=-1), axis=0), 0, None) / np.where(length2 > 0, length2, 1))
     c = v0 * shorter[:, None] + e
-    turn = np.angle((c[..., 0] + 1j * c[..., 1]) * np.exp(-2j * q0[:, 4])) / 2
+    # turns from the fitted deviator's direction: 2t, or 2t + pi where b > a
+    fitted = np.where(length2 > 0, (v0[:, 0] + 1j * v0[:, 1]) / np.sqrt(np.where(length2 > 0, length2, 1)),
+                      np.exp(2j * q0[:, 4]))
+    turn = np.angle((c[..., 0] + 1j * c[..., 1]) * np.conj(fitted)) / 2
     return np.mean(turn**2, axis=0)
 
 
