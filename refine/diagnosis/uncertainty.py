@@ -9,7 +9,9 @@ quantities through the hypothesis' own map from z to shapes (``shapes_at``, chea
 by draws of z (:func:`sampled_variance`), since the map is not linear where it matters (an
 ellipse's axes near a circle, a ratio ``exp(z)`` with a wide log error); the delta method,
 ``C_q = G C_z G^T`` with ``G = dq/dz`` by central differences (:func:`quantity_jacobian`), is
-its first order and stands in where the covariance is not finite.
+its first order and stands in where the covariance is not finite. An ellipse's or a hole's
+orientation error is taken at the unbiased estimate of its elongation
+(:func:`orientation_variance`): noise makes a fitted near-circle more elongated than the truth.
 
 The model is driven by the measured boundary points, which carry the same noise as the points it
 is fitted to: errors in the variables, which the Gauss-Newton covariance ``(J^T J)^-1`` of the
