@@ -20,7 +20,10 @@ what is measured is whether the reported standard errors (:mod:`refine.diagnosis
 cover the truth: ``|estimate - truth| <= 2 std`` for every quantity (centre x and y, axes or
 half sides, angle where the truth is not a circle, area, ratio), which should hold for about 95 %
 of them. Noise-free cases (``--noise 0``) measure the accuracy where data allow it: the ratio
-within 1 % of the truth.
+within 1 % of the truth (their rows: ``results/error_coverage_rows_noise_free.jsonl``, merged
+into the summary with the noisy rows, ``--merge NOISY.jsonl results/error_coverage_rows_noise_free.jsonl``).
+``error_coverage_spread.py`` refits one case over fresh noise draws: its estimates' scatter
+against its reported errors.
 
 The errors scored per quantity (:data:`error_coverage_summary.VARIANTS`): ``gauss_newton``, the fit's points
 alone (the errors before the drive's noise was counted), ``standard_error``, that plus the noise
@@ -96,26 +99,27 @@ def started(q: np.ndarray, kind: str, spacing: float, rng):
 
 
 def fit_true_kind(bundle, kind: str, start, sigma: float):
-    """The true hypothesis kind fitted from ``start`` as the diagnosis fits it (a region also
-    from its restarts at the fitted centre, :func:`refine.diagnosis.restarts.best_of_restarts`,
-    as :func:`refine.diagnosis.regions.fit_regions` does; a hole from its start alone, as
-    :func:`refine.diagnosis.holes.fit_hole` does) and refitted on every guide point with quadratic
-    triangles; returns the refit (its ``z_cov`` set) and the linear triangles' misfits (the
-    fitting points' chi2) from ``start`` and after the restarts (the same where none did better)."""
+    """The true hypothesis kind fitted from ``start`` as the diagnosis fits it, also from its
+    restarts at the fitted centre (:func:`refine.diagnosis.restarts.best_of_restarts`, as
+    :func:`refine.diagnosis.regions.fit_regions` does; a hole's since 26 Nov, branch h-coverage,
+    :func:`refine.diagnosis.holes.fit_hole` with ``restarts``; rows before it fitted a hole from
+    its start alone) and refitted on every guide point with quadratic triangles; returns the
+    refit (its ``z_cov`` set) and the linear triangles' misfits (the fitting points' chi2) from
+    ``start`` and after the restarts (the same where none did better)."""
     from refine.diagnosis.fitted import fit, refit
     from refine.diagnosis.holes import hole_hypothesis
     from refine.diagnosis.regions import regions_hypothesis
-    from refine.diagnosis.restarts import best_of_restarts
+    from refine.diagnosis.restarts import RESTARTS, best_of_restarts
     from refine.model.measured import MeasuredModel
 
     obs = bundle.observations
     model = MeasuredModel(bundle.experiment, obs)
     guide, hold = obs.mask("guide"), obs.mask("validate")
-    if kind == "hole":
-        first = f = fit(hole_hypothesis(model, start), guide, hold, sigma)
+    if kind == "hole":  # fit_hole's steps, its first fit kept apart to record its misfit
+        first = fit(hole_hypothesis(model, start), guide, hold, sigma)
     else:
         first = fit(regions_hypothesis(model, [start], [1 if start.ratio > 1 else -1]), guide, hold, sigma)
-        f = best_of_restarts(first, [start], guide, hold)
+    f = best_of_restarts(first, [start], guide, hold, RESTARTS)
     return refit(f, guide, hold, sigma, element="tri6"), (first.chi2_fit, f.chi2_fit)
 
 

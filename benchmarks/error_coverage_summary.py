@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from refine.diagnosis.report import UNDETERMINED_ORIENTATION
+
 KINDS = ("stiffer-region", "softer-region", "hole", "rectangle")
 QUANTITIES = ("cx", "cy", "a", "b", "angle", "area", "ratio")
 COVERAGE_TARGET = (0.90, 0.99)  # about 95 % of truths within 2 standard errors
@@ -45,6 +47,12 @@ def scores(row: dict, variant: str) -> list:
     err = np.sqrt(sum(t**2 for t in terms))
     d = np.asarray(row["estimate"]) - np.asarray(row["truth"])
     return [None if z is None else float(v) for z, v in zip(row["z"], d / err)]
+
+
+def _total(row: dict) -> np.ndarray:
+    """A row's reported total errors (report.json's ``total_std``), one per quantity."""
+    terms = [np.asarray(row["std"], float)] + [np.nan_to_num(np.asarray(row[k], float)) for k in ("bias", "drive")]
+    return np.sqrt(sum(t**2 for t in terms))
 
 
 def _coverage(zs, cases=None) -> dict:
@@ -119,8 +127,17 @@ def summarise(rows: list[dict]) -> dict:
                                              "target": 0.95, "pass": bool(ratio_ok) and bool(np.mean(ratio_ok) >= 0.95)},
         "noise_free_ratio_within_1_percent": {"value": max(clean_err) if clean_err else None,
                                               "cases": len(clean_err), "target": NOISE_FREE_RATIO_TOL,
-                                              "pass": bool(clean_err) and bool(max(clean_err) <= NOISE_FREE_RATIO_TOL)},
+                                              "pass": bool(clean_err) and bool(max(clean_err) <= NOISE_FREE_RATIO_TOL),
+                                              "rows": [{"kind": r["kind"], "seed": r["seed"], "size": size_of(r),
+                                                        "code": r.get("code"), "ratio_error": r["ratio_error"]}
+                                                       for r in clean if r["ratio_error"] is not None]},
     }
+    shown = lambda r: 2 * _total(r)[4] < UNDETERMINED_ORIENTATION  # noqa: E731 - the summary gives the angle
+    orientation = {"undetermined": sum(1 for r in noisy if r["z"][4] is not None and not shown(r)),
+                   "scored": sum(1 for r in noisy if r["z"][4] is not None),
+                   "where_reported": _per([r for r in noisy if shown(r)], "reported", lambda r, i: i == 4),
+                   "note": "angles whose 2 total errors reach 45 deg are reported as undetermined "
+                           "(refine.diagnosis.report.orientation); the per-quantity angle scores them all"}
     ratio_older = [abs(r["ratio_error"]) <= 0.10 or abs(scores(r, "mesh_only")[6]) <= 2
                    for r in older if r["ratio_error"] is not None]
     before = {"cases": len(older), "note": "rows fitted before the drive's discretisation was measured: scored "
@@ -132,7 +149,7 @@ def summarise(rows: list[dict]) -> dict:
             "before_the_drive_term": before,
             "rows_without_discretisation": len([r for r in ok if r["noise"] > 0 and "bias" not in r]),
             "noise_free_cases": len(clean), "coverage_within_2_std": overall["within_2_std"],
-            "variants": variants, "error_sizes": sizes,
+            "variants": variants, "error_sizes": sizes, "orientation": orientation,
             "noise_free_ratio_errors": clean_err, "targets": targets,
             "median_seconds": float(np.median([r["seconds"] for r in ok])) if ok else None,
             "median_seconds_per_size": {z: float(np.median([r["seconds"] for r in ok if size_of(r) == z]))

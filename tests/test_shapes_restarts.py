@@ -98,3 +98,26 @@ def test_a_restart_where_the_fit_already_is_is_not_fitted(monkeypatch):
     fit, tried = _stand_in(lambda s: 1.0)
     monkeypatch.setattr(fitted_module, "fit", fit)
     assert best_of_restarts(first, [shape], None, None) is first and tried == []
+
+
+def test_a_hole_is_refitted_from_its_restarts_only_where_asked(monkeypatch):
+    import refine.diagnosis.holes as holes
+
+    start, settled = Hole((40.0, 30.0), (7.0, 5.0), 0.0), Hole((43.0, 28.0), (9.0, 4.0), 0.5)
+    tried = []
+
+    def fit(hypothesis, fit_mask, hold_mask, sigma):  # the first fit settles at ``settled``
+        shape = hypothesis.shapes[0]
+        tried.append(shape)
+        if shape == start:
+            return _Fit(hypothesis, (settled,), 80.0)
+        return _Fit(hypothesis, (shape,), 60.0 if shape.axes[0] == shape.axes[1] else 90.0)
+
+    monkeypatch.setattr(holes, "_subset", lambda base: None)
+    monkeypatch.setattr(holes, "hole_hypothesis", lambda base, shape, h=None, element="tri3": _Hypothesis((shape,)))
+    monkeypatch.setattr(holes, "fit", fit)
+    monkeypatch.setattr(fitted_module, "fit", fit)
+    assert holes.fit_hole(None, start, None, None, 0.02).chi2_fit == 80.0 and len(tried) == 1
+    best = holes.fit_hole(None, start, None, None, 0.02, restarts=RESTARTS)
+    assert best.chi2_fit == 60.0 and isinstance(best.shapes[0], Hole) and best.shapes[0].centre == settled.centre
+    assert len(tried) == 1 + 1 + len(RESTARTS)

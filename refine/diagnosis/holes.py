@@ -10,6 +10,7 @@ import jaxfem as jf
 
 from refine.diagnosis.fitted import Fitted, NotApplicable, fit
 from refine.diagnosis.regions import _mesh_size
+from refine.diagnosis.restarts import best_of_restarts
 from refine.diagnosis.shapes import Hole
 from refine.diagnosis.subsets import hole_from_subsets, seen_material, subset_distance
 from refine.model.measured import MeasuredModel, domain_mesh
@@ -146,8 +147,11 @@ def _free_scale(e: jf.Ellipse, pts: np.ndarray, gap: float) -> float:
 
 
 def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | None = None,
-             element: str = "tri3") -> Fitted:
-    """A hole (:func:`hole_hypothesis`), its centre, axes and orientation fitted.
+             element: str = "tri3", restarts=()) -> Fitted:
+    """A hole (:func:`hole_hypothesis`), its centre, axes and orientation fitted, and refitted
+    from ``restarts`` at its fitted centre (:func:`~refine.diagnosis.restarts.best_of_restarts`,
+    as :func:`~refine.diagnosis.regions.fit_regions` does; none by default: the diagnosis's
+    search fits each candidate once), the lowest misfit kept.
 
     With the bundle's subset known, the hole is first fitted from where the subsets put it
     (:func:`subset_start`) keeping clear of the tracked points only; where that fit covers part
@@ -158,6 +162,12 @@ def fit_hole(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h: float | 
     best shape on the walls: from the subsets' ellipse a generated elongated hole stopped at
     chi2 ten times the free fit's, from the first fit shrunk the CFRP coupon's stopped 20 %
     higher than from the subsets' round ellipse."""
+    return best_of_restarts(_fit_hole_once(base, shape, fit_mask, hold_mask, sigma, h, element), [shape],
+                            fit_mask, hold_mask, restarts)
+
+
+def _fit_hole_once(base: MeasuredModel, shape, fit_mask, hold_mask, sigma, h, element) -> Fitted:
+    """:func:`fit_hole` without its restarts."""
     if _subset(base) is None:
         return fit(hole_hypothesis(base, shape, h, element), fit_mask, hold_mask, sigma)
     start = subset_start(base, shape)

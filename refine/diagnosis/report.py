@@ -34,7 +34,7 @@ def summary(d) -> str:
         what = ("hole" if k["cause"] == "hole"
                 else f"{k['cause']} ({k['relative_elasticity']:.2f}{pm} x the background{absolute})")
         lines.append(f"Finding: {what} centred at ({reg['centroid'][0]:.1f}, {reg['centroid'][1]:.1f}), "
-                     f"area {reg['area']:.1f}, semi-axes {reg['axes'][0]:.1f} x {reg['axes'][1]:.1f}.")
+                     f"area {reg['area']:.1f}, semi-axes {reg['axes'][0]:.1f} x {reg['axes'][1]:.1f}{orientation(k)}.")
     if r["findings"]:
         g = r["gain"]["validation_error"]
         lines.append(f"Validation error {b['validation_error']:.4g} -> {f['validation_error']:.4g}"
@@ -44,6 +44,25 @@ def summary(d) -> str:
         lines.append(f"Note: {r['note']}.")
     lines.append(f"({r['seconds']:.0f} s)")
     return "\n".join(lines)
+
+
+UNDETERMINED_ORIENTATION = np.pi / 4
+"""An orientation whose two total errors (or standard errors) reach this (radians: 45 degrees,
+half of all orientations inside its 95 % interval) is reported as undetermined: a nearly round
+shape (:func:`refine.diagnosis.uncertainty.orientation_variance`)."""
+
+
+def orientation(k: dict) -> str:
+    """The summary's words for a finding's orientation (report.json's finding ``k``): ``", axis
+    a at 103 +- 5 deg"`` (its total error where estimated, else its standard error, else none),
+    or that it is undetermined (:data:`UNDETERMINED_ORIENTATION`); nothing without an angle."""
+    if k["region"].get("angle") is None:
+        return ""
+    err = next((e["angle"] for e in (k.get("total_std"), k.get("std")) if e and e.get("angle") is not None), None)
+    if err is not None and 2 * err >= UNDETERMINED_ORIENTATION:
+        return ", orientation undetermined (nearly round: 2 errors reach 45 deg)"
+    deg = np.degrees(k["region"]["angle"]) % 180.0
+    return f", axis a at {deg:.0f}" + ("" if err is None else f" +- {np.degrees(err):.0f}") + " deg"
 
 
 def write(d, out, with_figures: bool = True) -> Path:
