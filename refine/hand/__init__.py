@@ -6,9 +6,12 @@ points, with exact derivatives through the solve; the tracked skin strain agains
     tracker = HandTracker(HandModel(hand_mesh(default_body(PAPER), 24.0, 4.5)))
     fits = tracker.track(clouds=sequence.clouds)            # (a) unlabelled range clouds
     fits = tracker.track(markers=(reference, positions))    # (b) the paper's marked points
+    seq = smooth(tracker, fits, markers=(reference, positions))   # the frames together: seq.fits, seq.std
 """
 
 from .compare import angle_errors, skin_strain_on
+from .smooth import MotionModel, SmoothedSequence, smooth
 from .track import FrameFit, HandTracker, TrackConfig
 
-__all__ = ["FrameFit", "HandTracker", "TrackConfig", "angle_errors", "skin_strain_on"]
+__all__ = ["FrameFit", "HandTracker", "MotionModel", "SmoothedSequence", "TrackConfig", "angle_errors", "skin_strain_on",
+           "smooth"]
