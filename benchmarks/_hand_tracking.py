@@ -17,8 +17,8 @@ from dataclasses import asdict
 import jax.numpy as jnp
 import numpy as np
 
-from jaxfem.hand import PAPER, HandModel, along, default_body, hand_mesh, skin_area
-from refine.hand import HandTracker, MotionModel, TrackConfig, angle_errors, skin_strain_on, smooth
+from jaxfem.hand import HandModel, skin_area
+from refine.hand import HandTracker, MotionModel, TrackConfig, angle_errors, skin_strain_on, smooth, tracking_model
 from refine.synthetic.hand_range import STOP_REVERSE, hand_range_sequence
 
 #: the sequences tracked (each its own angles, pose, rays and noise)
@@ -36,9 +36,9 @@ PROFILES = {"steady": None, "stop-reverse": STOP_REVERSE}
 
 def thumb_model(h_thumb: float, h: float = 24.0, snap: float = 4.5) -> HandModel:
     """The paper-size hand at ``h`` with both thumb phalanges split along their length (x) to at most
-    ``h_thumb`` mm (the rest of the grid unchanged): a tracking model with a lower floor at the thumb."""
-    body = default_body(PAPER)
-    return HandModel(hand_mesh(body, h, snap, along(body, ("thumb_1", "thumb_2"), h_thumb, 0)))
+    ``h_thumb`` mm (the rest of the grid unchanged): :func:`refine.hand.tracking_model`, whose default
+    (6 mm) is the default tracking model."""
+    return tracking_model(h_thumb, h, snap)
 
 
 def _rms(a, b, mask=None):
@@ -67,11 +67,13 @@ def _uncertainty(sm, truth) -> dict:
             "released": sm.released.tolist(), "smooth_iterations": sm.iterations, "smooth_s": sm.seconds}
 
 
-def tracking(model, strains, area_box, seed: int = 0, frames: int = 4, h: float = 12.0, profile=None) -> dict:
+def tracking(model, strains, area_box, seed: int = 0, frames: int = 4, h: float = 12.0, profile=None,
+             kinds=KINDS) -> dict:
     """Track a generated sequence with ``model`` (its skin-strain function ``strains``); the area of
     interest ``area_box`` (a jaxfem.hand.Box) for the strain errors there; ``profile``: the motion's
     share of the final angles per frame (default equal steps). The figures are of the smoothed
-    sequence (:data:`MOTION`), the per-frame fits' errors beside them (``per_frame``)."""
+    sequence (:data:`MOTION`), the per-frame fits' errors beside them (``per_frame``); ``kinds``: the
+    ways of tracking run (:data:`KINDS`)."""
     t0 = time.perf_counter()
     seq = hand_range_sequence(seed=seed, frames=frames, h=h, profile=profile)
     names = seq.names
@@ -101,7 +103,7 @@ def tracking(model, strains, area_box, seed: int = 0, frames: int = 4, h: float 
     out["tracker_config"] = asdict(tracker.config)
     data = {"clouds": {"clouds": seq.clouds}, "markers": {"markers": (seq.marker_reference, seq.markers)}}
     data["both"] = data["clouds"] | data["markers"]
-    for kind in KINDS:
+    for kind in kinds:
         kw = data[kind]
         t1 = time.perf_counter()
         per_frame = tracker.track(**kw)
@@ -194,3 +196,16 @@ def event_targets(res: dict) -> dict:
             "smoother_moved_deg_by_seed": moved, "released_by_seed": {r["seed"]: r[kind]["released"] for r in runs},
             "pass": max(e.values()) <= 1.0}
     return out
+
+
+def section_targets(res: dict) -> dict:
+    """Every tracking target of hand.json's ``res``: the paper-size model's (``tracking``), the model
+    refined along the thumb's (``tracking_thumb``, names suffixed ``_thumb_model``), and the
+    stop-and-reversal checks of each (``tracking[_thumb]_stop-reverse``)."""
+    t = {}
+    for key, suffix in (("tracking", ""), ("tracking_thumb", "_thumb_model")):
+        if key in res:
+            t |= {k + suffix: v for k, v in targets(res[key]).items()}
+        if f"{key}_stop-reverse" in res:
+            t |= {k + suffix: v for k, v in event_targets(res[f"{key}_stop-reverse"]).items()}
+    return t
