@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from jaxfem.hand import HandModel
-from refine.exceptions import CorrespondenceError
+from refine.exceptions import CorrespondenceError, ExperimentError
 from refine.hand import HandTracker, MotionModel, TrackConfig, angle_errors, smooth
 from refine.hand.smooth import prior_cost, second_differences, smooth_quadratic
-from refine.synthetic.hand_range import pose_matrix
+from refine.synthetic.hand_range import STOP_REVERSE, hand_range_sequence, pose_matrix
 from tests._hand_util import coarse_hand
 
 
@@ -92,11 +92,19 @@ def test_cauchy_release_bounds_the_bias_at_a_reversal():
     assert (w[turn - 1] < 0.05).all() and np.delete(w, turn - 1, axis=0).min() > 0.99  # let go at the turn only
 
 
+def test_a_generated_motion_profile_of_the_wrong_length_is_refused():
+    with pytest.raises(ExperimentError, match="one finite share per frame"):
+        hand_range_sequence(frames=3, profile=STOP_REVERSE)
+    with pytest.raises(ExperimentError, match="one finite share per frame"):
+        hand_range_sequence(frames=4, profile=(0.0, 0.25, np.nan, 0.5, 0.25))
+
+
 @pytest.fixture(scope="module")
 def hand():
     return coarse_hand()
 
 
+@pytest.mark.slow  # 65 s at load 9-10 on the shared 2 cores (compiling the coarse tracker, 4 frames tracked, smoothed)
 def test_smoother_on_a_tracked_sequence_from_noisy_markers(hand):
     """Markers on the coarse hand's skin (drawn: 12 nodes, angles on a constant-velocity path of 4
     frames, pose, noise 0.4 mm; the model's own solve at the true angles, so that the errors are the noise's and
