@@ -203,11 +203,13 @@ def prior_bias(motion: MotionModel = MOTION, frame_std_deg=(0.1, 0.3, 0.6, 0.9),
 
 def event_targets(res: dict) -> dict:
     """The temporal prior on a motion that is not smooth (``res["runs"]`` generated with a profile,
-    :data:`PROFILES`): every angle within 1 degree after smoothing, each way of tracking, and how
-    far the smoother moved each frame's fit (degrees)."""
-    runs = res.get("runs", [res])
+    :data:`PROFILES`): every angle within 1 degree after smoothing, each way of tracking over the
+    seeds run that way, and how far the smoother moved each frame's fit (degrees)."""
     out = {}
-    for kind in [k for k in KINDS if all(k in r for r in runs)]:
+    for kind in KINDS:
+        runs = [r for r in res.get("runs", [res]) if kind in r]  # a run may hold some ways only (--kinds)
+        if not runs:
+            continue
         moved = {r["seed"]: float(np.abs(np.subtract(r[kind]["angle_error_deg"],
                                                      r[kind]["per_frame"]["angle_error_deg"])).max()) for r in runs}
         e = {r["seed"]: r[kind]["max_abs_error_deg"] for r in runs}
