@@ -17,9 +17,9 @@ from dataclasses import asdict
 import jax.numpy as jnp
 import numpy as np
 
-from jaxfem.hand import PAPER, HandModel, along, default_body, hand_mesh, skin_area
-from refine.hand import HandTracker, TrackConfig, angle_errors, skin_strain_on
-from refine.synthetic.hand_range import hand_range_sequence
+from jaxfem.hand import HandModel, skin_area
+from refine.hand import HandTracker, MotionModel, TrackConfig, angle_errors, skin_strain_on, smooth, tracking_model
+from refine.synthetic.hand_range import STOP_REVERSE, hand_range_sequence
 
 #: the sequences tracked (each its own angles, pose, rays and noise)
 SEEDS = (0, 1, 2)
@@ -28,13 +28,17 @@ KINDS = ("clouds", "markers", "both")
 #: cloud points used per frame (of ~2,300-2,600; all of them moved seed 1's thumb tip from 1.31 to 1.21
 #: degrees off at twice the cost: the README)
 MAX_POINTS = 1500
+#: the temporal prior (refine.hand.smooth): the stated motion model, its defaults (1 degree per frame^2)
+MOTION = MotionModel()
+#: the motions generated: equal steps (the targets), and one that is not smooth (a stop, then a reversal)
+PROFILES = {"steady": None, "stop-reverse": STOP_REVERSE}
 
 
 def thumb_model(h_thumb: float, h: float = 24.0, snap: float = 4.5) -> HandModel:
     """The paper-size hand at ``h`` with both thumb phalanges split along their length (x) to at most
-    ``h_thumb`` mm (the rest of the grid unchanged): a tracking model with a lower floor at the thumb."""
-    body = default_body(PAPER)
-    return HandModel(hand_mesh(body, h, snap, along(body, ("thumb_1", "thumb_2"), h_thumb, 0)))
+    ``h_thumb`` mm (the rest of the grid unchanged): :func:`refine.hand.tracking_model`, whose default
+    (6 mm) is the default tracking model."""
+    return tracking_model(h_thumb, h, snap)
 
 
 def _rms(a, b, mask=None):
@@ -45,13 +49,36 @@ def _rms(a, b, mask=None):
     return float(np.sqrt(np.mean(d ** 2)))
 
 
-def tracking(model, strains, area_box, seed: int = 0, frames: int = 4, h: float = 12.0) -> dict:
+def _errors(fits, truth, names) -> dict:
+    """The angle errors of ``fits`` against ``truth`` (radians), degrees."""
+    err = angle_errors(fits, truth)
+    return {"angle_error_deg": err.round(5).tolist(), "max_abs_error_deg": float(np.abs(err).max()),
+            "max_abs_error_deg_per_angle": dict(zip(names, np.abs(err).max(axis=0).tolist()))}
+
+
+def _uncertainty(sm, truth) -> dict:
+    """Each angle's reported standard deviation (smoothed, and each frame's alone; degrees) and how
+    many errors lie within 2 of them."""
+    e = np.abs(angle_errors(sm.fits, truth))
+    e0 = np.abs(angle_errors(sm.frames, truth))
+    std, std0 = np.degrees(sm.std), np.degrees(sm.frame_std)
+    return {"std_deg": std.round(4).tolist(), "frame_std_deg": std0.round(4).tolist(),
+            "within_2_std": float(np.mean(e <= 2 * std)), "frame_within_2_std": float(np.mean(e0 <= 2 * std0)),
+            "released": sm.released.tolist(), "smooth_iterations": sm.iterations, "smooth_s": sm.seconds}
+
+
+def tracking(model, strains, area_box, seed: int = 0, frames: int = 4, h: float = 12.0, profile=None,
+             kinds=KINDS) -> dict:
     """Track a generated sequence with ``model`` (its skin-strain function ``strains``); the area of
-    interest ``area_box`` (a jaxfem.hand.Box) for the strain errors there."""
+    interest ``area_box`` (a jaxfem.hand.Box) for the strain errors there; ``profile``: the motion's
+    share of the final angles per frame (default equal steps). The figures are of the smoothed
+    sequence (:data:`MOTION`), the per-frame fits' errors beside them (``per_frame``); ``kinds``: the
+    ways of tracking run (:data:`KINDS`)."""
     t0 = time.perf_counter()
-    seq = hand_range_sequence(seed=seed, frames=frames, h=h)
+    seq = hand_range_sequence(seed=seed, frames=frames, h=h, profile=profile)
     names = seq.names
     out = {"seed": seed, "frames": frames + 1, "generate_s": time.perf_counter() - t0,
+           "profile": None if profile is None else list(profile), "motion_model": asdict(MOTION),
            "data_mesh": {"h_mm": h, "elements": seq.hand.mesh.n_cells, "nodes": seq.hand.mesh.n_nodes},
            "model_mesh": {"h_mm": model.hand.h, "elements": model.hand.mesh.n_cells, "nodes": model.hand.mesh.n_nodes},
            "noise_mm": seq.noise, "marker_noise_mm": seq.marker_noise, "markers": list(seq.marker_names),
@@ -76,31 +103,31 @@ def tracking(model, strains, area_box, seed: int = 0, frames: int = 4, h: float 
     out["tracker_config"] = asdict(tracker.config)
     data = {"clouds": {"clouds": seq.clouds}, "markers": {"markers": (seq.marker_reference, seq.markers)}}
     data["both"] = data["clouds"] | data["markers"]
-    for kind in KINDS:
+    for kind in kinds:
         kw = data[kind]
         t1 = time.perf_counter()
-        fits = tracker.track(**kw)
-        err = angle_errors(fits, seq.angles)
+        per_frame = tracker.track(**kw)
+        sm = smooth(tracker, per_frame, **kw, motion=MOTION)
+        fits = sm.fits
         est = [np.asarray(strains(jnp.asarray(f.u), model.params(dict(zip(names, f.angles))))[0]) for f in fits]
         sec = [f.seconds for f in fits]
-        out[kind] = {
-            "angle_error_deg": err.round(5).tolist(),
-            "max_abs_error_deg": float(np.abs(err).max()),
-            "max_abs_error_deg_per_angle": dict(zip(names, np.abs(err).max(axis=0).tolist())),
+        out[kind] = _errors(fits, seq.angles, names) | _uncertainty(sm, seq.angles) | {
+            "per_frame": _errors(per_frame, seq.angles, names),
             "pose_error": {"rotation_deg": [np.degrees(f.pose[:3] - seq.pose[:3]).tolist() for f in fits],
                            "translation_mm": [(f.pose[3:] - seq.pose[3:]).tolist() for f in fits]},
             "rms_mm": [f.rms for f in fits], "marker_rms_mm": [f.marker_rms for f in fits],
             "iterations": [f.iterations for f in fits], "seconds": sec, "cost": [f.cost for f in fits],
             "restarted": [f.restarted for f in fits], "restart_won": [f.restart for f in fits],
             "predicted": [f.predicted for f in fits],
-            "s_per_frame": float(np.median(sec[1:])),  # frame 0 compiles
+            "s_per_frame": float(np.median(sec[1:]) + sm.seconds / len(fits)),  # frame 0 compiles; the smoother shared
             "max_s_per_frame": float(np.max(sec[1:])),
             "total_s": time.perf_counter() - t1,
             "strain_rms": [_rms(e, t) for e, t in zip(est, truth)],
             "strain_rms_area": [_rms(e, t, area) for e, t in zip(est, truth)],
             "area_max_strain": [float(e[area].max()) for e in est],
             "area_max_strain_error": [float(e[area].max() - np.nanmax(t[area])) for e, t in zip(est, truth)]}
-        print(kind, {k: out[kind][k] for k in ("max_abs_error_deg", "s_per_frame", "strain_rms_area")}, flush=True)
+        print(kind, {k: out[kind][k] for k in ("max_abs_error_deg", "s_per_frame", "strain_rms_area", "within_2_std")},
+              "per frame", out[kind]["per_frame"]["max_abs_error_deg"], flush=True)
     return out
 
 
@@ -133,6 +160,9 @@ def targets(res: dict) -> dict:
             "target": f"every joint angle of every frame within 1 degree of the truth, tracked from the {kind}, "
                       f"every seed", "max_abs_error_deg": max(e.values()), "max_abs_error_deg_by_seed": e,
             "max_abs_error_deg_per_angle_by_seed": {r["seed"]: r[kind]["max_abs_error_deg_per_angle"] for r in runs},
+            "per_frame_fits_max_abs_error_deg_by_seed": {r["seed"]: r[kind].get("per_frame", {}).get("max_abs_error_deg")
+                                                         for r in runs},
+            "errors_within_2_std_by_seed": {r["seed"]: r[kind].get("within_2_std") for r in runs},
             "pass": max(e.values()) <= 1.0}
     spf = {k: max(r[k]["s_per_frame"] for r in runs) for k in kinds}
     worst = {k: max(r[k].get("max_s_per_frame", np.nan) for r in runs) for k in kinds}
@@ -147,3 +177,59 @@ def targets(res: dict) -> dict:
                   "the true angles (the mesh's own floor against the fine truth)",
         "ratio": float(ratio), "pass": bool(ratio <= 1.5)}
     return out
+
+
+def prior_bias(motion: MotionModel = MOTION, frame_std_deg=(0.1, 0.3, 0.6, 0.9),
+               steps_deg=tuple(np.r_[0.5:6.01:0.5, 8.0, 10.0, 12.5, 15.0, 20.0, 25.0])) -> dict:
+    """The prior's own bias on one angle measured exactly (no noise) through a sudden stop and a
+    stop then reversal (:data:`STOP_REVERSE`'s shape) at each step (degrees per frame) for each
+    frame's standard deviation (degrees): ``{std: {"max_deg", "at_step_deg", "at_12.5_deg"}}``, the
+    largest over the steps. (The quadratic model of :func:`refine.hand.smooth`; degrees.)"""
+    from refine.hand.smooth import smooth_quadratic
+    out = {}
+    for sd in frame_std_deg:
+        H = np.full((5, 1, 1), 1 / np.radians(sd) ** 2)
+        rows = []
+        for shape in ((0, 1, 2, 2, 2), tuple(4 * np.asarray(STOP_REVERSE))):
+            for a in steps_deg:
+                truth = np.radians(np.asarray(shape, float)[:, None] * a)
+                Q = smooth_quadratic(truth, np.zeros_like(truth), H, [motion.angle], motion.release)[0]
+                rows.append((a, float(np.degrees(np.abs(Q - truth).max()))))
+        rows = np.array(rows)
+        out[str(sd)] = {"max_deg": float(rows[:, 1].max()), "at_step_deg": float(rows[rows[:, 1].argmax(), 0]),
+                        "at_12.5_deg": float(rows[rows[:, 0] == 12.5, 1].max())}
+    return out
+
+
+def event_targets(res: dict) -> dict:
+    """The temporal prior on a motion that is not smooth (``res["runs"]`` generated with a profile,
+    :data:`PROFILES`): every angle within 1 degree after smoothing, each way of tracking over the
+    seeds run that way, and how far the smoother moved each frame's fit (degrees)."""
+    out = {}
+    for kind in KINDS:
+        runs = [r for r in res.get("runs", [res]) if kind in r]  # a run may hold some ways only (--kinds)
+        if not runs:
+            continue
+        moved = {r["seed"]: float(np.abs(np.subtract(r[kind]["angle_error_deg"],
+                                                     r[kind]["per_frame"]["angle_error_deg"])).max()) for r in runs}
+        e = {r["seed"]: r[kind]["max_abs_error_deg"] for r in runs}
+        out[f"temporal_prior_on_a_stop_and_reversal_{kind}"] = {
+            "target": f"a sudden stop then a reversal (profile {runs[0].get('profile')}), tracked from the {kind} and "
+                      "smoothed: every joint angle within 1 degree", "max_abs_error_deg_by_seed": e,
+            "per_frame_fits_max_abs_error_deg_by_seed": {r["seed"]: r[kind]["per_frame"]["max_abs_error_deg"] for r in runs},
+            "smoother_moved_deg_by_seed": moved, "released_by_seed": {r["seed"]: r[kind]["released"] for r in runs},
+            "prior_bias_noise_free_by_frame_std_deg": prior_bias(), "pass": max(e.values()) <= 1.0}
+    return out
+
+
+def section_targets(res: dict) -> dict:
+    """Every tracking target of hand.json's ``res``: the paper-size model's (``tracking``), the model
+    refined along the thumb's (``tracking_thumb``, names suffixed ``_thumb_model``), and the
+    stop-and-reversal checks of each (``tracking[_thumb]_stop-reverse``)."""
+    t = {}
+    for key, suffix in (("tracking", ""), ("tracking_thumb", "_thumb_model")):
+        if key in res:
+            t |= {k + suffix: v for k, v in targets(res[key]).items()}
+        if f"{key}_stop-reverse" in res:
+            t |= {k + suffix: v for k, v in event_targets(res[f"{key}_stop-reverse"]).items()}
+    return t

@@ -276,10 +276,7 @@ def targets(res) -> dict:
         "target": f"the large scar restricts at least one motion at the stated limit {STRAIN_LIMIT} (Green-Lagrange, "
                   "Ni Annaidh et al. 2012's failure strain less 2 SD)", "reached": lit,
         "pass": any(v < 1 for v in lit.values())}
-    if "tracking" in res:
-        t |= _hand_tracking.targets(res["tracking"])
-    if "tracking_thumb" in res:  # the model refined along the thumb (--thumb-h), its targets beside
-        t |= {f"{k}_thumb_model": v for k, v in _hand_tracking.targets(res["tracking_thumb"]).items()}
+    t |= _hand_tracking.section_targets(res)
     if "threshold_truth" in res:
         t |= _hand_threshold.targets(res["threshold_truth"])
         if "mesh" in res["threshold_truth"]:
@@ -316,10 +313,13 @@ def main(argv=None):
                     "other seeds' runs kept from the last hand.json (marked 'carried')")
     ap.add_argument("--thumb-h", type=float, default=None, help="--only tracking: the tracking model refined along "
                     "the thumb to this element length (mm; _hand_tracking.thumb_model)")
+    ap.add_argument("--profile", choices=tuple(_hand_tracking.PROFILES), default="steady", help="--only tracking: the "
+                    "motion (stop-reverse: into 'tracking[_thumb]_stop-reverse')")
+    ap.add_argument("--kinds", nargs="+", choices=_hand_tracking.KINDS, default=_hand_tracking.KINDS)
     args = ap.parse_args(argv)
     frames = 3 if args.quick else 10
     if args.only:
-        return sections(args.only, frames, args.reuse_curves, args.seeds, args.thumb_h)
+        return sections(args.only, frames, args.reuse_curves, args.seeds, args.thumb_h, args.profile, args.kinds)
     if args.fine_only:
         res = json.loads((OUT / "hand.json").read_text())
         res["mesh_dependence"] = fine(args.fine_h) | {"load": load()}
@@ -362,7 +362,7 @@ def main(argv=None):
     print(json.dumps(res["targets"], indent=1, default=float))
 
 
-def sections(only, frames, reuse=False, seeds=None, thumb_h=None):
+def sections(only, frames, reuse=False, seeds=None, thumb_h=None, profile="steady", kinds=_hand_tracking.KINDS):
     """The --only sections, merged into the last hand.json (its targets recomputed); ``seeds``: the
     tracking seeds run (default all; the others' runs carried); ``thumb_h``: the tracking model's
     thumb refined to this length (mm; default the paper-size model)."""
@@ -371,9 +371,11 @@ def sections(only, frames, reuse=False, seeds=None, thumb_h=None):
     fine = None
     if "tracking" in only:  # with --thumb-h into "tracking_thumb" (beside the paper-size model's, not in the targets)
         key, tmodel = ("tracking", model) if thumb_h is None else ("tracking_thumb", _hand_tracking.thumb_model(thumb_h))
+        key += "" if profile == "steady" else f"_{profile}"
         strains = skin_strain_function(tmodel)
         old = res.get(key, {}).get("runs", [])
-        res[key] = {"load_start": load()} | _hand_tracking.seeds(tmodel, strains, AREA, seeds=seeds or _hand_tracking.SEEDS)
+        res[key] = {"load_start": load()} | _hand_tracking.seeds(tmodel, strains, AREA, seeds=seeds or _hand_tracking.SEEDS,
+                                                                 profile=_hand_tracking.PROFILES[profile], kinds=kinds)
         res[key]["load"] = load()
         res[key]["thumb_h_mm"] = thumb_h  # None: the paper-size model as it is
         res[key]["runs"] = _hand_tracking.merge_runs(old, res[key]["runs"])

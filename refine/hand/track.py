@@ -269,16 +269,18 @@ class HandTracker:
         if restarted:
             q, state, won, k = self._restart(q, state, last, use_prediction, warm, data, limit)
             trials += k
-        r = state["r"]
-        n_p = int(wP.sum())
+        return FrameFit(q[6:].copy(), q[:6].copy(), np.asarray(state["x"]) - self.model.hand.mesh.nodes,
+                        *self._rms(state["r"], wP, mk, markers is not None), trials, time.perf_counter() - t0,
+                        float(state["cost"]), bool(restarted), int(won), bool(use_prediction))
+
+    def _rms(self, r, wP, mk, has_markers):
+        """``(rms, marker_rms)`` (mm) of the residuals ``r``: the cloud's inliers, the markers'."""
+        c = self.config
         dist = np.abs(r[: c.max_points][wP > 0]) * c.noise
         inl = dist[dist < c.robust * c.noise]
         mr = r[c.max_points:].reshape(-1, 3)[mk[3] > 0] * c.marker_noise
-        return FrameFit(q[6:].copy(), q[:6].copy(), np.asarray(state["x"]) - self.model.hand.mesh.nodes,
-                        float(np.sqrt(np.mean(inl ** 2))) if n_p and len(inl) else float("nan"),
-                        float(np.sqrt(np.mean(np.sum(mr ** 2, axis=1)))) if markers is not None else float("nan"),
-                        trials, time.perf_counter() - t0, float(state["cost"]), bool(restarted), int(won),
-                        bool(use_prediction))
+        return (float(np.sqrt(np.mean(inl ** 2))) if wP.sum() and len(inl) else float("nan"),
+                float(np.sqrt(np.mean(np.sum(mr ** 2, axis=1)))) if has_markers else float("nan"))
 
     def _state(self, q, warm, data):
         """The evaluation (:meth:`_evaluate`) at ``q``, the solve warm-started from ``warm``."""
@@ -339,6 +341,12 @@ class HandTracker:
         """The residuals ``(n_r,)`` (noise units; the cloud's padded to ``max_points``, then 3 per
         marker) and their exact Jacobian ``(n_r, 6 + n_angles)`` at ``q = (pose (6,), angles)``;
         data and ``start`` as for :meth:`fit_frame`."""
+        state = self.evaluate(q, cloud, markers, start)
+        return state["r"], state["J"]
+
+    def evaluate(self, q, cloud=None, markers=None, start: FrameFit | None = None) -> dict:
+        """:meth:`linearise`'s evaluation as a dict: ``r``, ``J``, the robust weights ``w (n_r,)``, the
+        robust ``cost``, the nodes ``x (n_nodes, 3)`` (model frame, mm) and ``rms``, ``marker_rms`` (mm)."""
         q = np.asarray(q, float)
         P, wP = self._cloud(cloud)
         mk = self._markers(markers)
@@ -347,7 +355,8 @@ class HandTracker:
         if "r" not in state:
             raise CorrespondenceError(f"the hand model's solve failed at the angles {np.degrees(q[6:]).round(2)} deg; "
                                       "start nearer (start=) or check the angles")
-        return state["r"], state["J"]
+        state["rms"], state["marker_rms"] = self._rms(state["r"], wP, mk, markers is not None)
+        return state
 
     def _check_near(self, q, u, P):
         """Refuse a cloud far from the hand at the starting estimate (pose ``q[:6]``, displacement ``u``)."""

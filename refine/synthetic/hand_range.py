@@ -49,6 +49,9 @@ MARKERS = {"forearm back": ("forearm", (0.5, 0.4, 1.0)), "forearm side": ("forea
            "finger tip": ("index_1", (0.5, 1.0, 0.5))}
 #: a marker's localisation noise (mm): a painted dot's centre found to a fraction of a pixel
 MARKER_NOISE = 0.1
+#: a motion that is not smooth (shares of the final angles, frames 0-4): a quarter per frame, a sudden
+#: stop at frame 2, then back a quarter (velocity changes of a quarter of each angle's range per frame)
+STOP_REVERSE = (0.0, 0.25, 0.5, 0.5, 0.25)
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,8 +107,9 @@ def random_angles(rng: np.random.Generator, names) -> np.ndarray:
 def hand_range_sequence(seed: int = 0, frames: int = 4, h: float = 12.0, snap: float = 4.5, dims=PAPER,
                         spacing: float = 2.5, noise: float = SCANNER_NOISE, marker_noise: float = MARKER_NOISE,
                         pose_deg: float = 3.0, pose_mm: float = 5.0, view=VIEW,
-                        view_from_y: float = VIEW_FROM_Y) -> HandSequence:
-    """Generate a sequence: random final angles, ``frames`` equal steps from rest to them.
+                        view_from_y: float = VIEW_FROM_Y, profile=None) -> HandSequence:
+    """Generate a sequence: random final angles, reached from rest in ``frames`` equal steps (or
+    along ``profile``).
 
     Args:
         seed: seeds the angles, the pose, the rays' offsets and every noise.
@@ -117,20 +121,26 @@ def hand_range_sequence(seed: int = 0, frames: int = 4, h: float = 12.0, snap: f
         pose_deg, pose_mm: bounds of the random global pose (each rotation component, degrees;
             each translation component, mm).
         view: the camera's viewing direction; view_from_y: the field of view's proximal edge (mm).
+        profile: the share of the final angles in each frame ``(frames + 1,)`` (default equal steps
+            from 0 to 1; :data:`STOP_REVERSE`: a sudden stop, then a reversal).
 
     Raises:
-        ExperimentError: fewer than one frame or a negative noise.
+        ExperimentError: fewer than one frame, a negative noise, a profile of another length.
     """
     if frames < 1 or noise < 0 or marker_noise < 0 or spacing <= 0:
         raise ExperimentError(f"a hand sequence needs frames >= 1, noise >= 0 and spacing > 0; got frames={frames}, "
                               f"noise={noise}, marker_noise={marker_noise}, spacing={spacing}")
+    share = np.linspace(0.0, 1.0, frames + 1) if profile is None else np.asarray(profile, float)
+    if share.shape != (frames + 1,) or not np.isfinite(share).all():
+        raise ExperimentError(f"the profile needs one finite share per frame ({frames + 1} with frames={frames}); got "
+                              f"{share.tolist()}")
     rng = np.random.default_rng(seed)
     hand = hand_mesh(default_body(dims), h, snap)
     names = hand.body.angle_names
     final = random_angles(rng, names)
     pose = np.r_[np.radians(rng.uniform(-pose_deg, pose_deg, 3)), rng.uniform(-pose_mm, pose_mm, 3)]
     R, t = pose_matrix(pose)
-    angles = np.linspace(0.0, 1.0, frames + 1)[:, None] * final
+    angles = share[:, None] * final
     model = HandModel(hand)
     strains = skin_strain_function(model)
     X = hand.mesh.nodes
