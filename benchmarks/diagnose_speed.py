@@ -13,8 +13,7 @@ diagnose``: no program compiled by an earlier case). Each run appends one row to
 from all rows, with a ``targets`` section (issue 22 item 2: the ~300-point bundles faster than
 the former median of 48 s: the median wall seconds over the cases of one label, the latest row
 per case). Each row keeps the wall and CPU seconds at every progress line of the diagnosis
-(``stages``: where the seconds go, stage by stage) and the compilations so far there
-(``stage_compiles``: all, and those over 1 s). See benchmarks/README.md, "diagnose_speed.py".
+(``stages``: where the seconds go, stage by stage). See benchmarks/README.md, "diagnose_speed.py".
 """
 
 from __future__ import annotations
@@ -88,11 +87,9 @@ def run(case_key: str, label: str, cache: str | None, workers: int, linear_solve
     load0 = os.getloadavg()[0]
     c0, w0 = _cpu(), time.perf_counter()
     stages = []  # [wall s, CPU s, what] at each progress line: the stages' seconds (a stage ends at its line)
-    stage_compiles = []  # [compilations, those over LARGE_COMPILE_S] so far, at each progress line
 
     def log(msg):
         stages.append([round(time.perf_counter() - w0, 1), round(_cpu() - c0, 1), msg.split("] ", 1)[-1][:60]])
-        stage_compiles.append([compiles["n"], compiles["large"]])
 
     d = diagnose(bundle, config=DiagnoseConfig(workers=workers, linear_solver=linear_solver), log=log)
     cpu, wall = _cpu() - c0, time.perf_counter() - w0
@@ -103,7 +100,7 @@ def run(case_key: str, label: str, cache: str | None, workers: int, linear_solve
             "large_compiles": compiles["large"], "large_compile_seconds": round(compiles["large_seconds"], 1),
             "load": [round(load0, 2), round(os.getloadavg()[0], 2)], "found": s["found"], "passed": s["passed"],
             "centroid": s["centroid_error"], "ratio": s["ratio_error"], "area": s["area_error"], "gain": s["gain"],
-            "chosen": d.chosen.describe(), "stages": stages, "stage_compiles": stage_compiles}
+            "chosen": d.chosen.describe(), "stages": stages}
 
 
 def median_target(rows: list[dict], label: str) -> dict:

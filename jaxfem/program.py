@@ -64,20 +64,6 @@ class Program:
         self.tangents = jax.jit(self._tangents)
         self.adjoint = jax.jit(self._adjoint)
 
-    # ------------------------------------------------------------------ running a piece
-    def run(self, name: str, *args):
-        """``getattr(self, name)(*args)``, its outputs computed (``block_until_ready``), run inside
-        :attr:`lock` and compiled outside it (:meth:`compile`): a thread compiling a new shape
-        does not hold up another that runs an executable of this program (two hypotheses, or the
-        discretisation fits of two mesh sizes, side by side); their runs still take turns."""
-        self.compile(name, *args)
-        with self.lock:  # wait inside the lock: a later np.asarray would wait holding the GIL
-            return jax.block_until_ready(getattr(self, name)(*args))
-
-    def compile(self, name: str, *args) -> None:
-        """Compile the jitted piece ``name`` for the shapes of ``args`` unless done (:func:`compile_once`)."""
-        compile_once(getattr(self, name), *args)
-
     # ------------------------------------------------------------------ residual and tangent
     def residual(self, u, theta, arrays):
         """Out-of-balance force R_int(u) - f_ext, ``(n_dofs,)``."""
@@ -159,29 +145,6 @@ class Program:
         """The parameters' cotangent (a pytree like ``theta``) of the cotangent ``g (n_dofs,)`` of
         the converged ``u``: one adjoint solve (the transpose of :meth:`_solve_tangent`)."""
         return jax.vjp(lambda th: self._implicit(th, u, vals, arrays), theta)[1](g)[0]
-
-
-_READY: set = set()  # (jitted function, argument types, static arguments) compiled by compile_once
-_COMPILING: dict = {}  # a lock per such key
-_GUARD = threading.Lock()
-
-
-def compile_once(fn, *args, **static) -> None:
-    """Compile the jitted ``fn`` for the types of ``args`` (and the ``static`` keyword arguments)
-    unless done: ``lower`` and ``compile``, which fill ``fn``'s caches (its next call with such
-    arguments compiles nothing). One thread compiles a key; another that needs it waits for it (two
-    threads calling a jitted function of a new shape at once would each compile it), one that
-    needs another key compiles beside it. Takes no program's lock."""
-    leaves, tree = jax.tree.flatten(args)
-    key = (fn, tree, tuple(jax.typeof(x) for x in leaves), tuple(sorted(static.items())))
-    if key in _READY:
-        return
-    with _GUARD:
-        lock = _COMPILING.setdefault(key, threading.Lock())
-    with lock:
-        if key not in _READY:
-            fn.lower(*args, **static).compile()
-            _READY.add(key)
 
 
 _PROGRAMS: dict = {}

@@ -169,7 +169,8 @@ class Solver:
         """
         u0, loads0 = self._start(theta, start)
         if not _traced((theta, u0, loads0)):  # nothing to differentiate: Newton's program alone
-            u = self.program.run("newton", *self._pad(theta, u0, loads0), self.padded_arrays)[0]
+            with self.program.lock:  # wait inside the lock: a later np.asarray would wait holding the GIL
+                u = jax.block_until_ready(self.program.newton(*self._pad(theta, u0, loads0), self.padded_arrays)[0])
             return self._unpad(u)
         u0, loads0 = jax.lax.stop_gradient((u0, loads0))
         theta, u0, loads0 = self._pad(theta, u0, loads0)
@@ -200,7 +201,8 @@ class Solver:
 
     def _solve_padded(self, theta, start):
         u0, loads0 = self._start(theta, start)
-        return self.program.run("newton", *self._pad(theta, u0, loads0), self.padded_arrays)
+        with self.program.lock:
+            return jax.block_until_ready(self.program.newton(*self._pad(theta, u0, loads0), self.padded_arrays))
 
     def solve_with_tangents(self, theta, directions, start=None):
         """The equilibrium and its derivatives along ``k`` parameter directions, by the implicit
@@ -219,15 +221,17 @@ class Solver:
         th = padding.pad_theta(theta, self.sizes)
         k = np.shape(jax.tree.leaves(directions)[0])[0]
         dirs = padding.pad_theta(padding.pad_batch(directions, k), self.sizes, tangent=True, axis=1)
-        du = [np.asarray(self.program.run("tangents", th, u, vals, jax.tree.map(lambda v: v[i: i + padding.BATCH], dirs),
-                                          self.padded_arrays)) for i in range(0, k, padding.BATCH)]
+        with self.program.lock:
+            du = [np.asarray(self.program.tangents(th, u, vals, jax.tree.map(lambda v: v[i: i + padding.BATCH], dirs),
+                                                   self.padded_arrays)) for i in range(0, k, padding.BATCH)]
         return self._unpad(u), self._unpad(np.concatenate(du)[:k]), info
 
     def solve_for_adjoint(self, theta, start=None):
         """The equilibrium ``u (n_nodes, dim)`` (NaN where the solve failed; no error raised) and
         what :meth:`adjoint` needs to differentiate a function of it (the converged state)."""
         theta_p, u0, loads0 = self._pad(theta, *self._start(theta, start))
-        u, _, vals = self.program.run("newton", theta_p, u0, loads0, self.padded_arrays)
+        with self.program.lock:
+            u, _, vals = jax.block_until_ready(self.program.newton(theta_p, u0, loads0, self.padded_arrays))
         return self._unpad(u), (theta_p, u, vals)
 
     def adjoint(self, state, g) -> dict:
@@ -238,7 +242,8 @@ class Solver:
         theta_p, u, vals = state
         s = self.sizes
         g = np.pad(np.asarray(g, np.float64).reshape(-1), (0, s.n_dofs_p - s.n_dofs))
-        grad = self.program.run("adjoint", theta_p, u, vals, g, self.padded_arrays)
+        with self.program.lock:
+            grad = jax.block_until_ready(self.program.adjoint(theta_p, u, vals, g, self.padded_arrays))
         return padding.unpad_theta(grad, s)
 
     def reactions(self, u, theta, nodes=None):

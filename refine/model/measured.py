@@ -22,15 +22,10 @@ from jaxfem.padding import BATCH, pad_batch
 from refine.exceptions import ObservationError
 from refine.bundle.experiment import Experiment, FromPointsDomain, MeshDomain, RectangleDomain
 from refine.bundle.outline import resolve_domain
-from refine.model import interpolation
 from refine.model.boundary import outline_tolerance, place_points, place_surface_points, side_nodes
 from refine.bundle.roles import point_spacing
 from refine.bundle.observations import Observations
 from refine.model.known import cell_parameters, hole_geometry, known_inclusions, model_material
-
-
-#: elements whose points follow a geometry morph of the reference nodes (:meth:`MeasuredModel.at_points`)
-MORPHED = ("tri3", "tet4", "tri6")
 
 
 def _traced(*trees) -> bool:
@@ -335,25 +330,10 @@ class MeasuredModel:
             loads = {"u_D": D @ B[f], **frame_traction(T, f)}
             u, state = self.solver.solve_for_adjoint({**theta, **loads}, start=start)
             start = (np.asarray(u).reshape(-1), {**start[1], **loads})
-            gU = self._points_vjp(np.asarray(u)[None], theta["X"], C[:, f:f + 1])[:, 0]  # (c, nodes, dim)
+            gU = np.asarray(self.points_vjp(np.asarray(u)[None], theta["X"], C[:, f:f + 1]))[:, 0]  # (c, nodes, dim)
             for i, g in enumerate(gU):
                 out[i, f] = D.T @ np.asarray(self.solver.adjoint(state, g)["u_D"])
         return out
-
-    @cached_property
-    def _shared_interpolation(self):
-        """``(arrays, n_nodes_p, moved)`` of :mod:`refine.model.interpolation`'s shared programs
-        for this model's points; None for a subclass that interpolates its own way."""
-        if type(self).at_points is not MeasuredModel.at_points:
-            return None
-        arrays, n_nodes_p = interpolation.probe_arrays(self.probe, self.positions, self.mesh.n_nodes, self.mesh.n_cells)
-        return arrays, n_nodes_p, self.mesh.element in MORPHED
-
-    def _points_vjp(self, U, X, C) -> np.ndarray:
-        """:attr:`points_vjp`'s values (host numpy), on the shared programs where it can."""
-        if self._shared_interpolation is not None:
-            return interpolation.points_pullback(*self._shared_interpolation, U, X, C)
-        return np.asarray(self.points_vjp(U, X, C))
 
     @cached_property
     def points_vjp(self):
@@ -370,8 +350,6 @@ class MeasuredModel:
         directions ``dU (k, n_frames, n_nodes, dim)``, ``dX (k, n_nodes, dim)`` (host numpy),
         ``(n_frames, n_points, dim)`` and ``(k, n_frames, n_points, dim)``; by :attr:`points_jvp`
         in batches of ``jaxfem.padding.BATCH`` directions (one program for any k)."""
-        if self._shared_interpolation is not None:  # on programs shared by the models of a diagnosis
-            return interpolation.points_and_derivatives(*self._shared_interpolation, U, dU, X, dX)
         k = len(dU)
         dU, dX = pad_batch(dU, k), pad_batch(dX, k)
         out = [self.points_jvp(U, dU[i: i + BATCH], X, dX[i: i + BATCH]) for i in range(0, len(dU), BATCH)]
@@ -395,6 +373,6 @@ class MeasuredModel:
         tracked point, ``(n_frames, n_points, dim)``: for callers that also need the nodal
         solution (reaction forces in :mod:`refine.diagnosis.forces`, strain maps), so they solve once."""
         probe = self.probe
-        if self.mesh.element in MORPHED:  # follow a geometry morph of the reference nodes
+        if self.mesh.element in ("tri3", "tet4", "tri6"):  # follow a geometry morph of the reference nodes
             probe = probe.moved(theta["X"], self.positions)
         return jax.vmap(probe)(U)
