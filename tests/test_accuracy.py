@@ -51,7 +51,14 @@ def test_errors_are_the_covariance_carried_to_every_quantity(kind):
     g = c * np.array([z[4], z[3]])  # d area / d (a, b)
     assert linear[5] == pytest.approx(np.sqrt(g @ cov[3:5, 3:5] @ g), rel=1e-5)
     [e] = shape_errors(f)
-    assert np.allclose([*e.centroid, *e.axes, e.angle, e.area], linear[:6], rtol=0.08)
+    assert np.allclose([*e.centroid, *e.axes, e.area], linear[[0, 1, 2, 3, 5]], rtol=0.08)
+    if kind == "rectangle":
+        assert e.angle == pytest.approx(linear[4], rel=0.08)
+    else:
+        # an ellipse's or hole's orientation error is taken at the unbiased elongation
+        # (uncertainty.orientation_variance, checked in tests/test_uncertainty_orientation.py):
+        # never below the delta method's, and here (an angle std of 0.26 rad) somewhat above it
+        assert 0.95 * linear[4] <= e.angle <= 1.25 * linear[4]
     if kind == "hole":
         assert e.relative_elasticity is None
     else:

@@ -6,7 +6,6 @@ to end through the script (slow)."""
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import os
 import subprocess
@@ -15,6 +14,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
+from tests._bench import benchmark_modules
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "benchmarks"
@@ -24,12 +24,8 @@ COMMITTED = BENCH / "results" / "diagnose.json"
 @pytest.fixture(scope="module")
 def bench():
     """benchmarks/diagnose.py as the module ``diagnose`` (as its spawned workers import it)."""
-    sys.path.insert(0, str(BENCH))
-    try:
-        yield importlib.import_module("diagnose")
-    finally:
-        sys.path.remove(str(BENCH))
-        sys.modules.pop("diagnose", None)
+    with benchmark_modules("diagnose") as (diagnose,):
+        yield diagnose
 
 
 @pytest.fixture(scope="module")

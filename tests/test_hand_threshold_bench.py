@@ -5,24 +5,18 @@ its own JSON, and the Richardson step of the mesh study."""
 import importlib
 import json
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from tests._bench import benchmark_modules
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
 @pytest.fixture(scope="module")
 def bench():
     """(``_hand_threshold``, ``_threshold_mesh``) imported from benchmarks/."""
-    sys.path.insert(0, str(BENCH))
-    try:
-        yield importlib.import_module("_hand_threshold"), importlib.import_module("_threshold_mesh")
-    finally:
-        sys.path.remove(str(BENCH))
-        for name in ("_hand_threshold", "_threshold_mesh"):
-            sys.modules.pop(name, None)
+    with benchmark_modules("_hand_threshold", "_threshold_mesh") as found:
+        yield found
 
 
 def _detection(fraction, rise, p=1e-6, half=0.03):

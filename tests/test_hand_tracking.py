@@ -160,7 +160,8 @@ def test_hand_mesh_refined_along_the_thumb():
     rows = along(body, ("thumb_1", "thumb_2"), h, 0)  # the thumb lies along x
     plain, fine = hand_mesh(body, 30.0, 4.5), hand_mesh(body, 30.0, 4.5, rows)
     lo, hi = rows[0][1], rows[1][2]
-    xs = np.unique(fine.mesh.nodes[:, 0][fine.mesh.nodes[:, 0] >= lo - 1e-9].round(9))
+    x = fine.mesh.nodes[:, 0]
+    xs = np.unique(x[(x >= lo - 1e-9) & (x <= hi + 1e-9)].round(9))  # the refined rows
     assert np.diff(xs).max() <= h / 2 + 1e-9  # tet10: mid-edge nodes halve the gaps
     assert np.diff(xs).max() > h / 4  # no finer than asked (ceil rounding)
     keep = lambda m: np.unique(m.mesh.nodes[m.mesh.nodes[:, 0] < lo - 1e-9].round(9), axis=0)  # noqa: E731

@@ -5,24 +5,18 @@ standard deviation from draws. Fast: no solve (the fits themselves are what the 
 
 from __future__ import annotations
 
-import importlib
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.stats import norm
+from tests._bench import benchmark_modules
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
 @pytest.fixture(scope="module")
 def modules():
-    sys.path.insert(0, str(BENCH))
-    try:
-        yield importlib.import_module("scar"), importlib.import_module("scar_error_budget")
-    finally:
-        sys.path.remove(str(BENCH))
+    with benchmark_modules("scar", "scar_error_budget") as found:
+        yield found
 
 
 def test_coverage_passes_right_errors_and_fails_too_small_or_too_large_ones(modules):

@@ -5,26 +5,20 @@ cases as benchmarks/scar.py, which measures them over seeds)."""
 
 from __future__ import annotations
 
-import importlib
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import jaxfem as jf
 from refine.synthetic.skin import SKIN, random_scar
+from tests._bench import benchmark_modules
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
 @pytest.fixture(scope="module")
 def bench():
-    sys.path.insert(0, str(BENCH))
-    try:
-        yield importlib.import_module("scar")
-    finally:
-        sys.path.remove(str(BENCH))
+    with benchmark_modules("scar") as (scar,):
+        yield scar
 
 
 def test_scars_are_drawn_at_random_inside_the_field_on_skin_of_the_papers_properties():

@@ -6,7 +6,6 @@ model's wall was softer than the data's clamped rim and the hole fitted in it 8-
 import numpy as np
 import pytest
 
-import jaxfem as jf
 from refine.bundle.experiment import Experiment, MeshDomain
 from refine.bundle.observations import Forces, Observations
 from refine.solid.cup import CupShape

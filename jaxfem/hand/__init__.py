@@ -10,7 +10,7 @@ frame; the skin's strain per frame, with and without a scar.
     result = run_motion(model, motion)
     result.max_strain, result.displacement                   # the strain-displacement curve
     wrist = skin_area(hand, Box((-16, -56, -20), (16, 0, -10)))  # an area of interest (skin facets)
-    result = run_motion(model, motion, area=wrist, detector=detect)  # e.g. refine.threshold.strain_threshold
+    result = run_motion(model, motion, area=wrist, detector=detect)  # e.g. refine.threshold.ThresholdRule().find
     result.area_max_strain, result.threshold                 # its maximum; the detector's result
 
 Units: mm, MPa; angles in degrees in a :class:`Motion`, radians in the kinematics.

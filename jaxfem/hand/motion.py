@@ -186,7 +186,7 @@ def run_motion(model: HandModel, motion: Motion, scar: Scar | None = None, strai
             restricted where it passes.
         detector: the strain-threshold detector, ``(abscissa (K + 1,), area_max_strain (K + 1,)) ->
             anything`` (e.g. the threshold with its uncertainty); its result is ``threshold``. This
-            is the hook for refine's detector (``refine.threshold.strain_threshold``): jaxfem has
+            is the hook for refine's detector (``refine.threshold.ThresholdRule.find``): jaxfem has
             none of its own. The abscissa is the marked point's ``"displacement"`` (the paper's
             curve), or ``"time"`` (the share of the motion's frames) or ``"fraction"`` (of the
             joint angles' range), as ``against`` says.
