@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import glob
 import re
+import warnings
 from pathlib import Path
 from typing import Sequence
 
@@ -89,7 +90,9 @@ def _read_frames(path: Path) -> list[np.ndarray]:
     try:
         import skimage.io
 
-        image = skimage.io.imread(str(path))
+        with warnings.catch_warnings():  # imageio tries its legacy plugins (DICOM's is deprecated)
+            warnings.simplefilter("ignore", DeprecationWarning)
+            image = skimage.io.imread(str(path))
     except Exception as error:  # noqa: BLE001 - report any reader failure the same way
         raise ImageError(f"cannot read image {path}: {error}") from error
     return [_to_grey(np.asarray(image), bgr=False)]
