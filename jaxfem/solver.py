@@ -104,6 +104,8 @@ class Solver:
         self.law, self.assembler = self.program.asm.law, self.program.asm
         self.sizes = padding.sizes(mesh.n_cells, mesh.n_nodes, mesh.dim, pat.nnz, len(problem.fixed),
                                    pad=self._lin.pads)
+        if self._lin.pads:  # a larger padding the program was compiled for, where one holds this mesh
+            self.sizes = self.program.sizes_for(self.sizes)
         padded = padding.padded_arrays(self.sizes, mesh.cells, pat, problem.fixed, free)
         padded["tfacets"] = problem.traction_facets.astype(np.int32)
         if isinstance(self._lin, HostSolver):
