@@ -101,6 +101,16 @@ def fits(real: Sizes, into: Sizes) -> bool:
             and pad * (pad - 1) >= extra)
 
 
+def with_headroom(own: Sizes, headroom: float) -> Sizes:
+    """``own``'s real sizes padded as for a problem ``headroom`` times larger in every count
+    (its own padding where that would not hold it, or ``headroom <= 1``)."""
+    if headroom <= 1.0:
+        return own
+    up = lambda n: int(np.ceil(headroom * n))  # noqa: E731
+    room = sizes(up(own.n_cells), up(own.n_nodes), own.dim, up(own.nnz), up(own.n_fixed))
+    return padded_to(own, room) if fits(own, room) else own
+
+
 def padded_to(real: Sizes, into: Sizes) -> Sizes:
     """``real``'s real sizes with ``into``'s padded ones (:func:`fits` must hold)."""
     return Sizes(real.n_cells, real.n_nodes, real.dim, real.nnz, real.n_fixed, into.n_cells_p, into.n_nodes_p,

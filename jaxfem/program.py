@@ -23,7 +23,9 @@ A mesh smaller than one the program has already been padded for reuses that larg
 its own bucket: each compiled size costs its Newton, tangents and adjoint (several CPU seconds
 each), while padding only adds cells that carry nothing (the host linear solvers factorise the
 real matrix alone). In a diagnosis the chosen model's refit on a coarser mesh (about half the
-cells) so runs on the refit's programs.
+cells) so runs on the refit's programs. The other way round, a solver made with ``headroom``
+(:class:`~jaxfem.solver.Solver`) is padded as for a larger mesh, which larger meshes made later
+then reuse (a diagnosis's search model and its hypotheses' meshes, which follow the shapes).
 """
 
 from __future__ import annotations

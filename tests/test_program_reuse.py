@@ -73,3 +73,27 @@ def test_fits_says_which_paddings_hold_a_mesh():
         pairs = arr["rows"].astype(np.int64) * s.n_dofs_p + arr["cols"]
         assert len(np.unique(pairs)) == s.nnz_p  # every entry at a place of its own
         np.testing.assert_array_equal(arr["rows"][: pat.nnz], pat.rows)
+
+
+def test_headroom_pads_for_a_larger_mesh_that_then_shares_it():
+    """A solver built with headroom 1.25 is padded as for a mesh 1.25 times larger; a finer
+    sheet within that room, built after it, is given the same padding (no bucket of its own);
+    one beyond it keeps its own. Constructing solvers compiles nothing (cheap)."""
+    rng = np.random.default_rng(11)
+    nx, ny = int(rng.integers(10, 14)), int(rng.integers(6, 9))
+    mesh = jf.rectangle(0, 0, 100, 60, nx, ny)
+    fixed = np.concatenate([jf.dofs(mesh, mesh.side("left")), jf.dofs(mesh, mesh.side("right"))])
+    # Mooney-Rivlin under plane strain: a program no other test of this process pads for
+    search = jf.Solver(jf.Problem(mesh, "mooney-rivlin", "plane-strain", fixed=fixed), "superlu", headroom=1.25)
+    s = search.sizes
+    assert s.n_cells_p >= 1.25 * s.n_cells and s.n_nodes_p >= 1.25 * s.n_nodes and s.nnz_p >= 1.25 * s.nnz
+    wider = jf.rectangle(0, 0, 100, 60, nx + 1, ny)  # about 1 / nx more cells
+    fixed_w = np.concatenate([jf.dofs(wider, wider.side("left")), jf.dofs(wider, wider.side("right"))])
+    hyp = jf.Solver(jf.Problem(wider, "mooney-rivlin", "plane-strain", fixed=fixed_w), "superlu")
+    assert hyp.sizes.n_cells > s.n_cells and padding.fits(hyp.sizes, s)
+    assert (hyp.sizes.n_cells_p, hyp.sizes.n_nodes_p, hyp.sizes.nnz_p, hyp.sizes.n_fixed_p) == \
+        (s.n_cells_p, s.n_nodes_p, s.nnz_p, s.n_fixed_p)
+    big = jf.rectangle(0, 0, 100, 60, 2 * nx, 2 * ny)
+    fixed_b = np.concatenate([jf.dofs(big, big.side("left")), jf.dofs(big, big.side("right"))])
+    other = jf.Solver(jf.Problem(big, "mooney-rivlin", "plane-strain", fixed=fixed_b), "superlu")
+    assert other.sizes.n_cells_p > s.n_cells_p

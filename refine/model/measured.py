@@ -103,11 +103,13 @@ class MeasuredModel:
         linear_solver: see :mod:`jaxfem.linsolve`.
         traction_facets: boundary facets that carry the parameter ``traction`` (a dead load; a
             subclass such as :class:`refine.solid.LoadedModel` sets it per frame).
+        headroom: the solver's padding holds a mesh this many times larger (``jaxfem.Solver``),
+            so that larger meshes of the same kind built later share its compiled programs.
     """
 
     def __init__(self, experiment: Experiment, observations: Observations, mesh: jf.Mesh | None = None,
                  element: str = "tri3", h: float | None = None, linear_solver: str = "auto", root=None,
-                 traction_facets=None):
+                 traction_facets=None, headroom: float = 1.0):
         if observations.dim != 2 and mesh is None and not isinstance(experiment.domain, MeshDomain):
             raise ObservationError("3D bundles need a mesh (domain = { mesh = ... })")
         experiment = resolve_domain(experiment, observations)
@@ -131,7 +133,7 @@ class MeasuredModel:
         self.problem = jf.Problem(self.mesh, model_material(experiment), experiment.kind,
                                   fixed=jf.dofs(self.mesh, loop), traction_facets=traction_facets)
         self.linear_solver = linear_solver  # as asked ("auto" included): models derived from this one ask the same
-        self.solver = jf.Solver(self.problem, linear_solver)
+        self.solver = jf.Solver(self.problem, linear_solver, headroom=headroom)
         # 3D: a point projected onto a flat piece of a curved quadratic face may lie a chord's
         # sagitta outside its cell (the placement checked its distance)
         self.probe = jf.locate(self.mesh, self.positions, tol=1e-6 if dim == 2 else 1e-2, names=observations.ids)
