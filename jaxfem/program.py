@@ -85,9 +85,10 @@ class Program:
     def sizes_for(self, own: padding.Sizes, reuse: float = REUSE) -> padding.Sizes:
         """The padded sizes a new solver of real sizes ``own`` (padded to its own bucket) is given:
         the smallest padded sizes this program already gave that hold it (:func:`padding.fits`)
-        with at most ``reuse`` times its cells, else its own bucket (then recorded). Only
-        buckets are given, so meshes of one size get one padding whatever came before them but
-        for the reuse of a larger one. (A solver whose linear solver takes no padding does not ask.)"""
+        with at most ``reuse`` times its cells, else its own (then recorded). Which one a mesh is
+        given depends on the solvers of this program made before it in the process; the solve
+        does not (padding carries nothing; a diagnosis's figures were the same to every printed
+        digit). A solver whose linear solver takes no padding does not ask."""
         with self._sizes_lock:
             held = [s for s in self._sizes if padding.fits(own, s) and s.n_cells_p <= reuse * max(own.n_cells, 1)]
             if held:
