@@ -89,6 +89,34 @@ def sizes(n_cells: int, n_nodes: int, dim: int, nnz: int, n_fixed: int, pad: boo
     return Sizes(n_cells, n_nodes, dim, nnz, n_fixed, bucket(n_cells), n_nodes_p, nnz_p, n_fixed_p)
 
 
+def fits(real: Sizes, into: Sizes) -> bool:
+    """Whether a problem of ``real``'s real sizes can be padded to ``into``'s padded sizes (of
+    the same dimension): every padded count at least the real one, padding dofs for the padding
+    prescribed dofs (and at least one), and room among them for the padding matrix entries, each
+    at a place of its own (:func:`padded_arrays`)."""
+    pad = (into.n_nodes_p - real.n_nodes) * real.dim
+    extra = into.nnz_p - real.nnz - pad
+    return (into.dim == real.dim and into.n_cells_p >= real.n_cells and pad >= 1
+            and into.n_fixed_p - real.n_fixed <= pad and into.n_fixed_p >= real.n_fixed and extra >= 0
+            and pad * (pad - 1) >= extra)
+
+
+def with_headroom(own: Sizes, headroom: float) -> Sizes:
+    """``own``'s real sizes padded as for a problem ``headroom`` times larger in every count
+    (its own padding where that would not hold it, or ``headroom <= 1``)."""
+    if headroom <= 1.0:
+        return own
+    up = lambda n: int(np.ceil(headroom * n))  # noqa: E731
+    room = sizes(up(own.n_cells), up(own.n_nodes), own.dim, up(own.nnz), up(own.n_fixed))
+    return padded_to(own, room) if fits(own, room) else own
+
+
+def padded_to(real: Sizes, into: Sizes) -> Sizes:
+    """``real``'s real sizes with ``into``'s padded ones (:func:`fits` must hold)."""
+    return Sizes(real.n_cells, real.n_nodes, real.dim, real.nnz, real.n_fixed, into.n_cells_p, into.n_nodes_p,
+                 into.nnz_p, into.n_fixed_p)
+
+
 def padded_arrays(s: Sizes, cells: np.ndarray, pattern: Pattern, fixed: np.ndarray, free: np.ndarray) -> dict:
     """The solver's index and mask arrays at the padded sizes (host numpy; see the module doc).
 

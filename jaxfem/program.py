@@ -17,6 +17,15 @@ Each program's pieces are pure functions of ``(theta, ..., arrays)``:
 - :attr:`Program.tangents`: the same tangents for a batch of parameter directions at a converged
   state, for a caller that solved already (a Jacobian by forward mode, one back-substitution per
   direction after one factorisation).
+
+A mesh smaller than one the program has already been padded for reuses that larger padding
+(:meth:`Program.sizes_for`, within :data:`REUSE` times its own cell count) instead of compiling
+its own bucket: each compiled size costs its Newton, tangents and adjoint (several CPU seconds
+each), while padding only adds cells that carry nothing (the host linear solvers factorise the
+real matrix alone). In a diagnosis the chosen model's refit on a coarser mesh (about half the
+cells) so runs on the refit's programs. The other way round, a solver made with ``headroom``
+(:class:`~jaxfem.solver.Solver`) is padded as for a larger mesh, which larger meshes made later
+then reuse (a diagnosis's search model and its hypotheses' meshes, which follow the shapes).
 """
 
 from __future__ import annotations
@@ -27,9 +36,16 @@ from functools import lru_cache, partial
 import jax
 import jax.numpy as jnp
 
+from . import padding
 from .assembly import Assembler, matvec
 from .kinematics import reduce
 from .newton import NewtonOptions, external_force, newton_solve
+
+#: a mesh reuses a padded size already compiled for where it has at most this many times its own
+#: cells (its own bucket is up to 19 % above it); padding cells cost their share of the
+#: assembly, which is small beside a compile of the solve (a mesh half the size of the last:
+#: 2 to 2.4 times)
+REUSE = 2.5
 
 #: parameters that are not per-cell material values
 NOT_MATERIAL = ("X", "thickness", "u_D", "f", "traction")
@@ -56,6 +72,8 @@ class Program:
         # that waits inside XLA for a busy executable holds the GIL, which the running one's host
         # solver callback needs (a diagnosis's two workers hung so, all threads waiting)
         self.lock = threading.Lock()
+        self._sizes: list = []  # the padded sizes solvers of this program were given, in order
+        self._sizes_lock = threading.Lock()
         self._newton = partial(newton_solve, asm=asm, lin=lin, opts=opts, facet_element=facet_element,
                                finite=finite)
         self.newton = jax.jit(self._newton)
@@ -63,6 +81,20 @@ class Program:
         self.displacement = jax.jit(self._equilibrium)
         self.tangents = jax.jit(self._tangents)
         self.adjoint = jax.jit(self._adjoint)
+
+    def sizes_for(self, own: padding.Sizes, reuse: float = REUSE) -> padding.Sizes:
+        """The padded sizes a new solver of real sizes ``own`` (padded to its own bucket) is given:
+        the smallest padded sizes this program already gave that hold it (:func:`padding.fits`)
+        with at most ``reuse`` times its cells, else its own (then recorded). Which one a mesh is
+        given depends on the solvers of this program made before it in the process; the solve
+        does not (padding carries nothing; a diagnosis's figures were the same to every printed
+        digit). A solver whose linear solver takes no padding does not ask."""
+        with self._sizes_lock:
+            held = [s for s in self._sizes if padding.fits(own, s) and s.n_cells_p <= reuse * max(own.n_cells, 1)]
+            if held:
+                return padding.padded_to(own, min(held, key=lambda s: (s.n_cells_p, s.nnz_p, s.n_nodes_p)))
+            self._sizes.append(own)
+            return own
 
     # ------------------------------------------------------------------ residual and tangent
     def residual(self, u, theta, arrays):

@@ -79,9 +79,14 @@ class Solver:
         linear_solver: ``"auto"`` (default) or a name of :data:`jaxfem.linsolve.SOLVERS` that is
             installed (:func:`jaxfem.linsolve.available`).
         options: :class:`~jaxfem.newton.NewtonOptions`.
+        headroom: pad as for a mesh this many times larger (every count), so that larger meshes
+            of its kind solved later (e.g. a diagnosis's hypotheses, whose meshes follow shapes)
+            reuse this solver's programs (:meth:`jaxfem.program.Program.sizes_for`); 1: its own
+            bucket.
     """
 
-    def __init__(self, problem: Problem, linear_solver: str = "auto", options: NewtonOptions | None = None):
+    def __init__(self, problem: Problem, linear_solver: str = "auto", options: NewtonOptions | None = None,
+                 headroom: float = 1.0):
         self.problem = problem
         self.options = options or NewtonOptions()
         mesh = problem.mesh
@@ -104,6 +109,8 @@ class Solver:
         self.law, self.assembler = self.program.asm.law, self.program.asm
         self.sizes = padding.sizes(mesh.n_cells, mesh.n_nodes, mesh.dim, pat.nnz, len(problem.fixed),
                                    pad=self._lin.pads)
+        if self._lin.pads:  # room for larger meshes, or a larger padding the program was given, where one holds this mesh
+            self.sizes = self.program.sizes_for(padding.with_headroom(self.sizes, headroom))
         padded = padding.padded_arrays(self.sizes, mesh.cells, pat, problem.fixed, free)
         padded["tfacets"] = problem.traction_facets.astype(np.int32)
         if isinstance(self._lin, HostSolver):

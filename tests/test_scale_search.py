@@ -1,7 +1,7 @@
 """The diagnosis at scale: the drive's covariance needs ``J^T dr/dB`` (k rows of the drive
 Jacobian), pulled back by one adjoint solve per unknown and frame
-(:meth:`MeasuredModel.boundary_vjp`) instead of a tangent solve per boundary value and frame.
-Both against the whole drive Jacobian on a small sheet, its motion, the cotangents and the
+(:func:`refine.model.drive.boundary_vjp`) instead of a tangent solve per boundary value and frame
+where the boundary values are many (the forward way where they are few). Both against the whole drive Jacobian on a small sheet, its motion, the cotangents and the
 residuals' Jacobian drawn under a seed, a point lost in one frame."""
 
 import numpy as np
@@ -11,6 +11,7 @@ from refine.bundle.experiment import Experiment, RectangleDomain
 from refine.bundle.observations import Observations
 from refine.diagnosis.uncertainty import _pulled_shared
 from refine.measures import Residuals
+from refine.model.drive import boundary_vjp
 from refine.model.measured import MeasuredModel
 
 
@@ -37,8 +38,12 @@ def test_drive_pullback_equals_the_drive_jacobians_rows():
     theta = model.params()
     whole = model.boundary_jacobian(theta)  # (frames, points, dim, frames, m)
     C = rng.normal(size=(3,) + obs.displacements.shape)
-    np.testing.assert_allclose(model.boundary_vjp(theta, C), np.einsum("cfpd,fpdgm->cgm", C, whole),
+    want = np.einsum("cfpd,fpdgm->cgm", C, whole)
+    # the reverse way (one adjoint solve per cotangent and frame: a bundle with many boundary
+    # values), and the forward way this small sheet takes by default (the Jacobian contracted)
+    np.testing.assert_allclose(boundary_vjp(model, theta, C, forward_batches=0), want,
                                atol=1e-9 * np.abs(whole).max() * np.abs(C).max())
+    np.testing.assert_allclose(model.boundary_vjp(theta, C), want, atol=1e-9 * np.abs(whole).max() * np.abs(C).max())
     res = Residuals.at(obs.displacements, obs.mask("guide"), sigma=0.002)
     J = rng.normal(size=(res.n, 3))
     want = J.T @ res.jacobian(whole.reshape(whole.shape[:3] + (-1,)))

@@ -54,6 +54,11 @@ from refine.diagnosis.noise import NullTest, estimate_noise, null_test, propagat
 from refine.diagnosis.provenance import provenance
 
 
+#: the search model is padded as for a mesh this many times larger: the hypotheses' meshes (larger,
+#: they follow the shapes) then reuse its compiled Newton instead of their own bucket's (jaxfem.program)
+SEARCH_HEADROOM = 1.25
+
+
 @dataclass
 class Diagnosis:
     """Everything a diagnosis found; :meth:`report` gives the report.json content."""
@@ -150,10 +155,11 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
     log = lambda msg: say(f"[{time.perf_counter() - t0:6.1f} s] {msg}")  # noqa: E731
     ex, obs = bundle.experiment, bundle.observations
     h = cfg.h if cfg.h is not None else mesh_size(ex.domain, grid_spacing(obs.reference), cfg.max_cells)
-    full = MeasuredModel(ex, obs, root=bundle.root, h=h, linear_solver=cfg.linear_solver)
+    full = MeasuredModel(ex, obs, root=bundle.root, h=h, linear_solver=cfg.linear_solver, headroom=SEARCH_HEADROOM)
     frames = search_frames(obs, cfg.search_frames)
     model = full if len(frames) == obs.n_frames else MeasuredModel(ex, at_frames(obs, frames), mesh=full.mesh, h=full.h,
-                                                                   linear_solver=cfg.linear_solver)
+                                                                   linear_solver=cfg.linear_solver,
+                                                                   headroom=SEARCH_HEADROOM)
     log(f"{obs.n_points} points x {obs.n_frames} frames; mesh of {full.mesh.n_cells} cells (size {full.h:.3g}); "
         f"search on frame{'s' if len(frames) > 1 else ''} {', '.join(str(f + 1) for f in frames)}")
     guide = obs.mask("guide")

@@ -103,11 +103,13 @@ class MeasuredModel:
         linear_solver: see :mod:`jaxfem.linsolve`.
         traction_facets: boundary facets that carry the parameter ``traction`` (a dead load; a
             subclass such as :class:`refine.solid.LoadedModel` sets it per frame).
+        headroom: the solver's padding holds a mesh this many times larger (``jaxfem.Solver``),
+            so that larger meshes of the same kind built later share its compiled programs.
     """
 
     def __init__(self, experiment: Experiment, observations: Observations, mesh: jf.Mesh | None = None,
                  element: str = "tri3", h: float | None = None, linear_solver: str = "auto", root=None,
-                 traction_facets=None):
+                 traction_facets=None, headroom: float = 1.0):
         if observations.dim != 2 and mesh is None and not isinstance(experiment.domain, MeshDomain):
             raise ObservationError("3D bundles need a mesh (domain = { mesh = ... })")
         experiment = resolve_domain(experiment, observations)
@@ -131,7 +133,7 @@ class MeasuredModel:
         self.problem = jf.Problem(self.mesh, model_material(experiment), experiment.kind,
                                   fixed=jf.dofs(self.mesh, loop), traction_facets=traction_facets)
         self.linear_solver = linear_solver  # as asked ("auto" included): models derived from this one ask the same
-        self.solver = jf.Solver(self.problem, linear_solver)
+        self.solver = jf.Solver(self.problem, linear_solver, headroom=headroom)
         # 3D: a point projected onto a flat piece of a curved quadratic face may lie a chord's
         # sagitta outside its cell (the placement checked its distance)
         self.probe = jf.locate(self.mesh, self.positions, tol=1e-6 if dim == 2 else 1e-2, names=observations.ids)
@@ -286,54 +288,19 @@ class MeasuredModel:
 
     def boundary_jacobian(self, theta) -> np.ndarray:
         """Derivatives of the prediction ``(n_frames, n_points, dim)`` with respect to the measured
-        boundary displacements ``(n_frames, n_boundary * dim)`` (:meth:`measured_boundary`), as
-        ``(n_frames, n_points, dim, n_frames, n_boundary * dim)``: zero between different frames
-        (each frame's equilibrium depends on its own drive only). On the solver's shared programs
-        (one tangent solve per boundary value and frame) where :attr:`shares_programs`; else by
-        forward mode through the model's own solve. Rows of it alone: :meth:`boundary_vjp`."""
-        B = self.measured_boundary()
-        if not self.shares_programs:
-            return np.asarray(jax.jit(jax.jacfwd(lambda b: self.predict(theta, boundary=b)))(B))
-        n_f, m = B.shape
-        zero = {k: np.zeros((m,) + np.shape(v)) for k, v in theta.items() if k != "u_D"}
-        start, U, dU, T = self.frame_starts(theta), [], [], self.frame_tractions(theta["X"])
-        for f in range(n_f):
-            D = self.drives[f].matrix  # (n_fixed, m): u_D = D @ B[f], so the directions are its columns
-            loads = {"u_D": D @ B[f], **frame_traction(T, f)}
-            u, du, _ = self.solver.solve_with_tangents({**theta, **loads}, {**zero, "u_D": D.T}, start=start)
-            start = (np.asarray(u).reshape(-1), {**start[1], **loads})
-            U.append(u)
-            dU.append(du)
-        dU = np.stack(dU, 1)  # (m, frames, n_nodes, dim)
-        _, dP = self.at_points_and_derivatives(np.stack(U), dU, theta["X"], np.zeros((m,) + np.shape(theta["X"])))
-        dP = np.moveaxis(dP, 0, -1)  # (frames, points, dim, m)
-        out = np.zeros(dP.shape[:3] + (n_f, m))
-        for f in range(n_f):
-            out[f, :, :, f] = dP[f]
-        return out
+        boundary displacements ``(n_frames, n_boundary * dim)``, as ``(n_frames, n_points, dim,
+        n_frames, n_boundary * dim)`` (:func:`refine.model.drive.boundary_jacobian`)."""
+        from refine.model.drive import boundary_jacobian
+
+        return boundary_jacobian(self, theta)
 
     def boundary_vjp(self, theta, cotangents) -> np.ndarray:
         """Cotangents of the measured boundary displacements ``(c, n_frames, n_boundary * dim)``
-        from ``c`` cotangents of the prediction ``cotangents (c, n_frames, n_points, dim)``: the
-        rows ``C dP/dB`` of :meth:`boundary_jacobian` without it, by one adjoint solve per
-        cotangent and frame on the solver's shared programs (a model that
-        :attr:`shares_programs`). The Jacobian takes one tangent solve per boundary value and
-        frame and its interpolation at the points (3,000 points x 11 frames: ~450 directions per
-        frame, most of the diagnosis's CPU seconds); a covariance of k fitted unknowns needs k
-        rows of it."""
-        C = np.asarray(cotangents, np.float64)
-        B = self.measured_boundary()
-        start, out = self.frame_starts(theta), np.zeros(C.shape[:2] + (B.shape[1],))
-        T = self.frame_tractions(theta["X"])
-        for f in range(len(B)):
-            D = self.drives[f].matrix  # (n_fixed, m): u_D = D @ B[f]
-            loads = {"u_D": D @ B[f], **frame_traction(T, f)}
-            u, state = self.solver.solve_for_adjoint({**theta, **loads}, start=start)
-            start = (np.asarray(u).reshape(-1), {**start[1], **loads})
-            gU = np.asarray(self.points_vjp(np.asarray(u)[None], theta["X"], C[:, f:f + 1]))[:, 0]  # (c, nodes, dim)
-            for i, g in enumerate(gU):
-                out[i, f] = D.T @ np.asarray(self.solver.adjoint(state, g)["u_D"])
-        return out
+        from ``c`` cotangents of the prediction ``(c, n_frames, n_points, dim)``
+        (:func:`refine.model.drive.boundary_vjp`)."""
+        from refine.model.drive import boundary_vjp
+
+        return boundary_vjp(self, theta, cotangents)
 
     @cached_property
     def points_vjp(self):
