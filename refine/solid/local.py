@@ -9,7 +9,7 @@ the rest is free. The wall above is left out: the driven ring holds the floor as
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -119,13 +119,16 @@ class SolidHole(HoleShape):
     last unknown; between half and twice the experiment's E, started at ``E_start``, by default E,
     and after a remesh where the fit left it). ``edge``: the painted grid's
     evidence of the hole (:class:`~refine.solid.edge.EdgeEvidence`): every missing crossing of its
-    gap is kept within the evidence's slack of the hole (:class:`~refine.solid.edge.EdgeGeometry`)."""
+    gap is kept within the evidence's slack of the hole (:class:`~refine.solid.edge.EdgeGeometry`).
+    ``h``: the element size (length unit) in place of the recipe's (None: ``local.h``; set by
+    :func:`refine.diagnosis.uncertainty.discretisation_bias`'s refit on a coarser mesh)."""
 
     local: Local
     hole: jf.Ellipse
     free_modulus: bool = False
     edge: EdgeEvidence | None = None
     E_start: float | None = None
+    h: float | None = None
     remeshable = True
 
     @property
@@ -133,7 +136,8 @@ class SolidHole(HoleShape):
         return self.local.experiment.law
 
     def build(self) -> tuple[Compiled, None]:
-        model, slab = self.local.model(self.hole)
+        local = self.local if self.h is None else replace(self.local, h=self.h)
+        model, slab = local.model(self.hole)
         sp = model.spacing
         slack = 0.0 if self.edge is None else max(self.edge.slack, self.edge.missing_outside(self.hole.params) + 1e-9)
         param = EdgeGeometry(ExtrudedMorph.of(slab), self.hole.params[None], scale=0.5 * sp, rotate=True,
@@ -155,4 +159,4 @@ class SolidHole(HoleShape):
     def at(self, shapes, element: str = "tet10") -> SolidHole:
         s = shapes[0]
         return SolidHole(self.local, jf.Ellipse(*s.centre, *s.axes, s.angle), self.free_modulus, self.edge,
-                         getattr(s, "E", None))
+                         getattr(s, "E", None), self.h)
