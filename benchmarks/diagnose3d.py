@@ -24,6 +24,8 @@ diagnose3d.png.
 
     python benchmarks/diagnose3d.py                  # seeds 1 2 3 with a hole, 4 without, e2e seed 2
     python benchmarks/diagnose3d.py --holes 1 --sound 4 --e2e --h-data 1.2
+    python benchmarks/diagnose3d.py --holes 1 --sound --e2e --h-data 0.8 --bundles B --data-only  # the data alone
+    python benchmarks/diagnose3d.py --combine A.json B.json --out all.json   # rows run one case per process
 """
 
 from __future__ import annotations
@@ -191,7 +193,11 @@ def main() -> None:
                    "reuse them when there (default: a temporary folder per case)")
     p.add_argument("--data-only", action="store_true", help="write the bundle cases' data (--bundles) and stop")
     p.add_argument("--no-forward", action="store_true", help="skip the local model's forward-solve timing")
+    p.add_argument("--combine", type=Path, nargs="+", default=None, help="write --out from these results JSONs' rows "
+                   "(cases run one per process) with the targets over all of them, and stop")
     args = p.parse_args()
+    if args.combine:
+        return combine(args.combine, args.out)
     rows, last = [], None
     jobs = [(s, lambda s: (end_to_end(s, args), None)) for s in args.e2e]
     jobs += [(s, lambda s: case(s, True, args)) for s in args.holes] + [(s, lambda s: case(s, False, args))
@@ -219,6 +225,23 @@ def main() -> None:
     args.out.write_text(json.dumps(out, indent=1, default=str), encoding="utf-8")
     plot(rows, args.out.with_suffix(".png"))
     args.out.with_suffix(".partial.jsonl").unlink(missing_ok=True)  # the rows so far, for a run cut short
+    print(json.dumps(targets, indent=1, default=float))
+
+
+def combine(files, out: Path) -> None:
+    """``out`` (and its plot) from the rows of ``files`` (results JSONs of this script, e.g. one
+    case per process to keep each under a few GB): the targets over every row, each file's
+    settings and load kept beside its rows."""
+    rows, runs = [], []
+    for f in files:
+        d = json.loads(Path(f).read_text(encoding="utf-8"))
+        rows += [{**r, "from": Path(f).name} for r in d["rows"]]
+        runs.append({"file": Path(f).name, "settings": d["settings"], "load_at_end": d["load_at_end"],
+                     "forward": d.get("forward")})
+    targets = targets_of(rows)
+    out.write_text(json.dumps({"rows": rows, "runs": runs, "targets": targets, "cpus": os.cpu_count()}, indent=1,
+                              default=str), encoding="utf-8")
+    plot(rows, out.with_suffix(".png"))
     print(json.dumps(targets, indent=1, default=float))
 
 
