@@ -36,7 +36,8 @@ from refine.solid.morph import ExtrudedMorph
 class Local:
     """How to build the local model: the cup's ``shape``, the bundle's ``experiment``, the bottom
     face's points ``obs`` in the cup's frame, the squeeze ``force (n_frames, 3)``, the element
-    size ``h`` (length unit), the linear solver."""
+    size ``h`` (length unit), the linear solver, ``layers`` of elements through the bottom (None:
+    ``bottom / h`` rounded, :func:`jaxfem.cup.cup_holder`)."""
 
     shape: CupShape
     experiment: Experiment
@@ -44,11 +45,12 @@ class Local:
     force: np.ndarray
     h: float
     linear_solver: str = "auto"
+    layers: int | None = None
 
     def model(self, hole: jf.Ellipse | None = None) -> tuple[LoadedModel, CupBottom]:
         """The local model (``tet10``) with ``hole`` cut through it, and its slab mesh."""
         s = self.shape
-        slab = cup_bottom(s.r_in, s.r_out, s.bottom, self.h, hole)
+        slab = cup_bottom(s.r_in, s.r_out, s.bottom, self.h, hole, layers=self.layers)
         model = LoadedModel(self.experiment, self.obs, slab.mesh, slab.facets, self.force, h=self.h,
                             linear_solver=self.linear_solver)
         return model, slab
@@ -84,7 +86,7 @@ class Whole(Local):
 
     def model(self, hole: jf.Ellipse | None = None) -> tuple[LoadedModel, jf.CupHolder]:
         s = self.shape
-        cup = jf.cup_holder(s.r_in, s.r_out, s.height, s.bottom, self.h, hole=hole)
+        cup = jf.cup_holder(s.r_in, s.r_out, s.height, s.bottom, self.h, hole=hole, layers=self.layers)
         driven = fixture_nodes(cup.mesh, self.obs, max(4 * (self.experiment.noise_std or 0.0), 0.05 * self.h))
         model = LoadedModel(self.experiment, self.obs, cup.mesh, cup.bottom_outer_facets, self.force, h=self.h,
                             linear_solver=self.linear_solver, driven=driven)
