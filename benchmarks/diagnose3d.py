@@ -185,7 +185,7 @@ def main() -> None:
     p.add_argument("--spacing", type=float, default=1.2, help="the painted grid's pitch of the bundle cases (mm)")
     p.add_argument("--forces", type=float, nargs="+", default=[1.0, 2.0, 3.0], help="squeeze force per frame (N)")
     p.add_argument("--model-h", type=float, default=None, help="the local and global models' element size (mm; "
-                   "default 1.5 point spacings)")
+                   "default refine.solid.diagnose.model_h: 1.5 point spacings, at least 0.4 bottoms)")
     p.add_argument("--e2e", type=int, nargs="*", default=[2], help="seeds of the end-to-end rows (images in)")
     p.add_argument("--depth-noise", type=float, default=0.02, help="range noise of the end-to-end rows (mm)")
     p.add_argument("--out", type=Path, default=RESULTS / "diagnose3d.json", help="results JSON (the plot beside it)")
