@@ -61,7 +61,7 @@ def noisy(U, roles, X, g, variant: str, noise: float, seed: int):
     return U + N
 
 
-def whole_model(g, X, roles, U, forces, h: float, noise: float, tmp: Path):
+def whole_model(g, X, roles, U, forces, h: float, noise: float, tmp: Path, layers: int | None = None):
     """The diagnosis's global-model recipe (refine.solid.diagnose.refit_whole) for these data."""
     import jaxfem as jf
     from refine.bundle.experiment import Experiment, MeshDomain
@@ -88,7 +88,7 @@ def whole_model(g, X, roles, U, forces, h: float, noise: float, tmp: Path):
     held = held_by_fixture(bundle.observations, local.shape, tol)
     on = bottom_points(local.shape, held.reference, tol)
     held = replace(held, reference=held.reference - local.shape.offset)
-    whole = Whole(local.shape, local.experiment, held, local.force, h, local.linear_solver)
+    whole = Whole(local.shape, local.experiment, held, local.force, h, local.linear_solver, layers)
     return whole, (held.roles == "guide") & on, held.roles == "validate"
 
 
@@ -147,6 +147,8 @@ def main() -> None:
     p.add_argument("--noise", type=float, default=0.005)
     p.add_argument("--forces", type=float, nargs="+", default=[1.0, 2.0, 3.0, 4.0])
     p.add_argument("--clamp-all", action="store_true")
+    p.add_argument("--layers", type=int, default=None, help="the model's elements through the bottom (default: "
+                   "bottom / h rounded)")
     p.add_argument("--out", type=Path, default=HERE / "results" / "cup_bias.jsonl")
     args = p.parse_args()
     cache = Path(tempfile.gettempdir()) / "cup_bias_cache"
@@ -155,9 +157,11 @@ def main() -> None:
     for variant in args.variants:
         Un = noisy(U, roles, X, g, variant, args.noise, args.seed)
         with tempfile.TemporaryDirectory() as tmp:
-            whole, guide, validate = whole_model(g, X, roles, Un, args.forces, args.h, args.noise, Path(tmp))
+            whole, guide, validate = whole_model(g, X, roles, Un, args.forces, args.h, args.noise, Path(tmp),
+                                                 args.layers)
             for scale in args.scales:
                 row = {"seed": args.seed, "variant": variant, "h": args.h, "clamp_all": args.clamp_all,
+                       "h_data": args.h_data, "layers": args.layers,
                        **evaluate(whole, hole, scale, guide, validate, args.noise, args.clamp_all),
                        "load": loadavg()}
                 print(json.dumps(row), flush=True)

@@ -24,6 +24,8 @@ diagnose3d.png.
 
     python benchmarks/diagnose3d.py                  # seeds 1 2 3 with a hole, 4 without, e2e seed 2
     python benchmarks/diagnose3d.py --holes 1 --sound 4 --e2e --h-data 1.2
+    python benchmarks/diagnose3d.py --holes 1 --sound --e2e --h-data 0.8 --bundles B --data-only  # the data alone
+    python benchmarks/diagnose3d.py --combine A.json B.json --out all.json   # rows run one case per process
 """
 
 from __future__ import annotations
@@ -58,17 +60,34 @@ def case(seed: int, hole: bool, args) -> dict:
     truth = random_hole(g, seed) if hole else None
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        root = write_cup_bundle(Path(tmp) / "cup", geometry=g, hole=truth, h_data=args.h_data, h_model=2.0,
-                                noise=args.noise, seed=seed, spacing=args.spacing, forces=tuple(args.forces))
+        root = bundle_dir(args, seed, hole, Path(tmp))
+        if not (root / "experiment.toml").exists():
+            write_cup_bundle(root, geometry=g, hole=truth, h_data=args.h_data, h_model=2.0, noise=args.noise,
+                             seed=seed, spacing=args.spacing, forces=tuple(args.forces))
         t_data = time.perf_counter() - t0
+        if args.data_only:
+            return {"seed": seed, "hole": None, "data_seconds": t_data, "bundle": str(root)}, None
+        cpu0 = time.process_time()
         d, rep = diagnose_and_write(root, Path(tmp) / "out", SolidConfig(h=args.model_h), quiet=True)
+        cpu = time.process_time() - cpu0
     row = {"seed": seed, "hole": None if truth is None else [float(v) for v in truth.params],
-           "data_seconds": t_data, "local_seconds": sum(rep["seconds"].values()),
+           "data_seconds": t_data, "local_seconds": sum(rep["seconds"].values()), "cpu_seconds": cpu,
            "global_seconds": max(v["seconds"] for k, v in rep["global"].items() if isinstance(v, dict)),
            "points": len(d.local.obs.ids), "cause": rep["cause"], "report": rep, "load": loadavg()}
     errors_of(row, truth, g)
     print(json.dumps({k: v for k, v in row.items() if k != "report"}), flush=True)
     return row, d
+
+
+def bundle_dir(args, seed: int, hole: bool, tmp: Path) -> Path:
+    """Where the case's bundle is written: under ``--bundles`` (kept, and reused by a later run at
+    the same data settings: the data's solve at a fine ``--h-data`` is minutes and gigabytes of its
+    own, so it can run in a process of its own with ``--data-only``), else in ``tmp``."""
+    if args.bundles is None:
+        return tmp / "cup"
+    name = (f"cup_seed{seed}{'' if hole else '_sound'}_hdata{args.h_data:g}_s{args.spacing:g}_n{args.noise:g}"
+            f"_f{'-'.join(f'{f:g}' for f in args.forces)}")
+    return args.bundles / name
 
 
 def errors_of(row: dict, truth, g) -> None:
@@ -79,6 +98,9 @@ def errors_of(row: dict, truth, g) -> None:
         row["centre_error_pct"] = 100 * np.hypot(f["centroid"][0] - truth.cx, f["centroid"][1] - truth.cy) / g.diameter
         row["area_error_pct"] = 100 * (f["area"] / truth.area - 1)
         row["area_std_pct"] = None if not f.get("std") else 100 * f["std"]["area"] / truth.area
+        if f.get("discretisation"):  # the mesh's share (a refit on a mesh sqrt(2) coarser), total in quadrature
+            row["area_disc_pct"] = 100 * f["discretisation"]["area"] / truth.area
+            row["area_total_pct"] = 100 * f["total_std"]["area"] / truth.area
         row["local_area_error_pct"] = 100 * (f["local_model"]["area"] / truth.area - 1)
         row["modulus"] = f.get("E")  # the uniform modulus fitted beside the hole (true: the experiment's E)
         if f.get("edge") and f["edge"]["area_range"]:  # what the painted grid alone says of the area
@@ -163,11 +185,19 @@ def main() -> None:
     p.add_argument("--spacing", type=float, default=1.2, help="the painted grid's pitch of the bundle cases (mm)")
     p.add_argument("--forces", type=float, nargs="+", default=[1.0, 2.0, 3.0], help="squeeze force per frame (N)")
     p.add_argument("--model-h", type=float, default=None, help="the local and global models' element size (mm; "
-                   "default 1.5 point spacings)")
+                   "default refine.solid.diagnose.model_h: 1.5 point spacings, at least 0.4 bottoms)")
     p.add_argument("--e2e", type=int, nargs="*", default=[2], help="seeds of the end-to-end rows (images in)")
     p.add_argument("--depth-noise", type=float, default=0.02, help="range noise of the end-to-end rows (mm)")
     p.add_argument("--out", type=Path, default=RESULTS / "diagnose3d.json", help="results JSON (the plot beside it)")
+    p.add_argument("--bundles", type=Path, default=None, help="keep the bundle cases' data in this folder and "
+                   "reuse them when there (default: a temporary folder per case)")
+    p.add_argument("--data-only", action="store_true", help="write the bundle cases' data (--bundles) and stop")
+    p.add_argument("--no-forward", action="store_true", help="skip the local model's forward-solve timing")
+    p.add_argument("--combine", type=Path, nargs="+", default=None, help="write --out from these results JSONs' rows "
+                   "(cases run one per process) with the targets over all of them, and stop")
     args = p.parse_args()
+    if args.combine:
+        return combine(args.combine, args.out)
     rows, last = [], None
     jobs = [(s, lambda s: (end_to_end(s, args), None)) for s in args.e2e]
     jobs += [(s, lambda s: case(s, True, args)) for s in args.holes] + [(s, lambda s: case(s, False, args))
@@ -176,13 +206,18 @@ def main() -> None:
         try:
             row, d = run(s)
             last = d or last
+            if args.data_only:
+                print(json.dumps(row), flush=True)
+                continue
         except Exception as e:  # noqa: BLE001 - a failed case is a row with its error, the others still run
             row = {"seed": s, "hole": None, "error": f"{type(e).__name__}: {e}"}
             print(json.dumps(row), flush=True)
         rows.append(row)
         args.out.parent.mkdir(parents=True, exist_ok=True)
         (args.out.with_suffix(".partial.jsonl")).open("a").write(json.dumps(row, default=str) + "\n")
-    fwd = forward_timing(last) if last is not None else None
+    if args.data_only:
+        return
+    fwd = forward_timing(last) if last is not None and not args.no_forward else None
     targets = targets_of(rows)
     out = {"rows": rows, "forward": fwd, "targets": targets, "load_at_end": loadavg(), "cpus": os.cpu_count(),
            "settings": vars(args)}
@@ -190,6 +225,23 @@ def main() -> None:
     args.out.write_text(json.dumps(out, indent=1, default=str), encoding="utf-8")
     plot(rows, args.out.with_suffix(".png"))
     args.out.with_suffix(".partial.jsonl").unlink(missing_ok=True)  # the rows so far, for a run cut short
+    print(json.dumps(targets, indent=1, default=float))
+
+
+def combine(files, out: Path) -> None:
+    """``out`` (and its plot) from the rows of ``files`` (results JSONs of this script, e.g. one
+    case per process to keep each under a few GB): the targets over every row, each file's
+    settings and load kept beside its rows."""
+    rows, runs = [], []
+    for f in files:
+        d = json.loads(Path(f).read_text(encoding="utf-8"))
+        rows += [{**r, "from": Path(f).name} for r in d["rows"]]
+        runs.append({"file": Path(f).name, "settings": d["settings"], "load_at_end": d["load_at_end"],
+                     "forward": d.get("forward")})
+    targets = targets_of(rows)
+    out.write_text(json.dumps({"rows": rows, "runs": runs, "targets": targets, "cpus": os.cpu_count()}, indent=1,
+                              default=str), encoding="utf-8")
+    plot(rows, out.with_suffix(".png"))
     print(json.dumps(targets, indent=1, default=float))
 
 

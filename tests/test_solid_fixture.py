@@ -6,6 +6,8 @@ model's wall was softer than the data's clamped rim and the hole fitted in it 8-
 import numpy as np
 import pytest
 
+import jaxfem as jf
+
 from refine.bundle.experiment import Experiment, MeshDomain
 from refine.bundle.observations import Forces, Observations
 from refine.solid.cup import CupShape
@@ -68,3 +70,28 @@ def test_the_global_model_on_the_datas_mesh_reproduces_noise_free_data():
     scale = np.abs(U[:, guide]).max()
     assert scale > 0.05  # mm: the bottom moves
     np.testing.assert_allclose(pred[:, guide], U[:, guide], atol=1e-8 * scale)
+
+
+def test_the_global_holes_coarser_refit_is_built_at_its_own_element_size():
+    """The found hole's discretisation error (refine.solid.diagnose.refit_whole) refits it on a
+    mesh sqrt(2) coarser: ``SolidHole.h`` sets the element size in place of the recipe's, a remesh
+    (``at``) keeps it, and without it the recipe's size is used."""
+    from dataclasses import replace
+
+    from refine.solid.local import ModulusHole, SolidHole
+
+    rng = np.random.default_rng(7)
+    truth = random_hole(G, 7)
+    X, roles = _points(G, truth, 1.2, rng)
+    h = rng.uniform(2.6, 3.0)
+    w, _ = whole(X, roles, np.zeros((2, len(X), 3)), (1.0, 2.0), h=h)
+    fine = SolidHole(w, truth, free_modulus=True)
+    coarse = replace(fine.at((ModulusHole((truth.cx, truth.cy), (truth.rx, truth.ry), truth.angle, 0.97),)),
+                     h=np.sqrt(2) * h)
+    assert coarse.h == pytest.approx(np.sqrt(2) * h) and coarse.E_start == 0.97
+    assert coarse.at((ModulusHole((0.0, 0.0), (2.0, 1.5), 0.0),)).h == coarse.h
+    assert fine.h is None  # the recipe's size
+    m_coarse = coarse.build()[0].model  # (one model built: the fine one is every fit's)
+    assert m_coarse.h == pytest.approx(np.sqrt(2) * h) and w.h == pytest.approx(h)
+    n_fine = jf.cup_holder(G.r_in, G.r_out, G.height, G.bottom, h, hole=truth).mesh.n_cells
+    assert m_coarse.mesh.n_cells < n_fine  # (few layers through the bottom at either size)

@@ -9,7 +9,7 @@ the rest is free. The wall above is left out: the driven ring holds the floor as
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -36,7 +36,8 @@ from refine.solid.morph import ExtrudedMorph
 class Local:
     """How to build the local model: the cup's ``shape``, the bundle's ``experiment``, the bottom
     face's points ``obs`` in the cup's frame, the squeeze ``force (n_frames, 3)``, the element
-    size ``h`` (length unit), the linear solver."""
+    size ``h`` (length unit), the linear solver, ``layers`` of elements through the bottom (None:
+    ``bottom / h`` rounded, :func:`jaxfem.cup.cup_holder`)."""
 
     shape: CupShape
     experiment: Experiment
@@ -44,11 +45,12 @@ class Local:
     force: np.ndarray
     h: float
     linear_solver: str = "auto"
+    layers: int | None = None
 
     def model(self, hole: jf.Ellipse | None = None) -> tuple[LoadedModel, CupBottom]:
         """The local model (``tet10``) with ``hole`` cut through it, and its slab mesh."""
         s = self.shape
-        slab = cup_bottom(s.r_in, s.r_out, s.bottom, self.h, hole)
+        slab = cup_bottom(s.r_in, s.r_out, s.bottom, self.h, hole, layers=self.layers)
         model = LoadedModel(self.experiment, self.obs, slab.mesh, slab.facets, self.force, h=self.h,
                             linear_solver=self.linear_solver)
         return model, slab
@@ -84,7 +86,7 @@ class Whole(Local):
 
     def model(self, hole: jf.Ellipse | None = None) -> tuple[LoadedModel, jf.CupHolder]:
         s = self.shape
-        cup = jf.cup_holder(s.r_in, s.r_out, s.height, s.bottom, self.h, hole=hole)
+        cup = jf.cup_holder(s.r_in, s.r_out, s.height, s.bottom, self.h, hole=hole, layers=self.layers)
         driven = fixture_nodes(cup.mesh, self.obs, max(4 * (self.experiment.noise_std or 0.0), 0.05 * self.h))
         model = LoadedModel(self.experiment, self.obs, cup.mesh, cup.bottom_outer_facets, self.force, h=self.h,
                             linear_solver=self.linear_solver, driven=driven)
@@ -119,13 +121,16 @@ class SolidHole(HoleShape):
     last unknown; between half and twice the experiment's E, started at ``E_start``, by default E,
     and after a remesh where the fit left it). ``edge``: the painted grid's
     evidence of the hole (:class:`~refine.solid.edge.EdgeEvidence`): every missing crossing of its
-    gap is kept within the evidence's slack of the hole (:class:`~refine.solid.edge.EdgeGeometry`)."""
+    gap is kept within the evidence's slack of the hole (:class:`~refine.solid.edge.EdgeGeometry`).
+    ``h``: the element size (length unit) in place of the recipe's (None: ``local.h``; set by
+    :func:`refine.diagnosis.uncertainty.discretisation_bias`'s refit on a coarser mesh)."""
 
     local: Local
     hole: jf.Ellipse
     free_modulus: bool = False
     edge: EdgeEvidence | None = None
     E_start: float | None = None
+    h: float | None = None
     remeshable = True
 
     @property
@@ -133,7 +138,8 @@ class SolidHole(HoleShape):
         return self.local.experiment.law
 
     def build(self) -> tuple[Compiled, None]:
-        model, slab = self.local.model(self.hole)
+        local = self.local if self.h is None else replace(self.local, h=self.h)
+        model, slab = local.model(self.hole)
         sp = model.spacing
         slack = 0.0 if self.edge is None else max(self.edge.slack, self.edge.missing_outside(self.hole.params) + 1e-9)
         param = EdgeGeometry(ExtrudedMorph.of(slab), self.hole.params[None], scale=0.5 * sp, rotate=True,
@@ -155,4 +161,4 @@ class SolidHole(HoleShape):
     def at(self, shapes, element: str = "tet10") -> SolidHole:
         s = shapes[0]
         return SolidHole(self.local, jf.Ellipse(*s.centre, *s.axes, s.angle), self.free_modulus, self.edge,
-                         getattr(s, "E", None))
+                         getattr(s, "E", None), self.h)
