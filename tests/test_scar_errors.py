@@ -78,3 +78,32 @@ def test_the_noise_split_adds_up_and_each_part_is_within_its_reported_error(modu
     for part in ("drive", "fitted"):
         assert abs(split[part]["z"]) < 4, split
         assert len(split[part]["draws"]) == 2 and split[part]["draws_std"] > 0
+
+
+def test_within_reported_uncertainty_judges_the_seeds_together_keeping_each_seeds_z(modules):
+    scar, _ = modules
+    rng = np.random.default_rng(25)
+    z = rng.standard_normal(40)
+    z[[3, 17]] = [2.3, -2.1]  # two seeds beyond 2 errors of 40: ordinary where the errors are right
+    rows = [{"seed": s, "ratio_z": v} for s, v in enumerate(z)]
+    t = scar.within_reported_uncertainty(rows)
+    assert t["pass"] and t["seeds_outside"] == sorted(np.flatnonzero(np.abs(z) > 2).tolist())
+    assert t["value"] == pytest.approx(np.mean(np.abs(z) <= 2)) and t["value"] < 1  # a per-seed target fails here
+    assert t["z"]["3"] == pytest.approx(2.3) and len(t["z"]) == 40
+    short = scar.within_reported_uncertainty([{"seed": s, "ratio_z": 1.6 * v} for s, v in enumerate(z)])
+    assert not short["pass"] and short["p_sum_z2"] < 0.05  # errors 1.6 times too small
+
+
+def test_summary_states_the_2_error_target_over_seeds_and_the_5_percent_one_per_seed(modules):
+    scar, _ = modules
+    pocket = {"median_inside": 0.03, "median_outside": 0.1, "lowest_decile_on_scar": 1.0}
+    rows = [{"seed": s, "named": True, "ratio_error": e, "ratio_z": z, "ratio_z_std": z, "centroid_error": 3e-4,
+             "ratio_within_5_percent": abs(e) <= 0.05, "centroid_within_2_percent": True, "pocket": pocket,
+             "diagnose_seconds": 100.0} for s, (e, z) in enumerate([(0.01, 2.4), (-0.002, -0.3), (0.06, 0.9)])]
+    targets = scar.summarise(rows, None)["targets"]
+    assert targets["ratio_within_5_percent"]["value"] == pytest.approx(2 / 3)
+    assert not targets["ratio_within_5_percent"]["pass"]  # per seed: seed 2 is 6 % off
+    two = targets["ratio_within_2_std"]
+    assert two["seeds_outside"] == [0] and two["n"] == 3 and two["outside"] == 1
+    assert two["pass"] == (two["p_outside"] >= 0.05 and two["p_sum_z2"] >= 0.05)
+    assert "ratio_errors_consistent_with_reported" not in targets  # folded into ratio_within_2_std
