@@ -107,3 +107,19 @@ def test_summary_states_the_2_error_target_over_seeds_and_the_5_percent_one_per_
     assert two["seeds_outside"] == [0] and two["n"] == 3 and two["outside"] == 1
     assert two["pass"] == (two["p_outside"] >= 0.05 and two["p_sum_z2"] >= 0.05)
     assert "ratio_errors_consistent_with_reported" not in targets  # folded into ratio_within_2_std
+
+
+def test_noise_free_summary_counts_errors_within_their_estimates_per_shape_kind(modules):
+    _, budget = modules
+    rows = [{"shape": "Ellipse", "error": e, "estimate": d, "error_over_estimate": abs(e) / d, "std": 0.03}
+            for e, d in [(0.0055, 0.0027), (-0.0019, 0.0013), (0.001, 0.002)]]
+    rows.append({"shape": "Rect", "error": 0.0092, "estimate": 0.0088, "error_over_estimate": 0.0092 / 0.0088,
+                 "std": 0.017})
+    s = budget.noise_free_summary(rows)
+    ellipse = s["by_shape"]["Ellipse"]
+    assert ellipse["n"] == 3 and ellipse["within_1"] == 1 and ellipse["within_2"] == 2
+    assert ellipse["largest_excess"] == pytest.approx(0.0055 - 0.0027)
+    assert ellipse["median_error_over_estimate"] == pytest.approx(0.0019 / 0.0013)
+    assert s["by_shape"]["Rect"]["within_2"] == 1
+    target = s["targets"]["noise_free_error_within_2_discretisation"]
+    assert target["value"] == pytest.approx(3 / 4) and not target["pass"]
