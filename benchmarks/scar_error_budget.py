@@ -166,15 +166,16 @@ def noise_free_row(seed: int, setting=None) -> dict:
 
 def noise_free_summary(rows: list[dict]) -> dict:
     """Per shape kind: how many noise-free errors lie within 1 and 2 of their discretisation
-    estimates, the median ``error / estimate``, and the largest error beyond its estimate
-    (``|error| - estimate``: what a missing term would have to hold) against the median standard
-    error; the target: every noise-free error within 2 estimates (the estimate read as a standard
+    estimates, how many are positive (the estimates are unsigned), the median ``error /
+    estimate``, and the largest error beyond its estimate (``|error| - estimate``: what a missing
+    term would have to hold) against the median standard error; the target: every noise-free error within 2 estimates (the estimate read as a standard
     deviation would miss that 5 % of the time; these errors are deterministic, so each should)."""
     out = {}
     for kind in sorted({r["shape"] for r in rows}):
         rs = [r for r in rows if r["shape"] == kind]
         q = np.array([r["error_over_estimate"] for r in rs], float)
         out[kind] = {"n": len(rs), "within_1": int(np.sum(q <= 1)), "within_2": int(np.sum(q <= 2)),
+                     "positive": int(sum(r["error"] > 0 for r in rs)),
                      "median_error_over_estimate": float(np.median(q)),
                      "largest_excess": float(max(abs(r["error"]) - r["estimate"] for r in rs)),
                      "median_std": float(np.median([r["std"] for r in rs]))}

@@ -120,6 +120,14 @@ def test_noise_free_summary_counts_errors_within_their_estimates_per_shape_kind(
     assert ellipse["n"] == 3 and ellipse["within_1"] == 1 and ellipse["within_2"] == 2
     assert ellipse["largest_excess"] == pytest.approx(0.0055 - 0.0027)
     assert ellipse["median_error_over_estimate"] == pytest.approx(0.0019 / 0.0013)
-    assert s["by_shape"]["Rect"]["within_2"] == 1
+    assert s["by_shape"]["Rect"]["within_2"] == 1 and ellipse["positive"] == 2
     target = s["targets"]["noise_free_error_within_2_discretisation"]
     assert target["value"] == pytest.approx(3 / 4) and not target["pass"]
+
+
+def test_coverage_sees_a_bias_in_the_mean_z(modules):
+    scar, _ = modules
+    z = np.random.default_rng(5).standard_normal(100)
+    assert scar.coverage(z)["p_mean_z"] == pytest.approx(2 * norm.sf(abs(np.mean(z)) * 10))  # n = 100
+    biased = scar.coverage(z + 0.5)  # every error half a reported error high
+    assert biased["mean_z"] == pytest.approx(np.mean(z) + 0.5) and biased["p_mean_z"] < 1e-3
