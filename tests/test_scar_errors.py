@@ -130,4 +130,4 @@ def test_coverage_sees_a_bias_in_the_mean_z(modules):
     z = np.random.default_rng(5).standard_normal(100)
     assert scar.coverage(z)["p_mean_z"] == pytest.approx(2 * norm.sf(abs(np.mean(z)) * 10))  # n = 100
     biased = scar.coverage(z + 0.5)  # every error half a reported error high
-    assert biased["mean_z"] == pytest.approx(np.mean(z) + 0.5) and biased["p_mean_z"] < 1e-3
+    assert biased["mean_z"] == pytest.approx(np.mean(z) + 0.5) and biased["p_mean_z"] < 0.05
