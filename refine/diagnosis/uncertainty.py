@@ -299,7 +299,7 @@ def _richardson(fine, coarse, factor: float, order: float, signed: bool = False)
     extrapolated value), so ``fine - estimate`` is Richardson's extrapolation."""
     d = shape_quantities(coarse) - shape_quantities(fine)
     d[:, 4] = np.angle(np.exp(2j * d[:, 4])) / 2  # an orientation is defined modulo pi
-    return (-d if signed else np.abs(d)) / (factor**order - 1.0)
+    return (d if signed else np.abs(d)) / (factor**order - 1.0)
 
 
 def with_discretisation(fitted, points: Bool[np.ndarray, "n_points"], hold: Bool[np.ndarray, "n_points"],
