@@ -148,24 +148,30 @@ def split_the_noise(noisy_bundle, clean, sigma: float, part_draws: int, seed: in
     return out
 
 
-def noise_free_row(seed: int, setting=None) -> dict:
+def noise_free_row(seed: int, setting=None, noisy: bool = False) -> dict:
     """Seed ``seed``'s scar fitted (:func:`final_fit`) on its bundle without noise: the ratio's
     error (the deterministic part: mesh, drive, outline) against the discretisation estimates
-    (:func:`budget`) the diagnosis would report there, and their ratio ``error / estimate``."""
+    (:func:`budget`) the diagnosis would report there, and their ratio ``error / estimate``.
+    ``noisy``: on the bundle with its noise instead (what the diagnosis sees), with the z of the
+    ratio and of Richardson's extrapolation (ratio less the signed estimate) against the total
+    error (standard error and the estimate in quadrature)."""
     from refine.synthetic.skin import SKIN, random_scar, skin_bundle
 
     setting = setting or SKIN
     t0 = time.perf_counter()
     truth = random_scar(np.random.default_rng(seed), setting)
     inc = truth.inclusions[0]
-    clean = final_fit(skin_bundle(truth, seed=seed, setting=replace(setting, noise=0.0)), truth, setting.noise)
+    data = setting if noisy else replace(setting, noise=0.0)
+    clean = final_fit(skin_bundle(truth, seed=seed, setting=data), truth, setting.noise)
     b = budget(clean, setting.noise)
     estimate = float(np.hypot(b["mesh"] or 0.0, b["drive"] or 0.0))
     error = b["ratio"] - inc.ratio
     signed = (b["mesh_signed"] or 0.0) + (b["drive_signed"] or 0.0)  # the two errors add
     return {"seed": seed, "shape": type(inc.shape).__name__, "truth_ratio": inc.ratio, **b, "error": error,
             "estimate": estimate, "error_over_estimate": abs(error) / estimate if estimate else None,
-            "signed_estimate": signed, "error_after_correction": error - signed,
+            "signed_estimate": signed, "error_after_correction": error - signed, "noisy": noisy,
+            **({"z": error / np.hypot(b["std"], estimate),
+                "z_corrected": (error - signed) / np.hypot(b["std"], estimate)} if noisy else {}),
             "seconds": time.perf_counter() - t0, "load_average": [round(x, 2) for x in os.getloadavg()]}
 
 
@@ -200,14 +206,14 @@ def _rms(x) -> float:
     return float(np.sqrt(np.mean(np.square(x))))
 
 
-def run_noise_free(seeds: list[int], name: str):
+def run_noise_free(seeds: list[int], name: str, noisy: bool = False):
     """:func:`noise_free_row` for each of ``seeds`` (rows resumable in results/``name``_rows.jsonl),
     the summary to results/``name``.json."""
     path = OUT / f"{name}_rows.jsonl"
     done = {json.loads(line)["seed"] for line in open(path)} if path.exists() else set()
     for seed in seeds:
         if seed not in done:
-            row = noise_free_row(seed)
+            row = noise_free_row(seed, noisy=noisy)
             with open(path, "a") as out:
                 out.write(json.dumps(row, default=_plain) + "\n")
             print({k: row[k] for k in ("seed", "shape", "error", "estimate", "error_over_estimate", "seconds")},
@@ -229,9 +235,11 @@ def main():
     p.add_argument("--noise-free", type=int, nargs="*", metavar="SEED",
                    help="only the noise-free error against its discretisation estimate, for these seeds "
                         "(results/scar_noise_free.json)")
+    p.add_argument("--noisy", action="store_true", help="with --noise-free: on the noisy bundles, the z with and "
+                   "without Richardson's extrapolation (results/scar_extrapolated.json)")
     args = p.parse_args()
     if args.noise_free:
-        return run_noise_free(args.noise_free, "scar_noise_free")
+        return run_noise_free(args.noise_free, "scar_extrapolated" if args.noisy else "scar_noise_free", args.noisy)
     t0 = time.perf_counter()
     truth = random_scar(np.random.default_rng(args.seed))
     ratio = truth.inclusions[0].ratio
