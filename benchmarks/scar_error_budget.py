@@ -202,6 +202,20 @@ def noise_free_summary(rows: list[dict]) -> dict:
         "value": n2 / len(rows), "target": 1.0, "pass": n2 == len(rows)}}}
 
 
+def extrapolated_summary(rows: list[dict]) -> dict:
+    """Over the seeds' noisy ``rows`` (``--noisy``): how many signed estimates are positive (a
+    bias has one sign), and :func:`scar.coverage` of the ratio's z as reported and of the z of
+    Richardson's extrapolation (ratio less the signed estimate) against the same total error; the
+    target: the extrapolated z consistent with standard normal errors, as scar.py's
+    ``ratio_within_2_std``."""
+    from scar import coverage
+
+    z = coverage([r["z"] for r in rows])
+    zc = coverage([r["z_corrected"] for r in rows])
+    return {"signed_estimate_positive": int(sum(r["signed_estimate"] > 0 for r in rows)), "n": len(rows),
+            "z": z, "z_extrapolated": zc, "targets": {"extrapolated_ratio_within_2_std": zc}}
+
+
 def _rms(x) -> float:
     return float(np.sqrt(np.mean(np.square(x))))
 
@@ -219,7 +233,7 @@ def run_noise_free(seeds: list[int], name: str, noisy: bool = False):
             print({k: row[k] for k in ("seed", "shape", "error", "estimate", "error_over_estimate", "seconds")},
                   flush=True)
     rows = [json.loads(line) for line in open(path)]
-    summary = noise_free_summary(rows)
+    summary = extrapolated_summary(rows) if noisy else noise_free_summary(rows)
     (OUT / f"{name}.json").write_text(json.dumps({**summary, "rows": rows}, indent=1, default=_plain))
     print(json.dumps(summary, indent=1))
 

@@ -148,3 +148,14 @@ def test_a_signed_richardson_estimate_extrapolates_an_order_2_error_to_the_truth
     low = (RegionShape((20.0, 15.0), (6.0, 4.0), 0.3, "ellipse", 2.99),)
     assert _richardson(low, (RegionShape((20.0, 15.0), (6.0, 4.0), 0.3, "ellipse", 2.98),), np.sqrt(2.0), 2.0,
                        signed=True)[0, 6] == pytest.approx(-0.01)
+
+
+def test_extrapolated_summary_compares_the_z_before_and_after_removing_a_one_sided_bias(modules):
+    _, budget = modules
+    rng = np.random.default_rng(20)
+    noise = rng.standard_normal(60)
+    rows = [{"z": n + 0.8, "z_corrected": n, "signed_estimate": 0.01} for n in noise]  # a bias of 0.8 errors
+    s = budget.extrapolated_summary(rows)
+    assert s["signed_estimate_positive"] == 60 and s["n"] == 60
+    assert s["z"]["p_mean_z"] < 1e-3 and s["z_extrapolated"]["mean_z"] == pytest.approx(np.mean(noise))
+    assert s["targets"]["extrapolated_ratio_within_2_std"] == s["z_extrapolated"]
