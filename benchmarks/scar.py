@@ -10,11 +10,12 @@ relative elasticity 2-6, placed at random), generates its bundle from the finer 
 of the larger stretched skin plus noise (:func:`refine.synthetic.skin.skin_bundle`), and runs
 the diagnosis as ``nonrigid diagnose`` runs it (:func:`refine.diagnosis.diagnose`, default
 settings but one worker). Targets (the issue's): a stiffer region named; its relative elasticity
-within 5 % of the truth and within 2 reported total errors (standard error and discretisation
-error in quadrature); its centroid within 2 % of the field of view (its diagonal); over the
-seeds, the ratio's errors as the reported errors predict (:func:`coverage`: a per-seed limit of
-2 errors fails 4.6 % of seeds where the errors are right). The paper's own reading is checked
-beside it: the scar is the pocket of lowest strain in the measured grid's strain map
+within 5 % of the truth (each seed); its centroid within 2 % of the field of view (its diagonal;
+each seed); the ratio "within its reported uncertainty" judged over the seeds
+(:func:`within_reported_uncertainty`: the share within 2 total reported errors, standard error
+and discretisation error in quadrature, consistent with 95 %, and sum z^2 with its chi-square;
+a per-seed limit of 2 errors fails 4.6 % of seeds where the errors are right). The paper's own
+reading is checked beside it: the scar is the pocket of lowest strain in the measured grid's strain map
 (:mod:`refine.diagnosis.measured_strain`): the median strain inside the scar below that
 outside, and most of the lowest-strain decile of triangles on the scar.
 
@@ -94,7 +95,8 @@ def coverage(z: list[float], k: float = 2.0) -> dict:
     seeds (a per-seed limit of 2 errors fails 4.6 % of seeds where the errors are exactly right):
     ``outside`` of ``n`` beyond ``k`` errors and the binomial probability of at least that many
     (errors too small: few such); the chi-square probability of ``sum z^2`` on ``n`` degrees of
-    freedom, both tails (too small and too large errors). Passes where both are 0.05 or more. A
+    freedom, both tails (too small and too large errors). Passes where both are 0.05 or more.
+    Beside them (not in the pass): the mean z and its two-sided probability under no bias. A
     few seeds tell only errors far off: the chi-square test catches errors short by 1.82, 1.64,
     1.48 times half the time with 4, 6, 10 seeds."""
     from scipy.stats import binom, chi2, norm
@@ -103,8 +105,31 @@ def coverage(z: list[float], k: float = 2.0) -> dict:
     n, outside, s = len(z), int(np.sum(np.abs(z) > k)), float(np.sum(z**2))
     p_out = float(binom.sf(outside - 1, n, 2 * norm.sf(k)))
     p_chi2 = float(2 * min(chi2.sf(s, n), chi2.cdf(s, n)))
+    mean = float(np.mean(z)) if n else None  # informational: a bias shows as mean z off 0 by more than 2 / sqrt(n)
     return {"n": n, "outside": outside, "expected_outside": float(n * 2 * norm.sf(k)), "p_outside": p_out,
-            "sum_z2": s, "p_sum_z2": p_chi2, "pass": bool(n and p_out >= 0.05 and p_chi2 >= 0.05)}
+            "sum_z2": s, "p_sum_z2": p_chi2, "mean_z": mean, "p_mean_z": float(2 * norm.sf(abs(mean) * np.sqrt(n)))
+            if n else None, "pass": bool(n and p_out >= 0.05 and p_chi2 >= 0.05)}
+
+
+def within_reported_uncertainty(rows: list[dict], k: float = 2.0) -> dict:
+    """The issue's "within its reported uncertainty" judged over the seeds' ``rows`` (each with
+    its ``seed`` and ``ratio_z``, the ratio's error over its total reported error): ``value`` the
+    share within ``k`` errors, about 95 % where the errors are right (every one of n seeds within
+    2 errors happens only 0.954^n of the time: 52 % for 14 seeds, so that is no target); passes
+    where :func:`coverage` does (the count beyond ``k`` errors ordinary for a binomial of 4.6 %,
+    and ``sum z^2`` ordinary for its chi-square). The per-seed figures are kept: ``z`` per seed
+    and the seeds beyond ``k``."""
+    from scipy.stats import norm
+
+    z = {int(r["seed"]): float(r["ratio_z"]) for r in rows}
+    share = float(np.mean([abs(v) <= k for v in z.values()])) if z else None
+    return {"value": share,
+            "target": (f"share within {k:g} total errors consistent with {1 - 2 * norm.sf(k):.1%} (binomial, "
+                       "p >= 0.05) and sum z^2 with its chi-square (p >= 0.05, both tails)"),
+            "errors": ("total reported error: the standard error and the discretisation error (mesh and drive) "
+                       "in quadrature"),
+            "z": {str(s): round(v, 3) for s, v in sorted(z.items())},
+            "seeds_outside": sorted(s for s, v in z.items() if abs(v) > k), **coverage(list(z.values()), k)}
 
 
 def strain_pocket(bundle, shape) -> dict:
@@ -155,10 +180,8 @@ def summarise(rows: list[dict], lock: dict | None) -> dict:
     share = lambda key: float(np.mean([bool(r.get(key)) for r in ok])) if ok else None  # noqa: E731
     pockets = [r["pocket"] for r in rows if "pocket" in r]
     targets = {k: {"value": share(k), "target": 1.0, "pass": share(k) == 1.0}
-               for k in ("named", "ratio_within_5_percent", "ratio_within_2_std", "centroid_within_2_percent")}
-    targets["ratio_within_2_std"]["errors"] = ("total reported error: the standard error and the discretisation "
-                                               "error (mesh and drive) in quadrature")
-    targets["ratio_errors_consistent_with_reported"] = coverage([r["ratio_z"] for r in ok])
+               for k in ("named", "ratio_within_5_percent", "centroid_within_2_percent")}
+    targets["ratio_within_2_std"] = within_reported_uncertainty(ok)
     targets["scar_is_the_lowest_strain_pocket"] = {
         "value": float(np.mean([p["median_inside"] < p["median_outside"] and p["lowest_decile_on_scar"] >= 0.5
                                 for p in pockets])) if pockets else None, "target": 1.0}

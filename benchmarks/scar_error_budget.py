@@ -3,6 +3,7 @@
 
     python benchmarks/scar_error_budget.py --seed 1 --draws 12      # ~10 min at load ~11
     python benchmarks/scar_error_budget.py --seed 3 --out scar_error_budget_seed3
+    python benchmarks/scar_error_budget.py --noise-free 2 3 4 5 6 7   # noise-free errors only
 
 For one seed of :func:`refine.synthetic.skin.random_scar` the chosen hypothesis (the true kind,
 started at the truth: the search is not measured here) is fitted as the diagnosis's final refit
@@ -23,6 +24,9 @@ bundle with its noise and on the same bundle without noise. Measured:
   each refitted on the noise-free fit's mesh, against its own part of the reported standard
   error (:func:`reported_parts`: the drive covariance and the Gauss-Newton one), and
   ``--part-draws`` fresh draws of each part: whether one part of the error model is short.
+
+``--noise-free SEED ...``: only the noise-free fit and its discretisation estimates for many seeds
+(:func:`run_noise_free`; results/scar_noise_free.json): is the estimate short on some shape kind?
 
 Targets: the noise-free error within 2 estimated discretisation errors; the reported standard
 error inside the 95 % interval of the draws' standard deviation (chi-square, draws - 1 degrees of
@@ -62,18 +66,21 @@ def final_fit(bundle, truth, sigma: float):
 
 
 def budget(f, sigma: float) -> dict:
-    """The fit's ratio, its reported standard error and its two discretisation estimates."""
+    """The fit's ratio, its reported standard error and its two discretisation estimates (as
+    reported: unsigned; ``*_signed``: with their signs, the fit's error by Richardson)."""
     from refine.diagnosis.uncertainty import discretisation_bias, drive_bias, shape_errors
 
     obs = f.model.obs
     guide, hold = obs.mask("guide"), obs.mask("validate")
     t = time.perf_counter()
-    mesh = discretisation_bias(f, guide, hold, sigma)
+    mesh = discretisation_bias(f, guide, hold, sigma, signed=True)
     t1 = time.perf_counter()
-    drive = drive_bias(f, guide, hold, sigma)
+    drive = drive_bias(f, guide, hold, sigma, signed=True)
+    mesh, drive = (None if d is None else float(d[0, 6]) for d in (mesh, drive))
     return {"ratio": float(f.shapes[0].ratio), "std": shape_errors(f)[0].relative_elasticity,
-            "mesh": None if mesh is None else float(mesh[0, 6]), "drive": None if drive is None else float(drive[0, 6]),
-            "mesh_seconds": t1 - t, "drive_seconds": time.perf_counter() - t1}
+            "mesh": None if mesh is None else abs(mesh), "drive": None if drive is None else abs(drive),
+            "mesh_signed": mesh, "drive_signed": drive, "mesh_seconds": t1 - t,
+            "drive_seconds": time.perf_counter() - t1}
 
 
 def refit_noisy(f, noise: np.ndarray, sigma: float):
@@ -141,6 +148,96 @@ def split_the_noise(noisy_bundle, clean, sigma: float, part_draws: int, seed: in
     return out
 
 
+def noise_free_row(seed: int, setting=None, noisy: bool = False) -> dict:
+    """Seed ``seed``'s scar fitted (:func:`final_fit`) on its bundle without noise: the ratio's
+    error (the deterministic part: mesh, drive, outline) against the discretisation estimates
+    (:func:`budget`) the diagnosis would report there, and their ratio ``error / estimate``.
+    ``noisy``: on the bundle with its noise instead (what the diagnosis sees), with the z of the
+    ratio and of Richardson's extrapolation (ratio less the signed estimate) against the total
+    error (standard error and the estimate in quadrature)."""
+    from refine.synthetic.skin import SKIN, random_scar, skin_bundle
+
+    setting = setting or SKIN
+    t0 = time.perf_counter()
+    truth = random_scar(np.random.default_rng(seed), setting)
+    inc = truth.inclusions[0]
+    data = setting if noisy else replace(setting, noise=0.0)
+    clean = final_fit(skin_bundle(truth, seed=seed, setting=data), truth, setting.noise)
+    b = budget(clean, setting.noise)
+    estimate = float(np.hypot(b["mesh"] or 0.0, b["drive"] or 0.0))
+    error = b["ratio"] - inc.ratio
+    signed = (b["mesh_signed"] or 0.0) + (b["drive_signed"] or 0.0)  # the two errors add
+    return {"seed": seed, "shape": type(inc.shape).__name__, "truth_ratio": inc.ratio, **b, "error": error,
+            "estimate": estimate, "error_over_estimate": abs(error) / estimate if estimate else None,
+            "signed_estimate": signed, "error_after_correction": error - signed, "noisy": noisy,
+            **({"z": error / np.hypot(b["std"], estimate),
+                "z_corrected": (error - signed) / np.hypot(b["std"], estimate)} if noisy else {}),
+            "seconds": time.perf_counter() - t0, "load_average": [round(x, 2) for x in os.getloadavg()]}
+
+
+def noise_free_summary(rows: list[dict]) -> dict:
+    """Per shape kind: how many noise-free errors lie within 1 and 2 of their discretisation
+    estimates, how many are positive (the estimates are unsigned), the median ``error /
+    estimate``, and the largest error beyond its estimate (``|error| - estimate``: what a missing
+    term would have to hold) against the median standard error; where the rows have signed
+    estimates, the rms error before and after Richardson's extrapolation (the ratio less the
+    signed estimate). The target: every noise-free error within 2 estimates (the estimate read as
+    a standard deviation would miss that 5 % of the time; these errors are deterministic, so
+    each should)."""
+    out = {}
+    for kind in sorted({r["shape"] for r in rows}):
+        rs = [r for r in rows if r["shape"] == kind]
+        q = np.array([r["error_over_estimate"] for r in rs], float)
+        out[kind] = {"n": len(rs), "within_1": int(np.sum(q <= 1)), "within_2": int(np.sum(q <= 2)),
+                     "positive": int(sum(r["error"] > 0 for r in rs)),
+                     "median_error_over_estimate": float(np.median(q)),
+                     "largest_excess": float(max(abs(r["error"]) - r["estimate"] for r in rs)),
+                     "median_std": float(np.median([r["std"] for r in rs]))}
+        signed = [r for r in rs if r.get("signed_estimate") is not None]
+        if signed:  # Richardson's extrapolation (ratio less the signed estimate) against the ratio
+            out[kind].update(n_signed=len(signed), rms_error=_rms([r["error"] for r in signed]),
+                             rms_error_after_correction=_rms([r["error_after_correction"] for r in signed]))
+    n2 = sum(v["within_2"] for v in out.values())
+    return {"by_shape": out, "targets": {"noise_free_error_within_2_discretisation": {
+        "value": n2 / len(rows), "target": 1.0, "pass": n2 == len(rows)}}}
+
+
+def extrapolated_summary(rows: list[dict]) -> dict:
+    """Over the seeds' noisy ``rows`` (``--noisy``): how many signed estimates are positive (a
+    bias has one sign), and :func:`scar.coverage` of the ratio's z as reported and of the z of
+    Richardson's extrapolation (ratio less the signed estimate) against the same total error; the
+    target: the extrapolated z consistent with standard normal errors, as scar.py's
+    ``ratio_within_2_std``."""
+    from scar import coverage
+
+    z = coverage([r["z"] for r in rows])
+    zc = coverage([r["z_corrected"] for r in rows])
+    return {"signed_estimate_positive": int(sum(r["signed_estimate"] > 0 for r in rows)), "n": len(rows),
+            "z": z, "z_extrapolated": zc, "targets": {"extrapolated_ratio_within_2_std": zc}}
+
+
+def _rms(x) -> float:
+    return float(np.sqrt(np.mean(np.square(x))))
+
+
+def run_noise_free(seeds: list[int], name: str, noisy: bool = False):
+    """:func:`noise_free_row` for each of ``seeds`` (rows resumable in results/``name``_rows.jsonl),
+    the summary to results/``name``.json."""
+    path = OUT / f"{name}_rows.jsonl"
+    done = {json.loads(line)["seed"] for line in open(path)} if path.exists() else set()
+    for seed in seeds:
+        if seed not in done:
+            row = noise_free_row(seed, noisy=noisy)
+            with open(path, "a") as out:
+                out.write(json.dumps(row, default=_plain) + "\n")
+            print({k: row[k] for k in ("seed", "shape", "error", "estimate", "error_over_estimate", "seconds")},
+                  flush=True)
+    rows = [json.loads(line) for line in open(path)]
+    summary = extrapolated_summary(rows) if noisy else noise_free_summary(rows)
+    (OUT / f"{name}.json").write_text(json.dumps({**summary, "rows": rows}, indent=1, default=_plain))
+    print(json.dumps(summary, indent=1))
+
+
 def main():
     from refine.synthetic.skin import SKIN, random_scar, skin_bundle
 
@@ -149,7 +246,14 @@ def main():
     p.add_argument("--draws", type=int, default=12)
     p.add_argument("--part-draws", type=int, default=8, help="fresh draws of each part of the noise")
     p.add_argument("--out", default="scar_error_budget", help="name of the JSON and PNG in results/")
+    p.add_argument("--noise-free", type=int, nargs="*", metavar="SEED",
+                   help="only the noise-free error against its discretisation estimate, for these seeds "
+                        "(results/scar_noise_free.json)")
+    p.add_argument("--noisy", action="store_true", help="with --noise-free: on the noisy bundles, the z with and "
+                   "without Richardson's extrapolation (results/scar_extrapolated.json)")
     args = p.parse_args()
+    if args.noise_free:
+        return run_noise_free(args.noise_free, "scar_extrapolated" if args.noisy else "scar_noise_free", args.noisy)
     t0 = time.perf_counter()
     truth = random_scar(np.random.default_rng(args.seed))
     ratio = truth.inclusions[0].ratio

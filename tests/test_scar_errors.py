@@ -78,3 +78,84 @@ def test_the_noise_split_adds_up_and_each_part_is_within_its_reported_error(modu
     for part in ("drive", "fitted"):
         assert abs(split[part]["z"]) < 4, split
         assert len(split[part]["draws"]) == 2 and split[part]["draws_std"] > 0
+
+
+def test_within_reported_uncertainty_judges_the_seeds_together_keeping_each_seeds_z(modules):
+    scar, _ = modules
+    rng = np.random.default_rng(25)
+    z = rng.standard_normal(40)
+    z[[3, 17]] = [2.3, -2.1]  # two seeds beyond 2 errors of 40: ordinary where the errors are right
+    rows = [{"seed": s, "ratio_z": v} for s, v in enumerate(z)]
+    t = scar.within_reported_uncertainty(rows)
+    assert t["pass"] and t["seeds_outside"] == sorted(np.flatnonzero(np.abs(z) > 2).tolist())
+    assert t["value"] == pytest.approx(np.mean(np.abs(z) <= 2)) and t["value"] < 1  # a per-seed target fails here
+    assert t["z"]["3"] == pytest.approx(2.3) and len(t["z"]) == 40
+    short = scar.within_reported_uncertainty([{"seed": s, "ratio_z": 1.6 * v} for s, v in enumerate(z)])
+    assert not short["pass"] and short["p_sum_z2"] < 0.05  # errors 1.6 times too small
+
+
+def test_summary_states_the_2_error_target_over_seeds_and_the_5_percent_one_per_seed(modules):
+    scar, _ = modules
+    pocket = {"median_inside": 0.03, "median_outside": 0.1, "lowest_decile_on_scar": 1.0}
+    rows = [{"seed": s, "named": True, "ratio_error": e, "ratio_z": z, "ratio_z_std": z, "centroid_error": 3e-4,
+             "ratio_within_5_percent": abs(e) <= 0.05, "centroid_within_2_percent": True, "pocket": pocket,
+             "diagnose_seconds": 100.0} for s, (e, z) in enumerate([(0.01, 2.4), (-0.002, -0.3), (0.06, 0.9)])]
+    targets = scar.summarise(rows, None)["targets"]
+    assert targets["ratio_within_5_percent"]["value"] == pytest.approx(2 / 3)
+    assert not targets["ratio_within_5_percent"]["pass"]  # per seed: seed 2 is 6 % off
+    two = targets["ratio_within_2_std"]
+    assert two["seeds_outside"] == [0] and two["n"] == 3 and two["outside"] == 1
+    assert two["pass"] == (two["p_outside"] >= 0.05 and two["p_sum_z2"] >= 0.05)
+    assert "ratio_errors_consistent_with_reported" not in targets  # folded into ratio_within_2_std
+
+
+def test_noise_free_summary_counts_errors_within_their_estimates_per_shape_kind(modules):
+    _, budget = modules
+    rows = [{"shape": "Ellipse", "error": e, "estimate": d, "error_over_estimate": abs(e) / d, "std": 0.03}
+            for e, d in [(0.0055, 0.0027), (-0.0019, 0.0013), (0.001, 0.002)]]
+    rows.append({"shape": "Rect", "error": 0.0092, "estimate": 0.0088, "error_over_estimate": 0.0092 / 0.0088,
+                 "std": 0.017})
+    s = budget.noise_free_summary(rows)
+    ellipse = s["by_shape"]["Ellipse"]
+    assert ellipse["n"] == 3 and ellipse["within_1"] == 1 and ellipse["within_2"] == 2
+    assert ellipse["largest_excess"] == pytest.approx(0.0055 - 0.0027)
+    assert ellipse["median_error_over_estimate"] == pytest.approx(0.0019 / 0.0013)
+    assert s["by_shape"]["Rect"]["within_2"] == 1 and ellipse["positive"] == 2
+    target = s["targets"]["noise_free_error_within_2_discretisation"]
+    assert target["value"] == pytest.approx(3 / 4) and not target["pass"]
+
+
+def test_coverage_sees_a_bias_in_the_mean_z(modules):
+    scar, _ = modules
+    z = np.random.default_rng(5).standard_normal(100)
+    assert scar.coverage(z)["p_mean_z"] == pytest.approx(2 * norm.sf(abs(np.mean(z)) * 10))  # n = 100
+    biased = scar.coverage(z + 0.5)  # every error half a reported error high
+    assert biased["mean_z"] == pytest.approx(np.mean(z) + 0.5) and biased["p_mean_z"] < 0.05
+
+
+def test_a_signed_richardson_estimate_extrapolates_an_order_2_error_to_the_truth():
+    from refine.diagnosis.shapes import RegionShape
+    from refine.diagnosis.uncertainty import _richardson
+
+    def at(h):  # a fit whose ratio errs by 0.01 h^2 (h: the element size)
+        return (RegionShape((20.0, 15.0), (6.0, 4.0), 0.3, "ellipse", 3.0 + 0.01 * h**2),)
+
+    fine, coarse = at(1.0), at(np.sqrt(2.0))
+    signed = _richardson(fine, coarse, np.sqrt(2.0), 2.0, signed=True)[0, 6]
+    assert signed == pytest.approx(0.01)  # the fine fit's own error, with its sign
+    assert fine[0].ratio - signed == pytest.approx(3.0)  # Richardson's extrapolation
+    assert _richardson(fine, coarse, np.sqrt(2.0), 2.0)[0, 6] == pytest.approx(0.01)  # unsigned as before
+    low = (RegionShape((20.0, 15.0), (6.0, 4.0), 0.3, "ellipse", 2.99),)
+    assert _richardson(low, (RegionShape((20.0, 15.0), (6.0, 4.0), 0.3, "ellipse", 2.98),), np.sqrt(2.0), 2.0,
+                       signed=True)[0, 6] == pytest.approx(-0.01)
+
+
+def test_extrapolated_summary_compares_the_z_before_and_after_removing_a_one_sided_bias(modules):
+    _, budget = modules
+    rng = np.random.default_rng(20)
+    noise = rng.standard_normal(60)
+    rows = [{"z": n + 0.8, "z_corrected": n, "signed_estimate": 0.01} for n in noise]  # a bias of 0.8 errors
+    s = budget.extrapolated_summary(rows)
+    assert s["signed_estimate_positive"] == 60 and s["n"] == 60
+    assert s["z"]["p_mean_z"] < 1e-3 and s["z_extrapolated"]["mean_z"] == pytest.approx(np.mean(noise))
+    assert s["targets"]["extrapolated_ratio_within_2_std"] == s["z_extrapolated"]

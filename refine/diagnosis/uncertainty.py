@@ -268,14 +268,15 @@ def drive_covariance(fitted, points: Bool[np.ndarray, "n_points"], sigma: float,
 
 
 def discretisation_bias(fitted, points: Bool[np.ndarray, "n_points"], hold: Bool[np.ndarray, "n_points"],
-                        sigma: float, factor: float = np.sqrt(2.0), order: float = 2.0
+                        sigma: float, factor: float = np.sqrt(2.0), order: float = 2.0, signed: bool = False
                         ) -> Float[np.ndarray, "shapes 7"] | None:
     """An estimate of the discretisation error of every reported quantity (:data:`QUANTITIES`,
     one row per shape, absolute values): Richardson's, the change of the quantity when the same
     hypothesis is refitted from its fitted shapes on a mesh ``factor`` times coarser, over
     ``factor^order - 1``: with ``factor = sqrt(2)`` and the rate ``order = 2`` of the energy norm
     of quadratic triangles, the change itself. None where the hypothesis has no shapes to remesh
-    at, or the coarse refit fails. Costs one more fit (on the coarser, cheaper mesh)."""
+    at, or the coarse refit fails. Costs one more fit (on the coarser, cheaper mesh). ``signed``:
+    the estimate with its sign (fine less the extrapolated value: the fit's own error)."""
     from dataclasses import replace
 
     from refine.diagnosis.fitted import fit
@@ -287,17 +288,18 @@ def discretisation_bias(fitted, points: Bool[np.ndarray, "n_points"], hold: Bool
         g = fit(coarse, points, hold, sigma)
     except Exception:  # noqa: BLE001 - a coarse mesh that cannot hold the shapes gives no estimate
         return None
-    return _richardson(fitted.shapes, g.shapes, factor, order)
+    return _richardson(fitted.shapes, g.shapes, factor, order, signed)
 
 
-def _richardson(fine, coarse, factor: float, order: float) -> Float[np.ndarray, "shapes 7"]:
+def _richardson(fine, coarse, factor: float, order: float, signed: bool = False) -> Float[np.ndarray, "shapes 7"]:
     """Richardson's estimate of the error of the ``fine`` fit's shapes' quantities
     (:data:`QUANTITIES`, absolute values) from the same shapes fitted with a discretisation
     ``factor`` times coarser (``coarse``), for errors of ``order``: the change over
-    ``factor^order - 1``."""
+    ``factor^order - 1``; ``signed``: with its sign, as the fine fit's error (fine less the
+    extrapolated value), so ``fine - estimate`` is Richardson's extrapolation."""
     d = shape_quantities(coarse) - shape_quantities(fine)
     d[:, 4] = np.angle(np.exp(2j * d[:, 4])) / 2  # an orientation is defined modulo pi
-    return np.abs(d) / (factor**order - 1.0)
+    return (d if signed else np.abs(d)) / (factor**order - 1.0)
 
 
 def with_discretisation(fitted, points: Bool[np.ndarray, "n_points"], hold: Bool[np.ndarray, "n_points"],
@@ -362,14 +364,15 @@ def sparser_drive(obs, step: int = 2):
 
 
 def drive_bias(fitted, points: Bool[np.ndarray, "n_points"], hold: Bool[np.ndarray, "n_points"], sigma: float,
-               step: int = 2, order: float = 2.0) -> Float[np.ndarray, "shapes 7"] | None:
+               step: int = 2, order: float = 2.0, signed: bool = False) -> Float[np.ndarray, "shapes 7"] | None:
     """An estimate of the error the drive's discretisation leaves in every reported quantity
     (:data:`QUANTITIES`, one row per shape, absolute values): the model is driven between the
     boundary points by interpolating them along the outline, which misses the boundary motion's
     curvature between them (an error of order spacing^2, however fine the mesh). Richardson's
     estimate from a refit, at the fitted shapes on the same mesh size, driven by every
     ``step``-th boundary point: the change over ``step^order - 1``. None where the hypothesis
-    has no shapes, the model is not 2D or the refit fails. Costs one more fit."""
+    has no shapes, the model is not 2D or the refit fails. Costs one more fit. ``signed``: with its
+    sign (:func:`_richardson`)."""
     from dataclasses import replace
 
     from refine.diagnosis.fitted import fit
@@ -386,4 +389,4 @@ def drive_bias(fitted, points: Bool[np.ndarray, "n_points"], hold: Bool[np.ndarr
                 points, hold, sigma)
     except Exception:  # noqa: BLE001 - too few boundary points left, or a refit that fails: no estimate
         return None
-    return _richardson(fitted.shapes, g.shapes, step, order)
+    return _richardson(fitted.shapes, g.shapes, step, order, signed)
