@@ -16,7 +16,11 @@ lowered the misfit of 12 of 21 region fits (one soft ellipse from chi2 156 to 72
 mended (chi2 81 to 60), 9108 is not (both restarts stop higher than its first fit): restarts
 make a lower minimum likelier, never certain. A hole's fit restarts the same way where asked
 (:func:`~refine.diagnosis.holes.fit_hole`'s ``restarts``): on 11 hole fits of seeds 9400-9444
-the restarts lowered 6 misfits (one from chi2 74 to 65).
+the restarts lowered 6 misfits (one from chi2 74 to 65). A stiff region also restarts along the
+size-ratio valley (:mod:`refine.diagnosis.valley`): a circle wider or narrower by
+:data:`VALLEY_STEP` at the ratio of the same strength, since 9108's first fit sat on the small,
+stiff side of the valley's bend (circles at its centre: radius 8.6 needs ratio 156, chi2 104;
+radius 9.5 ratio 9.8, chi2 81; the truth 9.6 and 9.1).
 """
 
 from __future__ import annotations
