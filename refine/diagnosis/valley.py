@@ -12,8 +12,8 @@ mm^2 / pi for ratios 3.1-32), 5 % (9444) and 0.1 % (9108) while the ratio change
 valley is straight in (area, strength) and bends sharply in (area, log ratio), the fit's own
 unknowns. So a Gaussian about the fit in its own unknowns, the Gauss-Newton covariance, follows
 the valley's tangent and misses its bend: the ratio of a stiff region comes out with an error
-far too small on the stiff side (9412: fitted 5.5 +- 0.8, truth 8.7 at a misfit within 4 of the
-fit's), and a fit started on one side of the bend can stop there (9108, ratio 16.6 for 9.1).
+far too small on the stiff side (9412: fitted 5.5 +- 0.8 for 8.7; the truth's circle
+with its ratio refitted misfits 3.8 more than the best circle at the fitted centre), and a fit started on one side of the bend can stop there (9108, ratio 16.6 for 9.1).
 :func:`ratio_draws` gives the ratio's draws with the strength drawn instead of the log ratio
 (the same covariance to first order); :func:`ratio_along_valley` restarts a fit along it.
 """
