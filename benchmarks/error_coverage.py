@@ -103,7 +103,8 @@ def fit_true_kind(bundle, kind: str, start, sigma: float):
     restarts at the fitted centre (:func:`refine.diagnosis.restarts.best_of_restarts`, as
     :func:`refine.diagnosis.regions.fit_regions` does; a hole's since 26 Nov, branch h-coverage,
     :func:`refine.diagnosis.holes.fit_hole` with ``restarts``; rows before it fitted a hole from
-    its start alone) and refitted on every guide point with quadratic triangles; returns the
+    its start alone; a region's also along the size-ratio valley since 26 Nov, branch
+    h-coverage, rows ``error_coverage_rows_valley*.jsonl``) and refitted on every guide point with quadratic triangles; returns the
     refit (its ``z_cov`` set) and the linear triangles' misfits (the fitting points' chi2) from
     ``start`` and after the restarts (the same where none did better)."""
     from refine.diagnosis.fitted import fit, refit

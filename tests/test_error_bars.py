@@ -121,3 +121,5 @@ def test_the_summary_gives_the_ratio_with_its_standard_error_then_the_discretisa
     finding.pop("discretisation")
     finding.pop("relative_elasticity_total_std")
     assert f"{ratio:.2f} +- {std:.2f} x the background" in summary(d)  # an older report reads as before
+    finding["relative_elasticity_std"] = float("inf")  # the valley's draws reach a rigid region
+    assert f"{ratio:.2f} +- inf (the data bound it from below only) x the background" in summary(d)

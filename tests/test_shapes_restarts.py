@@ -73,9 +73,9 @@ def _stand_in(misfit):
 
 
 def test_the_restart_with_the_lowest_misfit_is_kept(monkeypatch):
-    start = RegionShape((40.0, 30.0), (8.0, 8.0), 0.0, "ellipse", 9.0)
-    first = _Fit(_Hypothesis(), (RegionShape((41.0, 31.0), (12.0, 4.0), 0.0, "ellipse", 16.0),), 75.0)
-    fit, tried = _stand_in(lambda s: 60.0 if s.axes == (8.0, 8.0) else 70.0)
+    start = RegionShape((40.0, 30.0), (9.0, 9.0), 0.0, "ellipse", 9.0)
+    first = _Fit(_Hypothesis(), (RegionShape((41.0, 31.0), (12.0, 4.0), 0.0, "ellipse", 4.0),), 75.0)
+    fit, tried = _stand_in(lambda s: 60.0 if s.axes == (9.0, 9.0) else 70.0)
     monkeypatch.setattr(fitted_module, "fit", fit)
     best = best_of_restarts(first, [start], None, None)
     assert best.chi2_fit == 60.0 and best.shapes[0].centre == (41.0, 31.0)
@@ -92,12 +92,12 @@ def test_a_restart_that_fails_or_misfits_more_leaves_the_first_fit(monkeypatch):
 
 
 def test_a_restart_where_the_fit_already_is_is_not_fitted(monkeypatch):
-    # the fit stayed at its start and is nearly round: neither restart would start elsewhere
+    # the fit stayed at its start and is nearly round: neither restart at its size would start elsewhere
     shape = RegionShape((40.0, 30.0), (8.0, 7.9), 0.0, "ellipse", 9.0)
     first = _Fit(_Hypothesis(), (replace(shape, centre=(40.1, 30.0)),), 75.0)
     fit, tried = _stand_in(lambda s: 1.0)
     monkeypatch.setattr(fitted_module, "fit", fit)
-    assert best_of_restarts(first, [shape], None, None) is first and tried == []
+    assert best_of_restarts(first, [shape], None, None, ("recentred", "round")) is first and tried == []
 
 
 def test_a_hole_is_refitted_from_its_restarts_only_where_asked(monkeypatch):
@@ -120,4 +120,23 @@ def test_a_hole_is_refitted_from_its_restarts_only_where_asked(monkeypatch):
     assert holes.fit_hole(None, start, None, None, 0.02).chi2_fit == 80.0 and len(tried) == 1
     best = holes.fit_hole(None, start, None, None, 0.02, restarts=RESTARTS)
     assert best.chi2_fit == 60.0 and isinstance(best.shapes[0], Hole) and best.shapes[0].centre == settled.centre
-    assert len(tried) == 1 + 1 + len(RESTARTS)
+    assert len(tried) == 1 + 1 + 2  # recentred and round: the valley's restarts need a ratio
+
+
+def test_restarts_along_the_valley_keep_the_strength_and_stop_at_a_rigid_region():
+    from refine.diagnosis.restarts import VALLEY_STEP
+    from refine.diagnosis.valley import contrast
+
+    fitted = RegionShape((43.0, 28.0), (10.0, 7.5), 0.3, "ellipse", 4.0)
+    r = np.sqrt(75.0)
+    for kind, scale in (("larger", VALLEY_STEP), ("smaller", 1 / VALLEY_STEP)):
+        [s] = restart_shapes(kind, [fitted], [fitted])
+        assert s.centre == fitted.centre and s.axes[0] == s.axes[1] == pytest.approx(scale * r)
+        assert s.axes[0] ** 2 * contrast(s.ratio) == pytest.approx(r**2 * contrast(4.0))  # the same strength
+    assert restart_shapes("larger", [fitted], [fitted])[0].ratio < 4.0 < restart_shapes("smaller", [fitted], [fitted])[0].ratio
+    soft = replace(fitted, ratio=0.3)
+    assert 0 < restart_shapes("smaller", [soft], [soft])[0].ratio < 0.3 < restart_shapes("larger", [soft], [soft])[0].ratio
+    stiff = replace(fitted, ratio=16.0)  # 1.3225 x (15 / 17) > 1: no ratio makes a smaller one as strong
+    assert restart_shapes("smaller", [stiff], [stiff]) is None
+    hole = Hole((43.0, 28.0), (9.0, 4.0), 0.5)
+    assert restart_shapes("larger", [hole], [hole]) is None and restart_shapes("smaller", [hole], [hole]) is None

@@ -27,6 +27,8 @@ def summary(d) -> str:
             continue
         reg = k["region"]
         pm = f" +- {k['relative_elasticity_std']:.2f}" if k.get("relative_elasticity_std") is not None else ""
+        if np.isinf(k.get("relative_elasticity_std") or 0):  # refine.diagnosis.valley: draws reach a rigid region
+            pm += " (the data bound it from below only)"
         disc = (k.get("discretisation") or {}).get("relative_elasticity")
         if k.get("relative_elasticity_total_std") is not None and disc is not None:  # noise and discretisation
             pm += f" (standard error; discretisation {disc:.2f}, total {k['relative_elasticity_total_std']:.2f})"

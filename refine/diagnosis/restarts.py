@@ -16,7 +16,11 @@ lowered the misfit of 12 of 21 region fits (one soft ellipse from chi2 156 to 72
 mended (chi2 81 to 60), 9108 is not (both restarts stop higher than its first fit): restarts
 make a lower minimum likelier, never certain. A hole's fit restarts the same way where asked
 (:func:`~refine.diagnosis.holes.fit_hole`'s ``restarts``): on 11 hole fits of seeds 9400-9444
-the restarts lowered 6 misfits (one from chi2 74 to 65).
+the restarts lowered 6 misfits (one from chi2 74 to 65). A stiff region also restarts along the
+size-ratio valley (:mod:`refine.diagnosis.valley`): a circle wider or narrower by
+:data:`VALLEY_STEP` at the ratio of the same strength, since 9108's first fit sat on the small,
+stiff side of the valley's bend (circles at its centre: radius 8.6 needs ratio 156, chi2 104;
+radius 9.5 ratio 9.8, chi2 81; the truth 9.6 and 9.1).
 """
 
 from __future__ import annotations
@@ -25,27 +29,48 @@ from dataclasses import fields, replace
 
 import numpy as np
 
-RESTARTS = ("recentred", "round")
+from refine.diagnosis.valley import ratio_along_valley
+
+RESTARTS = ("recentred", "round", "larger", "smaller")
 """The restarts tried, in order: ``"recentred"``, the starting outline (axes and angle as
 started) moved to the fitted centre; ``"round"``, a circle (a square for a rectangle) of the
-fitted area at the fitted centre. Each keeps the fitted ratio (a hole has none)."""
+fitted area at the fitted centre. Each keeps the fitted ratio (a hole has none). ``"larger"``
+and ``"smaller"``: that circle :data:`VALLEY_STEP` times wider or narrower, at the ratio of the
+same strength (:func:`~refine.diagnosis.valley.ratio_along_valley`): the other side of the bend
+of the size-ratio valley (regions only; skipped where no ratio reaches that strength)."""
+
+CHOSEN_RESTARTS = ("round", "larger", "smaller")
+"""The restarts of the region a diagnosis chose (its search fits each hypothesis once)."""
+
+VALLEY_STEP = 1.15
+"""How much wider (or narrower) a restart along the size-ratio valley starts, as a radius factor:
+on seed 9108 a circle 1.15 times the fitted one's radius at half its ratio reached chi2 60 (the
+fit 75, the truth 63)."""
 
 
-def restart_shapes(kind: str, start, fitted) -> tuple:
+def restart_shapes(kind: str, start, fitted) -> tuple | None:
     """The starting shapes of restart ``kind`` (:data:`RESTARTS`) from the ``start`` shapes of a
     fit and its ``fitted`` shapes (:class:`~refine.diagnosis.shapes.RegionShape` or ``Hole``,
-    in the same order)."""
+    in the same order); None where the restart does not apply (along the valley: a hole, or a
+    strength no ratio reaches)."""
+    if kind not in RESTARTS:
+        raise ValueError(f"unknown restart {kind!r}; use one of {', '.join(RESTARTS)}")
     out = []
     for s, f in zip(start, fitted):
+        has_ratio = "ratio" in {x.name for x in fields(f)}
         if kind == "recentred":
             new = replace(s, centre=f.centre)
-        elif kind == "round":
+        else:
             r = float(np.sqrt(f.axes[0] * f.axes[1]))
             new = replace(f, axes=(r, r))
-        else:
-            raise ValueError(f"unknown restart {kind!r}; use one of {', '.join(RESTARTS)}")
-        if "ratio" in {x.name for x in fields(new)}:
+        if has_ratio:
             new = replace(new, ratio=f.ratio)
+        if kind in ("larger", "smaller"):
+            scale = VALLEY_STEP if kind == "larger" else 1.0 / VALLEY_STEP
+            ratio = ratio_along_valley(f.ratio, scale) if has_ratio and f.ratio is not None else None
+            if ratio is None:
+                return None
+            new = replace(new, axes=(scale * r, scale * r), ratio=ratio)
         out.append(new)
     return tuple(out)
 
@@ -66,7 +91,7 @@ def best_of_restarts(f, start, fit_mask, hold_mask, kinds=RESTARTS):
     element = getattr(f.hypothesis, "element", "tri3")
     for kind in kinds:
         shapes = restart_shapes(kind, start, f.shapes)
-        if any(max(a.moved(b) for a, b in zip(shapes, t)) < near for t in tried):
+        if shapes is None or any(max(a.moved(b) for a, b in zip(shapes, t)) < near for t in tried):
             continue
         tried.append(shapes)
         try:
