@@ -9,10 +9,10 @@ points, with exact derivatives through the solve; the tracked skin strain agains
     seq = smooth(tracker, fits, markers=(reference, positions))   # the frames together: seq.fits, seq.std
 """
 
-from .compare import angle_errors, skin_strain_on
+from .compare import angle_errors, error_chi2, skin_strain_on
 from .default import tracking_model
 from .smooth import MotionModel, SmoothedSequence, smooth
 from .track import FrameFit, HandTracker, TrackConfig
 
-__all__ = ["FrameFit", "HandTracker", "MotionModel", "SmoothedSequence", "TrackConfig", "angle_errors", "skin_strain_on",
-           "smooth", "tracking_model"]
+__all__ = ["FrameFit", "HandTracker", "MotionModel", "SmoothedSequence", "TrackConfig", "angle_errors", "error_chi2",
+           "skin_strain_on", "smooth", "tracking_model"]
