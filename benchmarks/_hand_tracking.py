@@ -18,6 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxfem.hand import HandModel, skin_area
+from refine.correspond.geometry import boundary_facets, triangle_distances
 from refine.hand import (HandTracker, MotionModel, TrackConfig, angle_errors, error_chi2, skin_strain_on, smooth,
                          tracking_model)
 from refine.synthetic.hand_range import STOP_REVERSE, hand_range_sequence
@@ -57,6 +58,15 @@ def _rms(a, b, mask=None):
     return float(np.sqrt(np.mean(d ** 2)))
 
 
+def marker_offsets(model, reference) -> list:
+    """Each marker's distance (mm) from the model's undeformed surface (its reference position
+    ``(m, 3)``, placed on the data's finer mesh): a marker the model's surface misses by more
+    than the markers' noise would bias every frame alike."""
+    X, tri = model.hand.mesh.nodes, boundary_facets(model.hand.mesh)
+    d = np.asarray(triangle_distances(jnp.asarray(reference), *(jnp.asarray(X[tri[:, i]]) for i in range(3))))
+    return d.min(axis=1).tolist()
+
+
 def _errors(fits, truth, names) -> dict:
     """The angle errors of ``fits`` against ``truth`` (radians), degrees."""
     err = angle_errors(fits, truth)
@@ -92,6 +102,7 @@ def tracking(model, strains, area_box, seed: int = 0, frames: int = 4, h: float 
            "data_mesh": {"h_mm": h, "elements": seq.hand.mesh.n_cells, "nodes": seq.hand.mesh.n_nodes},
            "model_mesh": {"h_mm": model.hand.h, "elements": model.hand.mesh.n_cells, "nodes": model.hand.mesh.n_nodes},
            "noise_mm": seq.noise, "marker_noise_mm": seq.marker_noise, "markers": list(seq.marker_names),
+           "marker_to_model_surface_mm": marker_offsets(model, seq.marker_reference),
            "points_per_frame": [len(c) for c in seq.clouds], "angles": list(names),
            "truth_deg": np.degrees(seq.angles).round(4).tolist(),
            "pose_truth": {"rotation_deg": np.degrees(seq.pose[:3]).tolist(), "translation_mm": seq.pose[3:].tolist()}}

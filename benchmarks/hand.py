@@ -35,7 +35,9 @@ on the area's maximum strain against the marked point's displacement: a threshol
 Tracking (issue 25 item 5, ``_hand_tracking.py``): a synthetic range sequence of the moving hand
 (a finer mesh, random angles and pose, depth noise, part of the hand unseen) tracked by
 refine.hand from the unlabelled clouds and from the marked points; joint-angle errors, seconds per
-frame, skin-strain RMS against the truth; seeds 0-2, from the clouds, the markers and both. The
+frame, skin-strain RMS against the truth; seeds 0-2, from the clouds, the markers and both (the
+markers alone, noise-limited at 1 degree, judged by their reported uncertainty; their limit
+measured by ``_hand_marker_noise.py``). The
 threshold's truth (``_hand_threshold.py``): the rising hinge of the fine noise-free curve against
 the detection on the coarse model's curve at tracked joint angles (and with raw strain noise), a
 threshold only where the growth rate rises >= 1.25x (refine.threshold.ThresholdRule, both sides);
@@ -47,6 +49,8 @@ literature (STRAIN_LIMIT; ``_hand_found_scar.py``).
     python benchmarks/hand.py --only tracking threshold found-scar   # these sections into the last hand.json
     python benchmarks/hand.py --only threshold-refined               # the longer up-down motion's estimate on
                                                                      # the model refined at the wrist (_threshold_mesh)
+    python benchmarks/hand.py --only marker-noise --thumb-h 6 --seeds 2   # the markers-alone noise limit
+                                                                     # (_hand_marker_noise: linearised draws)
     python benchmarks/hand.py --only threshold --reuse-curves        # the threshold analysed again from
                                                                      # results/hand_threshold.npz or hand.json
 
@@ -72,6 +76,7 @@ OUT = Path(__file__).parent / "results"
 from jaxfem.hand import (PAPER, HandDimensions, plot_curves, reachable, run_motion,  # noqa: E402
                          skin_strain_function, standard_motions)
 
+import _hand_marker_noise  # noqa: E402
 import _hand_threshold  # noqa: E402
 import _hand_tracking  # noqa: E402
 import _threshold_mesh  # noqa: E402
@@ -112,6 +117,7 @@ def targets(res) -> dict:
                   "Ni Annaidh et al. 2012's failure strain less 2 SD)", "reached": lit,
         "pass": any(v < 1 for v in lit.values())}
     t |= _hand_tracking.section_targets(res)
+    t |= _hand_marker_noise.targets(res)
     if "threshold_truth" in res:
         t |= _hand_threshold.targets(res["threshold_truth"])
         if "mesh" in res["threshold_truth"]:
@@ -130,9 +136,11 @@ def main(argv=None):
     ap.add_argument("--fine-only", action="store_true", help="rerun only the finer mesh's wrist motions and update "
                     "mesh_dependence in the last hand.json")
     ap.add_argument("--series", default=None, help="folder for the ParaView series (not written by default)")
-    ap.add_argument("--only", nargs="+", choices=("tracking", "threshold", "threshold-refined", "found-scar"),
+    ap.add_argument("--only", nargs="+", choices=("tracking", "marker-noise", "threshold", "threshold-refined",
+                                                  "found-scar"),
                     default=None, help="run only these sections, into the last hand.json (threshold-refined: the "
-                    "longer motion's estimate on the wrist-refined model alone)")
+                    "longer motion's estimate on the wrist-refined model alone; marker-noise: the markers-alone noise "
+                    "limit, _hand_marker_noise, of --seeds, default 2)")
     ap.add_argument("--reuse-curves", action="store_true", help="--only threshold: analyse the solves saved in "
                     "results/hand_threshold.npz (or, without it, the curves in the last hand.json) again instead of "
                     "solving")
@@ -207,6 +215,11 @@ def sections(only, frames, reuse=False, seeds=None, thumb_h=None, profile="stead
         res[key]["thumb_h_mm"] = thumb_h  # None: the paper-size model as it is
         res[key]["runs"] = _hand_tracking.merge_runs(old, res[key]["runs"])
         res[key]["seeds"] = [r["seed"] for r in res[key]["runs"]]
+    if "marker-noise" in only:  # the markers-alone noise limit (linearised): "marker_noise[_thumb]"
+        key, mmodel = ("marker_noise", model) if thumb_h is None else ("marker_noise_thumb",
+                                                                       _hand_tracking.thumb_model(thumb_h))
+        res[key] = {"load_start": load(), "runs": [_hand_marker_noise.noise_limit(mmodel, s) for s in seeds or (2,)],
+                    "load": load(), "thumb_h_mm": thumb_h}
     if "found-scar" in only:
         _, fine, fine_size = build(PAPER, FOUND_H, 4.5)
     if "threshold" in only:
