@@ -1,8 +1,9 @@
 """The hand tracker's temporal prior (refine.hand.smooth): the whole-sequence Gauss-Newton step
 against an independent least-squares solve, its covariance (each frame's and the whole
 sequence's) against the spread of many noisy draws, the sequence's chi-square in that covariance
-(refine.hand.error_chi2: calibrated, and it flags an error the frames share), its bias at a sudden reversal (bounded by the Cauchy release, not by a Gaussian prior), and
-the smoother on a tracked sequence of the coarse hand from noisy markers (drawn angles, pose, noise)."""
+(refine.hand.error_chi2: calibrated, and it flags an error the frames share), its bias at a
+sudden reversal (bounded by the Cauchy release, not by a Gaussian prior), and the smoother on a
+tracked sequence of the coarse hand from noisy markers (drawn angles, pose, noise)."""
 
 from types import SimpleNamespace
 
