@@ -54,3 +54,28 @@ def test_a_rerun_of_some_ways_keeps_the_others_of_the_same_seed(ht):
     assert "carried" not in one and "carried" not in one["markers"] and one["markers"] == new[0]["markers"]
     assert one["clouds"]["max_abs_error_deg"] == old[1]["clouds"]["max_abs_error_deg"] and "carried" in one["clouds"]
     assert "carried" in merged[0] and "carried" in merged[2] and merged[2]["markers"] == old[2]["markers"]
+
+
+def test_the_noise_limit_fits_the_linearised_frames_and_its_rows_are_informational():
+    """_hand_marker_noise: noise that a drawn change of pose and angles explains exactly is fitted
+    back per frame (to rounding); where that change and the true motion are both steady (constant
+    velocity: no second difference for the prior to pull) the smoothed fit is the same, where the
+    change jumps between frames the prior pulls the smoothed fit off it; hand.json's rows carry no
+    pass."""
+    with benchmark_modules("_hand_marker_noise") as (mn,):
+        rng = np.random.default_rng(9)
+        K, m, n = 5, 39, 11
+        J = rng.normal(size=(K, m, n))
+        Q = rng.normal(size=n) * 0.1 + np.arange(K)[:, None] * rng.normal(size=n) * 0.05  # a steady motion
+        steady = rng.normal(size=n) * 0.01 + np.arange(K)[:, None] * rng.normal(size=n) * 0.002
+        per, smoothed = mn._fit(J, np.zeros((K, m)), Q, np.einsum("kri,ki->kr", J, steady), mn.MotionModel())
+        assert np.allclose(per, np.degrees(steady[:, 6:]), atol=1e-9) and np.allclose(smoothed, per, atol=1e-6)
+        jumps = steady + rng.normal(size=(K, n)) * 0.02
+        per, smoothed = mn._fit(J, np.zeros((K, m)), Q, np.einsum("kri,ki->kr", J, jumps), mn.MotionModel())
+        assert np.allclose(per, np.degrees(jumps[:, 6:]), atol=1e-9) and np.abs(smoothed - per).max() > 0.05
+        run = {k: 0.1 for k in ("p_some_error_over_1_deg", "p_some_error_over_1_deg_per_frame", "largest_error_quantiles_deg",
+                                "spread_over_reported", "p_every_error_within_2_std", "p_chi2_p_below_0.01",
+                                "committed_chi2")} | {"seed": 2}
+        rows = mn.targets({"marker_noise_thumb": {"runs": [run]}})
+        assert list(rows) == ["markers_alone_noise_limit_thumb_model"]
+        assert "pass" not in rows["markers_alone_noise_limit_thumb_model"] and mn.targets({}) == {}
