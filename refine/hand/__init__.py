@@ -7,6 +7,7 @@ points, with exact derivatives through the solve; the tracked skin strain agains
     fits = tracker.track(clouds=sequence.clouds)            # (a) unlabelled range clouds
     fits = tracker.track(markers=(reference, positions))    # (b) the paper's marked points
     seq = smooth(tracker, fits, markers=(reference, positions))   # the frames together: seq.fits, seq.std
+    error_chi2(seq.fits, truth, seq.covariance)             # a truth's errors in the whole sequence's covariance
 """
 
 from .compare import angle_errors, error_chi2, skin_strain_on
