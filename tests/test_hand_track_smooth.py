@@ -1,15 +1,19 @@
 """The hand tracker's temporal prior (refine.hand.smooth): the whole-sequence Gauss-Newton step
-against an independent least-squares solve, its covariance against the spread of many noisy
-draws, its bias at a sudden reversal (bounded by the Cauchy release, not by a Gaussian prior), and
-the smoother on a tracked sequence of the coarse hand from noisy markers (drawn angles, pose, noise)."""
+against an independent least-squares solve, its covariance (each frame's and the whole
+sequence's) against the spread of many noisy draws, the sequence's chi-square in that covariance
+(refine.hand.error_chi2: calibrated, and it flags an error the frames share), its bias at a
+sudden reversal (bounded by the Cauchy release, not by a Gaussian prior), and the smoother on a
+tracked sequence of the coarse hand from noisy markers (drawn angles, pose, noise)."""
+
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from jaxfem.hand import HandModel
 from refine.exceptions import CorrespondenceError, ExperimentError
-from refine.hand import HandTracker, MotionModel, TrackConfig, angle_errors, smooth
-from refine.hand.smooth import prior_cost, second_differences, smooth_quadratic
+from refine.hand import HandTracker, MotionModel, TrackConfig, angle_errors, error_chi2, smooth
+from refine.hand.smooth import prior_cost, second_differences, sequence_covariance, smooth_quadratic
 from refine.synthetic.hand_range import STOP_REVERSE, hand_range_sequence, pose_matrix
 from tests._hand_util import coarse_hand
 
@@ -43,6 +47,8 @@ def test_gaussian_smoother_is_the_weighted_least_squares_solution():
     ref = np.linalg.lstsq(A, b, rcond=None)[0].reshape(K, n)
     assert np.allclose(Q, ref, atol=1e-10)
     assert np.allclose(cov, [np.linalg.inv(A.T @ A)[k * n:(k + 1) * n, k * n:(k + 1) * n] for k in range(K)], atol=1e-10)
+    full = sequence_covariance(H, sigma, np.ones((K - 2, n)))  # the whole inverse, the frames' blocks and between them
+    assert full.shape == (K, n, K, n) and np.allclose(full.reshape(K * n, K * n), np.linalg.inv(A.T @ A), atol=1e-10)
     assert prior_cost(ref, sigma, np.inf) == pytest.approx(np.sum((second_differences(K) @ ref / sigma) ** 2))
 
 
@@ -67,6 +73,40 @@ def test_smoothed_covariance_matches_the_spread_and_beats_each_frame():
     assert (np.std(steady, axis=0) < 1.1 * std).all()
     frame = np.sqrt(np.stack([np.diag(np.linalg.inv(h)) for h in H]))
     assert (std < frame).all() and np.mean(std / frame) < 0.8
+
+
+def _fits(Q):
+    return [SimpleNamespace(angles=q) for q in Q]
+
+
+def test_sequence_chi_square_is_calibrated_and_flags_an_error_the_frames_share():
+    """Motions drawn from the prior, seen per frame with noise N(0, H^-1), smoothed: the sequence's
+    errors in the whole covariance (error_chi2) fall below p = 0.05 in about 5 % of 300 draws and
+    below 0.01 in about 1 %; the same with an offset of 2.5-3 of its smoothed deviations added to
+    every frame of one drawn angle (as a reference position's error would be) falls below 0.01 in
+    nearly every draw. A covariance of the wrong shape is refused."""
+    rng = np.random.default_rng(5)
+    H, _ = _problem(rng)
+    K, n = H.shape[:2]
+    sigma = np.full(n, 0.3)
+    line = rng.normal(size=n) + np.arange(K)[:, None] * rng.normal(size=n)
+    C = sequence_covariance(H, sigma, np.ones((K - 2, n)))
+    std = np.sqrt(np.einsum("kiki->ki", C))
+    j = int(rng.integers(n))
+    p, p_offset = [], []
+    for _ in range(300):
+        truth = line + np.cumsum(np.cumsum(np.r_[np.zeros((2, n)), rng.normal(0, 1, (K - 2, n)) * sigma], 0), 0)
+        Q = smooth_quadratic(_draw(rng, truth, H), np.zeros((K, n)), H, sigma, np.inf)[0]
+        p.append(error_chi2(_fits(Q), truth, C)["p"])
+        offset = np.eye(n)[j] * rng.uniform(2.5, 3.0) * std[:, j].max()
+        Q = smooth_quadratic(_draw(rng, truth + offset, H), np.zeros((K, n)), H, sigma, np.inf)[0]
+        p_offset.append(error_chi2(_fits(Q), truth, C)["p"])
+    p, p_offset = np.array(p), np.array(p_offset)
+    assert 0.02 < np.mean(p < 0.05) < 0.10 and np.mean(p < 0.01) < 0.04
+    assert np.mean(p_offset < 0.01) > 0.85
+    assert error_chi2(_fits(Q), truth, C)["dof"] == K * n
+    with pytest.raises(CorrespondenceError, match="covariance of shape"):
+        error_chi2(_fits(Q), truth, C[:-1])
 
 
 def test_cauchy_release_bounds_the_bias_at_a_reversal():
@@ -130,6 +170,9 @@ def test_smoother_on_a_tracked_sequence_from_noisy_markers(hand):
     assert np.sqrt(np.mean(e1 ** 2)) < np.sqrt(np.mean(e0 ** 2)), (e0, e1)
     assert (seq.std < seq.frame_std).all() and not seq.released.any()
     assert (np.abs(e1) < 3 * np.degrees(seq.std)).all(), (e1, np.degrees(seq.std))
+    assert seq.covariance.shape == (K, len(names), K, len(names))  # its diagonal blocks are the reported deviations
+    assert np.allclose(np.sqrt(np.einsum("kiki->ki", seq.covariance)), seq.std)
+    assert error_chi2(seq.fits, truth, seq.covariance)["p"] > 0.001
     Q = np.array([np.r_[f.pose, f.angles] for f in fits])
     assert seq.objective < 0.5 * sum(f.cost for f in fits) + 0.5 * prior_cost(Q, motion.sigma(len(names)), motion.release)
     with pytest.raises(CorrespondenceError, match="needs the tracked data"):

@@ -7,12 +7,13 @@ points, with exact derivatives through the solve; the tracked skin strain agains
     fits = tracker.track(clouds=sequence.clouds)            # (a) unlabelled range clouds
     fits = tracker.track(markers=(reference, positions))    # (b) the paper's marked points
     seq = smooth(tracker, fits, markers=(reference, positions))   # the frames together: seq.fits, seq.std
+    error_chi2(seq.fits, truth, seq.covariance)             # a truth's errors in the whole sequence's covariance
 """
 
-from .compare import angle_errors, skin_strain_on
+from .compare import angle_errors, error_chi2, skin_strain_on
 from .default import tracking_model
 from .smooth import MotionModel, SmoothedSequence, smooth
 from .track import FrameFit, HandTracker, TrackConfig
 
-__all__ = ["FrameFit", "HandTracker", "MotionModel", "SmoothedSequence", "TrackConfig", "angle_errors", "skin_strain_on",
-           "smooth", "tracking_model"]
+__all__ = ["FrameFit", "HandTracker", "MotionModel", "SmoothedSequence", "TrackConfig", "angle_errors", "error_chi2",
+           "skin_strain_on", "smooth", "tracking_model"]

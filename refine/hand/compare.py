@@ -1,13 +1,15 @@
-"""A tracked hand against a truth: joint-angle errors, and a skin-strain map carried from one hand
-mesh onto another's skin facets (the truth's finer mesh onto the tracker's) to be subtracted.
+"""A tracked hand against a truth: joint-angle errors, how far they lie from zero in the reported
+covariance, and a skin-strain map carried from one hand mesh onto another's skin facets (the
+truth's finer mesh onto the tracker's) to be subtracted.
 
-Units: degrees for the errors; strain dimensionless.
+Units: degrees for the errors (radians in the chi-square); strain dimensionless.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.stats import chi2
 
 from refine.exceptions import CorrespondenceError
 
@@ -21,6 +23,23 @@ def angle_errors(fits, truth) -> np.ndarray:
         raise CorrespondenceError(f"{est.shape} fitted angles against a truth of shape {truth.shape}: give the "
                                   "truth of the same frames and angles")
     return np.degrees(est - truth)
+
+
+def error_chi2(fits, truth, covariance) -> dict:
+    """The whole sequence's angle errors in their reported covariance: ``d2 = e^T C^-1 e`` over every
+    angle of every frame (``e`` the errors of ``fits`` against ``truth (n_frames, n_angles)``,
+    radians; ``covariance (n_frames, n_angles, n_frames, n_angles)`` radians^2, as
+    :attr:`refine.hand.SmoothedSequence.covariance`). Under the stated noise (and no bias) ``d2`` is
+    chi-square with ``n_frames * n_angles`` degrees of freedom: ``p`` its upper tail, small where the
+    errors exceed what the reported uncertainty allows (an error the frames share included, which
+    each frame's standard deviation alone cannot judge). Returns ``{"chi2", "dof", "p"}``."""
+    e = np.radians(angle_errors(fits, truth)).reshape(-1)
+    C = np.asarray(covariance, float)
+    if C.shape != (*np.shape(truth), *np.shape(truth)):
+        raise CorrespondenceError(f"a covariance of shape {C.shape} for errors of shape {np.shape(truth)}: give the "
+                                  "sequence's (n_frames, n_angles, n_frames, n_angles) covariance")
+    d2 = float(e @ np.linalg.solve(C.reshape(len(e), len(e)), e))
+    return {"chi2": d2, "dof": len(e), "p": float(chi2.sf(d2, len(e)))}
 
 
 def skin_strain_on(hand_from, strain_from, hand_to, cos_min: float = 0.9) -> np.ndarray:

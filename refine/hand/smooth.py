@@ -19,6 +19,9 @@ Each angle's uncertainty is the Laplace (Gauss-Newton) standard deviation: the s
 diagonal of the inverse of the whole sequence's Gauss-Newton matrix at the end (the data term's
 ``J^T W J`` per frame plus the prior's), under the tracker's stated noise; beside it, that of each
 frame alone (``J^T W J`` of the frame). Neither holds the model's own discretisation error.
+The smoothed errors of neighbouring frames are correlated (the prior ties them): ``covariance``
+holds the whole sequence's angle covariance, so an error shared by several frames is judged
+against what the frames share (:func:`refine.hand.compare.error_chi2`), not frame by frame.
 
 The limit: the prior's pull on a sudden change is largest for a change near its release (a few
 sigmas) and grows with the square of a frame's own standard deviation: measured exactly, a stop
@@ -83,6 +86,9 @@ class SmoothedSequence:
         std: each angle's standard deviation after smoothing ``(n_frames, n_angles)`` radians;
             pose_std ``(n_frames, 6)`` (radians, mm).
         frame_std: each angle's standard deviation from its frame alone ``(n_frames, n_angles)``.
+        covariance: the angles' covariance over the whole sequence ``(n_frames, n_angles, n_frames,
+            n_angles)`` radians^2 (its diagonal blocks give ``std``; the off-diagonal ones the
+            correlation the prior puts between frames).
         released: per frame, whether the prior let go of a joint's velocity change there (its
             Cauchy weight below 1/2: a start, stop or reversal; ``(n_frames,)``, False at the ends).
         objective: the smoothed objective (noise units squared; prior included); iterations:
@@ -98,6 +104,7 @@ class SmoothedSequence:
     objective: float
     iterations: int
     seconds: float
+    covariance: np.ndarray | None = None
 
 
 def second_differences(n_frames: int) -> np.ndarray:
@@ -120,18 +127,15 @@ def smooth_quadratic(Q0, g, H, sigma, release: float, inner: int = 100, tol: flo
     ``sum_k g_k.d_k + 1/2 d_k H_k d_k``, ``d = Q - Q0``) and the prior of the module docstring
     (``sigma (n,)``, Cauchy scale ``release``), by iteratively reweighted least squares on the
     prior's weights. Returns ``(Q, cov (n_frames, n, n), weights (n_frames - 2, n))``: ``cov`` the
-    diagonal blocks of the inverse Gauss-Newton matrix at the end, ``weights`` the prior's.
+    diagonal blocks of the inverse Gauss-Newton matrix at the end (the whole inverse:
+    :func:`sequence_covariance` of ``H``, ``sigma`` and these ``weights``), ``weights`` the prior's.
 
     Raises:
         CorrespondenceError: the system is singular (an unknown no frame and no prior determines).
     """
     Q0, g, H = (np.asarray(v, float) for v in (Q0, g, H))
     K, n = Q0.shape
-    D = np.kron(second_differences(K), np.eye(n))
-    s2 = np.tile(1.0 / np.asarray(sigma, float) ** 2, max(K - 2, 0))
-    Hb = np.zeros((K * n, K * n))
-    for k in range(K):
-        Hb[k * n:(k + 1) * n, k * n:(k + 1) * n] = H[k]
+    D, s2, Hb = _system(H, sigma)
     rhs = np.einsum("kij,kj->ki", H, Q0).reshape(-1) - g.reshape(-1)
     w = np.ones(len(s2))
     for _ in range(inner):
@@ -148,10 +152,34 @@ def smooth_quadratic(Q0, g, H, sigma, release: float, inner: int = 100, tol: flo
         w = w_new
         if done:
             break
-    A = Hb + D.T @ ((w * s2)[:, None] * D)
-    cov = np.linalg.inv(A)
+    w = w.reshape(max(K - 2, 0), n)
+    cov = sequence_covariance(H, sigma, w).reshape(K * n, K * n)
     blocks = np.stack([cov[k * n:(k + 1) * n, k * n:(k + 1) * n] for k in range(K)])
-    return Q.reshape(K, n), blocks, w.reshape(max(K - 2, 0), n)
+    return Q.reshape(K, n), blocks, w
+
+
+def _system(H, sigma):
+    """The pieces of the whole sequence's Gauss-Newton matrix: ``D`` (second differences of every
+    unknown, ``((K - 2) n, K n)``), ``1 / sigma^2`` per row of ``D``, and the block diagonal of the
+    frames' ``H (K, n, n)``."""
+    K, n = H.shape[:2]
+    D = np.kron(second_differences(K), np.eye(n))
+    s2 = np.tile(1.0 / np.asarray(sigma, float) ** 2, max(K - 2, 0))
+    Hb = np.zeros((K * n, K * n))
+    for k in range(K):
+        Hb[k * n:(k + 1) * n, k * n:(k + 1) * n] = H[k]
+    return D, s2, Hb
+
+
+def sequence_covariance(H, sigma, weights) -> np.ndarray:
+    """The whole sequence's covariance ``(K, n, K, n)``: the inverse of its Gauss-Newton matrix
+    (the frames' ``H (K, n, n)`` plus the prior's ``D^T diag(weights / sigma^2) D``, ``weights
+    (K - 2, n)`` the prior's Cauchy weights, ``sigma (n,)``), in the unknowns' units squared."""
+    H = np.asarray(H, float)
+    K, n = H.shape[:2]
+    D, s2, Hb = _system(H, sigma)
+    A = Hb + D.T @ ((np.asarray(weights, float).reshape(-1) * s2)[:, None] * D)
+    return np.linalg.inv(A).reshape(K, n, K, n)
 
 
 def _normal(state, free):
@@ -214,12 +242,13 @@ def smooth(tracker, fits, clouds=None, markers=None, motion: MotionModel = Motio
             break
     g, H = zip(*(_normal(s, free) for s in states))
     _, cov, w = smooth_quadratic(Q, np.zeros_like(Q), H, sigma, motion.release)
+    full = sequence_covariance(np.stack(H), sigma, w)[:, 6:, :, 6:]
     released = np.zeros(K, bool)
     released[1:K - 1] = (w[:, 6:] < 0.5).any(axis=1) if K > 2 else False
     std = np.sqrt(np.stack([np.diag(c) for c in cov]))
     return SmoothedSequence([_fit(fits[k], Q[k], states[k], tracker) for k in range(K)], list(fits), std[:, 6:],
                             np.where(free[:6], std[:, :6], 0.0), np.sqrt(np.stack([np.diag(c) for c in frame_cov]))[:, 6:],
-                            released, float(value), it, time.perf_counter() - t0)
+                            released, float(value), it, time.perf_counter() - t0, full)
 
 
 def _fit(fit, q, state, tracker):
