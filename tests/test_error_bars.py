@@ -123,3 +123,16 @@ def test_the_summary_gives_the_ratio_with_its_standard_error_then_the_discretisa
     assert f"{ratio:.2f} +- {std:.2f} x the background" in summary(d)  # an older report reads as before
     finding["relative_elasticity_std"] = float("inf")  # the valley's draws reach a rigid region
     assert f"{ratio:.2f} +- inf (the data bound it from below only) x the background" in summary(d)
+
+
+def test_an_unbounded_error_is_strict_json_with_its_flag():
+    import json
+
+    from refine.diagnosis.report import _finite
+
+    report = {"findings": [{"relative_elasticity_std": float("inf"), "relative_elasticity_bounded_below_only": True,
+                            "std": {"relative_elasticity": np.inf, "axes": np.array([0.1, np.nan])}}]}
+    text = json.dumps(_finite(report), allow_nan=False)  # raises on Infinity / NaN
+    back = json.loads(text)["findings"][0]
+    assert back["relative_elasticity_std"] is None and back["relative_elasticity_bounded_below_only"] is True
+    assert back["std"] == {"relative_elasticity": None, "axes": [0.1, None]}

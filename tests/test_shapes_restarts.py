@@ -140,3 +140,17 @@ def test_restarts_along_the_valley_keep_the_strength_and_stop_at_a_rigid_region(
     assert restart_shapes("smaller", [stiff], [stiff]) is None
     hole = Hole((43.0, 28.0), (9.0, 4.0), 0.5)
     assert restart_shapes("larger", [hole], [hole]) is None and restart_shapes("smaller", [hole], [hole]) is None
+
+
+def test_restarts_fitted_side_by_side_keep_the_same_one(monkeypatch):
+    from concurrent.futures import ThreadPoolExecutor
+
+    start = RegionShape((40.0, 30.0), (9.0, 9.0), 0.0, "ellipse", 9.0)
+    first = _Fit(_Hypothesis(), (RegionShape((41.0, 31.0), (12.0, 4.0), 0.0, "ellipse", 4.0),), 75.0)
+    fit, tried = _stand_in(lambda s: 60.0 if s.axes[0] > s.axes[1] - 1e-9 and s.centre == (41.0, 31.0) else 70.0)
+    monkeypatch.setattr(fitted_module, "fit", fit)
+    alone = best_of_restarts(first, [start], None, None)
+    with ThreadPoolExecutor(2) as pool:
+        together = best_of_restarts(first, [start], None, None, pool=pool)
+    assert together.shapes == alone.shapes and together.chi2_fit == alone.chi2_fit == 60.0
+    assert len(tried) == 2 * len(RESTARTS)

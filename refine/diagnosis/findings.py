@@ -3,6 +3,7 @@ as typed values."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from refine.diagnosis.laws import law_parameters
@@ -75,6 +76,8 @@ class Finding:
             return {"cause": self.cause, "region": None, "relative_elasticity": None, "modulus": None,
                     "law": self.law, **self._law_parameters(), "evidence": self.evidence}
         std = {} if self.relative_elasticity_std is None else {"relative_elasticity_std": self.relative_elasticity_std}
+        if std and not math.isfinite(std["relative_elasticity_std"]):  # refine.diagnosis.valley: draws reach a rigid region
+            std["relative_elasticity_bounded_below_only"] = True
         if self.std is not None:
             std["std"] = self.std.to_json()
         if self.discretisation is not None:  # keys added after std (older readers ignore them)

@@ -45,7 +45,7 @@ from refine.diagnosis.holes import fit_hole, named_hole
 from refine.diagnosis.hole_law import hole_law_jobs
 from refine.diagnosis.laws import ALTERNATIVE_LAWS, fit_law
 from refine.diagnosis.regions import fit_rectangle, fit_regions, refit_ellipse
-from refine.diagnosis.restarts import best_of_restarts
+from refine.diagnosis.restarts import CHOSEN_RESTARTS, best_of_restarts
 from refine.diagnosis.shapes import RegionShape, report_row
 from refine.diagnosis.localize import Candidate, fit_field
 from refine.diagnosis.scale import at_frames, drives_alike, every_frame, mesh_size, on_frames, search_frames
@@ -203,7 +203,7 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
         tried += _try_hypotheses(trials, candidates)
         chosen = selected = _choose(base, tried, cfg)
         if chosen.cause in ("stiffer-region", "softer-region", "regions"):  # the search fits once; the chosen
-            chosen = best_of_restarts(chosen, chosen.shapes, fit, hold, ("round",))  # region also from a circle
+            chosen = best_of_restarts(chosen, chosen.shapes, fit, hold, CHOSEN_RESTARTS, pool)  # and along its valley
         if chosen is not base:  # refit the chosen model on every guide point and every frame
             log(f"refit on every frame: {chosen.describe()}")
             chosen = _refit_on_every_frame(chosen, model, full, guide, hold, sigma_eff, cfg)

@@ -79,7 +79,7 @@ def write(d, out, with_figures: bool = True) -> Path:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "report.json"
-    path.write_text(json.dumps(d.report(), indent=2, default=_plain))
+    path.write_text(json.dumps(_finite(d.report()), indent=2, default=_plain))
     text = summary(d)
     (out / "summary.txt").write_text(text + "\n")
     if not with_figures:
@@ -91,6 +91,19 @@ def write(d, out, with_figures: bool = True) -> Path:
              *(p.relative_to(out).as_posix() for p in series.values())]
     html.write(d, out / "report.html", figs, text, files)
     return path
+
+
+def _finite(x):
+    """``x`` (a report's dict) with every non-finite number written as null: strict JSON has no
+    Infinity or NaN (an unbounded error is flagged beside it, e.g. the finding's
+    ``relative_elasticity_bounded_below_only``)."""
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [_finite(v) for v in (x.tolist() if isinstance(x, np.ndarray) else x)]
+    if isinstance(x, (float, np.floating)) and not np.isfinite(x):
+        return None
+    return x
 
 
 def _plain(x):

@@ -75,29 +75,38 @@ def restart_shapes(kind: str, start, fitted) -> tuple | None:
     return tuple(out)
 
 
-def best_of_restarts(f, start, fit_mask, hold_mask, kinds=RESTARTS):
+def best_of_restarts(f, start, fit_mask, hold_mask, kinds=RESTARTS, pool=None):
     """``f`` (a :class:`~refine.diagnosis.fitted.Fitted` started at the shapes ``start``) or a
     refit of its hypothesis from one of the restarts ``kinds`` (:func:`restart_shapes`),
-    whichever has the lowest misfit on ``fit_mask``. A restart whose shapes all lie within a
-    fifth of an element of the fitted ones or of an earlier restart's is skipped (it would
-    settle where that one did); one that cannot be fitted is skipped. Costs a fit per restart
-    tried (a recentred one converges in a few steps)."""
+    whichever has the lowest misfit on ``fit_mask`` (the first of equal ones, in ``kinds``'s
+    order). A restart whose shapes all lie within a fifth of an element of the fitted ones or of
+    an earlier restart's is skipped (it would settle where that one did); one that cannot be
+    fitted is skipped. Costs a fit per restart tried (a recentred one converges in a few steps);
+    ``pool`` (an executor, e.g. the diagnosis's): the restarts fitted side by side, the same result."""
     from refine.diagnosis.fitted import fit
 
     if not (f.shapes and f.hypothesis.remeshable and kinds):
         return f
-    best, tried = f, [tuple(f.shapes)]
+    tried = [tuple(f.shapes)]
     near = 0.2 * f.model.h
     element = getattr(f.hypothesis, "element", "tri3")
     for kind in kinds:
         shapes = restart_shapes(kind, start, f.shapes)
-        if shapes is None or any(max(a.moved(b) for a, b in zip(shapes, t)) < near for t in tried):
-            continue
-        tried.append(shapes)
+        if shapes is not None and all(max(a.moved(b) for a, b in zip(shapes, t)) >= near for t in tried):
+            tried.append(shapes)
+
+    def attempt(shapes):
         try:
-            g = fit(f.hypothesis.at(shapes, element), fit_mask, hold_mask, f.sigma)
+            return fit(f.hypothesis.at(shapes, element), fit_mask, hold_mask, f.sigma)
         except Exception:  # noqa: BLE001 - a restart that cannot be meshed or solved is no better
-            continue
-        if np.isfinite(g.chi2_fit) and g.chi2_fit < best.chi2_fit:
+            return None
+
+    if pool is None:
+        refits = [attempt(shapes) for shapes in tried[1:]]
+    else:
+        refits = [job.result() for job in [pool.submit(attempt, shapes) for shapes in tried[1:]]]
+    best = f
+    for g in refits:
+        if g is not None and np.isfinite(g.chi2_fit) and g.chi2_fit < best.chi2_fit:
             best = g
     return best
