@@ -170,6 +170,8 @@ def profile_ratio(f: Fitted, points, sigma: float, threshold: float = 4.0, max_s
     for sign in (-1.0, 1.0):
         lr, zs, step = float(z[0]), z[1:], step0
         for _ in range(max_steps):
+            if sign * lr >= MAX_LOG_RATIO:  # at the bound already (a fit that ran there): open
+                break
             lr = float(np.clip(lr + sign * step, -MAX_LOG_RATIO, MAX_LOG_RATIO))
             held = RatioHeld(base, lr, zs)
             compiled = Compiled(f.model, held, f.compiled.theta)
@@ -179,7 +181,7 @@ def profile_ratio(f: Fitted, points, sigma: float, threshold: float = 4.0, max_s
             c2 = at.chi2(compiled.predict(zs))
             found.append(ProfilePoint(lr, float(c2), held.shape(zs).volume, tuple(held.full(zs, np))))
             log(f"    profile: ratio {np.exp(lr):.3g} chi2 {c2 - chi2_fit:+.1f} volume {found[-1].volume:.0f}")
-            if c2 - min(p.chi2 for p in found) > limit or abs(lr) >= MAX_LOG_RATIO:
+            if c2 - min(p.chi2 for p in found) > limit:
                 break
             step *= 1.5
     prof = interval(found, limit, nu=float(base.nu))
