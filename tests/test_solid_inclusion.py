@@ -258,6 +258,28 @@ def test_hidden_inclusion_volume_and_ratio_are_recovered(stiffer):
     assert abs(f["volume"] / truth.volume - 1) < 0.2 and abs(f["relative_elasticity"] / truth.ratio - 1) < 0.1
 
 
+@pytest.mark.slow
+def test_hidden_inclusion_strength_is_covered_by_its_profile(stiffer):
+    from refine.solid.inclusion_profile import strength
+
+    d, rep, truth = stiffer
+    f = rep["findings"][0]
+    s_true = strength(truth.volume, truth.ratio, 0.3)
+    assert abs(f["strength"] / s_true - 1) < 0.1
+    assert f["profile"]["strength"][0] <= s_true <= f["profile"]["strength"][1]
+    assert f["profile"]["ratio"][0] <= f["relative_elasticity"] <= f["profile"]["ratio"][1]
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="the 4 mm model's bias: seed 11's profile (nine unknowns refitted) rose by 4.2 "
+                                       "at ratio 2.69 (the truth 2.21, volume 495 of 590 mm3 there); the strength's "
+                                       "interval covers the truth's")
+def test_hidden_inclusion_volume_and_ratio_lie_in_their_profile_intervals(stiffer):
+    d, rep, truth = stiffer
+    p = rep["findings"][0]["profile"]
+    assert p["ratio"][0] <= truth.ratio <= p["ratio"][1] and p["volume"][0] <= truth.volume <= p["volume"][1]
+
+
 @pytest.mark.slow  # a finer 3D solve for the data, the null test and a 3D field: ~5 minutes
 def test_sound_block_gives_no_finding(tmp_path):
     d, rep, truth = diagnosed(tmp_path, "none", 12)
