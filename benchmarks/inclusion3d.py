@@ -11,6 +11,8 @@ inclusion fitted by exact gradients) and measures:
   bound (there the linearised standard errors say nothing);
 - the volume error (reported, no target: surface data fix a stiff inclusion's volume x contrast
   better than either);
+- whether the truth's ratio, volume and strength (refine.solid.inclusion_profile.strength) lie in
+  the report's profile intervals (chi2 within 4 x the reduced chi2 of its least value);
 - no finding on sound blocks;
 - seconds of the diagnosis (target < 600 s on 2 shared cores).
 
@@ -116,6 +118,8 @@ def targets_of(rows) -> dict:
             len(found) == len(hidden) and all(r.get("ratio_in_profile", False) for r in found))},
         "volume_in_profile_interval": {"pass": None if not hidden else bool(
             len(found) == len(hidden) and all(r.get("volume_in_profile", False) for r in found))},
+        "strength_in_profile_interval": {"pass": None if not hidden else bool(
+            len(found) == len(hidden) and all(r.get("strength_in_profile", False) for r in found))},
         "no_finding_on_sound_block": {"pass": all(r["cause"] == "none" for r in sound) if sound else None},
         "diagnosis_lt_600s": {"value": slowest, "pass": bool(slowest < 600)},
     }
