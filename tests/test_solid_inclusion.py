@@ -169,6 +169,9 @@ def test_profile_interval_interpolates_crossings_and_keeps_open_ends():
     assert p.open == (False, False) and p.chi2_min == pytest.approx(100.0)
     assert np.log(p.ratio[0]) == pytest.approx(lo, abs=1e-9) and np.log(p.ratio[1]) == pytest.approx(hi, abs=1e-9)
     assert p.volume[0] == pytest.approx(100 + 10 * np.log(p.ratio[0])) and p.volume[1] == pytest.approx(100 + 10 * np.log(p.ratio[1]))
+    bumped = pts[:5] + [ProfilePoint(pts[5].log_ratio, 140.0, 1e4, ())] + pts[6:]  # a refit that stopped short
+    b = interval(bumped, 4.0)
+    assert b.ratio == pytest.approx(p.ratio) and b.volume == pytest.approx(p.volume)
     flat = interval([ProfilePoint(a, 100.0 + 0.1 * a, 50.0, ()) for a in (0.0, 1.0, 2.0)], 4.0)
     assert flat.open == (True, True) and flat.ratio == pytest.approx((1.0, np.exp(2.0)))
 
