@@ -33,6 +33,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
@@ -95,6 +96,25 @@ def profile_row(f: dict, truth, nu: float) -> dict:
     return out
 
 
+def reinterval(row: dict) -> dict:
+    """``row`` with its profile's intervals recomputed from its stored points by the current rule
+    (:func:`refine.solid.inclusion_profile.interval`), its coverage flags with them."""
+    from refine.solid.inclusion_profile import ProfilePoint, interval
+    from refine.synthetic.block import BlockSetting
+
+    f = (row["report"]["findings"] or [{}])[0]
+    if "profile" not in f:
+        return row
+    p = f["profile"]
+    nu = BlockSetting().nu
+    new = interval([ProfilePoint(float(np.log(q["ratio"])), q["chi2"], q["volume"], ()) for q in p["points"]],
+                   p["threshold"], nu=nu).as_dict()
+    p.update({k: new[k] for k in ("ratio", "volume", "strength", "open", "chi2_min")})
+    truth = SimpleNamespace(**row["truth"])
+    row.update(profile_row(f, truth, nu))
+    return row
+
+
 def targets_of(rows) -> dict:
     """Pass/fail per target (None: not measured)."""
     hidden = [r for r in rows if r["truth"] is not None]
@@ -138,7 +158,7 @@ def main() -> None:
                    help="run no case: the rows of these results JSONs (one case per process) together")
     args = p.parse_args()
     if args.merge:
-        rows = [r for path in args.merge for r in json.loads(path.read_text(encoding="utf-8"))["rows"]]
+        rows = [reinterval(r) for path in args.merge for r in json.loads(path.read_text(encoding="utf-8"))["rows"]]
     else:
         rows = [case(s, c, args) for c, seeds in (("stiffer-region", args.stiffer), ("softer-region", args.softer),
                                                   ("none", args.sound)) for s in seeds]
