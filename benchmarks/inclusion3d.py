@@ -32,6 +32,7 @@ import os
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -57,7 +58,14 @@ def case(seed: int, cause: str, args) -> dict:
         root, truth = write_block_bundle(Path(tmp) / "block", cause=cause, seed=seed, setting=setting)
         t_data = time.perf_counter() - t0
         t0 = time.perf_counter()
-        d = diagnose_solid(read_bundle(root), log=lambda m: None)
+        if args.h_fit:  # the inclusion diagnosis with its fits on a finer mesh (the field on the bundle's)
+            from refine.solid.inclusion_diagnosis import InclusionConfig, diagnose_inclusion
+            from refine.synthetic.block import model_mesh
+
+            cfg = InclusionConfig(fit_mesh=model_mesh(replace(setting, h_model=args.h_fit)))
+            d = diagnose_inclusion(read_bundle(root), cfg, log=lambda m: None)
+        else:
+            d = diagnose_solid(read_bundle(root), log=lambda m: None)
         seconds = time.perf_counter() - t0
         rep = report(d)
     length = setting.block[3] - setting.block[0]
@@ -153,6 +161,8 @@ def main() -> None:
     p.add_argument("--h-data", type=float, default=2.5)
     p.add_argument("--h-model", type=float, default=4.0)
     p.add_argument("--noise", type=float, default=0.01)
+    p.add_argument("--h-fit", type=float, default=None,
+                   help="fit and profile the inclusion on a mesh of this size (mm), the field on --h-model's")
     p.add_argument("--out", type=Path, default=RESULTS / "inclusion3d.json", help="results JSON (the plot beside it)")
     p.add_argument("--merge", type=Path, nargs="*", default=[],
                    help="run no case: the rows of these results JSONs (one case per process) together")
