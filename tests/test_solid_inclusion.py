@@ -283,6 +283,23 @@ def test_hidden_inclusion_volume_and_ratio_lie_in_their_profile_intervals(stiffe
     assert p["ratio"][0] <= truth.ratio <= p["ratio"][1] and p["volume"][0] <= truth.volume <= p["volume"][1]
 
 
+@pytest.mark.slow  # the data, a 3D field, the inclusion fitted and profiled on a 3 mm mesh: ~12 minutes
+def test_hidden_inclusion_profile_covers_the_truth_with_a_finer_fit_mesh(tmp_path):
+    from dataclasses import replace
+
+    from refine.bundle.io import read_bundle
+    from refine.solid.inclusion_diagnosis import InclusionConfig, diagnose_inclusion, inclusion_report
+    from refine.synthetic.block import BlockSetting, model_mesh, write_block_bundle
+
+    root, truth = write_block_bundle(tmp_path / "b", cause="stiffer-region", seed=11)
+    cfg = InclusionConfig(fit_mesh=model_mesh(replace(BlockSetting(), h_model=3.0)))
+    rep = inclusion_report(diagnose_inclusion(read_bundle(root), cfg, log=lambda m: None))
+    f = rep["findings"][0]
+    p = f["profile"]
+    assert rep["model"]["cells"] > 1500 and np.linalg.norm(np.subtract(f["centroid"], truth.centre)) < 0.03 * 40.0
+    assert p["ratio"][0] <= truth.ratio <= p["ratio"][1] and p["volume"][0] <= truth.volume <= p["volume"][1]
+
+
 @pytest.mark.slow  # a finer 3D solve for the data, the null test and a 3D field: ~5 minutes
 def test_sound_block_gives_no_finding(tmp_path):
     d, rep, truth = diagnosed(tmp_path, "none", 12)
