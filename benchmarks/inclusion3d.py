@@ -11,6 +11,8 @@ inclusion fitted by exact gradients) and measures:
   bound (there the linearised standard errors say nothing);
 - the volume error (reported, no target: surface data fix a stiff inclusion's volume x contrast
   better than either);
+- whether the truth's ratio, volume and strength (refine.solid.inclusion_profile.strength) lie in
+  the report's profile intervals (chi2 within 4 x the reduced chi2 of its least value);
 - no finding on sound blocks;
 - seconds of the diagnosis (target < 600 s on 2 shared cores).
 
@@ -18,7 +20,8 @@ It writes benchmarks/results/inclusion3d.json (rows, targets with pass/fail, the
 inclusion3d.png.
 
     python benchmarks/inclusion3d.py                          # seeds 11 12 stiffer, 13 softer, 14 sound
-    python benchmarks/inclusion3d.py --stiffer 11 --softer --sound
+    python benchmarks/inclusion3d.py --stiffer 11 --softer --sound --out /tmp/s11.json   # one case
+    python benchmarks/inclusion3d.py --merge /tmp/s11.json /tmp/s13.json                  # their rows together
 """
 
 from __future__ import annotations
@@ -29,7 +32,9 @@ import os
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
@@ -53,7 +58,14 @@ def case(seed: int, cause: str, args) -> dict:
         root, truth = write_block_bundle(Path(tmp) / "block", cause=cause, seed=seed, setting=setting)
         t_data = time.perf_counter() - t0
         t0 = time.perf_counter()
-        d = diagnose_solid(read_bundle(root), log=lambda m: None)
+        if args.h_fit:  # the inclusion diagnosis with its fits on a finer mesh (the field on the bundle's)
+            from refine.solid.inclusion_diagnosis import InclusionConfig, diagnose_inclusion
+            from refine.synthetic.block import model_mesh
+
+            cfg = InclusionConfig(fit_mesh=model_mesh(replace(setting, h_model=args.h_fit)))
+            d = diagnose_inclusion(read_bundle(root), cfg, log=lambda m: None)
+        else:
+            d = diagnose_solid(read_bundle(root), log=lambda m: None)
         seconds = time.perf_counter() - t0
         rep = report(d)
     length = setting.block[3] - setting.block[0]
@@ -71,7 +83,43 @@ def case(seed: int, cause: str, args) -> dict:
         s = std.get("relative_elasticity")
         row["ratio_in_2std"] = bool(s is not None and abs(f["relative_elasticity"] - truth.ratio) <= 2 * s)
         row["held_out_gain"] = rep.get("held_out_gain")
+        row.update(profile_row(f, truth, setting.nu))
     print(json.dumps({k: v for k, v in row.items() if k != "report"}, default=str), flush=True)
+    return row
+
+
+def profile_row(f: dict, truth, nu: float) -> dict:
+    """What a finding's ratio profile (report.json's ``profile``) says of the truth: whether its
+    ratio and volume lie in the profile's intervals, and the strength's error (%)."""
+    from refine.solid.inclusion_profile import strength
+
+    s_true = float(strength(truth.volume, truth.ratio, nu))
+    out = {"strength_error_pct": 100 * (f["strength"] / s_true - 1), "truth_strength": s_true}
+    p = f.get("profile")
+    if p is not None:
+        out.update(ratio_in_profile=bool(p["ratio"][0] <= truth.ratio <= p["ratio"][1]),
+                   volume_in_profile=bool(p["volume"][0] <= truth.volume <= p["volume"][1]),
+                   strength_in_profile=bool(p["strength"][0] <= s_true <= p["strength"][1]),
+                   profile_seconds=p["seconds"])
+    return out
+
+
+def reinterval(row: dict) -> dict:
+    """``row`` with its profile's intervals recomputed from its stored points by the current rule
+    (:func:`refine.solid.inclusion_profile.interval`), its coverage flags with them."""
+    from refine.solid.inclusion_profile import ProfilePoint, interval
+    from refine.synthetic.block import BlockSetting
+
+    f = (row["report"]["findings"] or [{}])[0]
+    if "profile" not in f:
+        return row
+    p = f["profile"]
+    nu = BlockSetting().nu
+    new = interval([ProfilePoint(float(np.log(q["ratio"])), q["chi2"], q["volume"], ()) for q in p["points"]],
+                   p["threshold"], nu=nu).as_dict()
+    p.update({k: new[k] for k in ("ratio", "volume", "strength", "open", "chi2_min")})
+    truth = SimpleNamespace(**row["truth"])
+    row.update(profile_row(f, truth, nu))
     return row
 
 
@@ -92,6 +140,14 @@ def targets_of(rows) -> dict:
             len(found) == len(hidden) and worst <= 3.0)},
         "ratio_within_10pct_or_2std": {"pass": None if not hidden else bool(len(found) == len(hidden)
                                                                               and all(ratio_ok))},
+        # the profile's intervals (chi2 within 4 x the reduced chi2 of its least value: two standard
+        # errors of one unknown, the other nine refitted), which follow the curved volume-ratio valley
+        "ratio_in_profile_interval": {"pass": None if not hidden else bool(
+            len(found) == len(hidden) and all(r.get("ratio_in_profile", False) for r in found))},
+        "volume_in_profile_interval": {"pass": None if not hidden else bool(
+            len(found) == len(hidden) and all(r.get("volume_in_profile", False) for r in found))},
+        "strength_in_profile_interval": {"pass": None if not hidden else bool(
+            len(found) == len(hidden) and all(r.get("strength_in_profile", False) for r in found))},
         "no_finding_on_sound_block": {"pass": all(r["cause"] == "none" for r in sound) if sound else None},
         "diagnosis_lt_600s": {"value": slowest, "pass": bool(slowest < 600)},
     }
@@ -105,10 +161,17 @@ def main() -> None:
     p.add_argument("--h-data", type=float, default=2.5)
     p.add_argument("--h-model", type=float, default=4.0)
     p.add_argument("--noise", type=float, default=0.01)
+    p.add_argument("--h-fit", type=float, default=None,
+                   help="fit and profile the inclusion on a mesh of this size (mm), the field on --h-model's")
     p.add_argument("--out", type=Path, default=RESULTS / "inclusion3d.json", help="results JSON (the plot beside it)")
+    p.add_argument("--merge", type=Path, nargs="*", default=[],
+                   help="run no case: the rows of these results JSONs (one case per process) together")
     args = p.parse_args()
-    rows = [case(s, c, args) for c, seeds in (("stiffer-region", args.stiffer), ("softer-region", args.softer),
-                                              ("none", args.sound)) for s in seeds]
+    if args.merge:
+        rows = [reinterval(r) for path in args.merge for r in json.loads(path.read_text(encoding="utf-8"))["rows"]]
+    else:
+        rows = [case(s, c, args) for c, seeds in (("stiffer-region", args.stiffer), ("softer-region", args.softer),
+                                                  ("none", args.sound)) for s in seeds]
     targets = targets_of(rows)
     out = {"rows": rows, "targets": targets, "load_at_end": loadavg(), "cpus": os.cpu_count(),
            "settings": {k: str(v) for k, v in vars(args).items()}}

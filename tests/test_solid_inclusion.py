@@ -146,6 +146,52 @@ def test_inclusion_prediction_derivatives_pass_a_taylor_test(tiny):
     assert (rates > 1.7).all(), (errs, rates)
 
 
+def test_strength_vanishes_without_contrast_and_saturates_for_a_rigid_inclusion():
+    from refine.solid.inclusion_profile import strength
+
+    beta = 2 * (4 - 5 * 0.3) / (15 * 0.7)
+    assert strength(500.0, 1.0, 0.3) == 0.0 and strength(500.0, 0.5, 0.3) < 0 < strength(500.0, 2.0, 0.3)
+    assert np.isclose(strength(500.0, 1e9, 0.3), 500.0 / beta, rtol=1e-6)
+    # benchmarks/inclusion3d.py's seed 11: fitted 349 mm3 x4.36 for the truth's 590 mm3 x2.21, alike
+    assert abs(strength(348.8, 4.357, 0.3) / strength(590.07, 2.211, 0.3) - 1) < 0.01
+
+
+def test_profile_interval_interpolates_crossings_and_keeps_open_ends():
+    from refine.solid.inclusion_profile import ProfilePoint, interval
+
+    rng = np.random.default_rng(3)
+    lo, hi = sorted(rng.uniform(-1.0, 1.0, 2))
+    mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    lr = np.linspace(mid - 2 * half, mid + 2 * half, 9)
+    chi2 = 100.0 + 4.0 * ((lr - mid) / half) ** 2  # rises by 4 at lo and hi
+    pts = [ProfilePoint(float(a), float(c), float(100 + 10 * a), ()) for a, c in zip(lr, chi2)]
+    p = interval(list(reversed(pts)), 4.0)
+    assert p.open == (False, False) and p.chi2_min == pytest.approx(100.0)
+    assert np.log(p.ratio[0]) == pytest.approx(lo, abs=1e-9) and np.log(p.ratio[1]) == pytest.approx(hi, abs=1e-9)
+    assert p.volume[0] == pytest.approx(100 + 10 * np.log(p.ratio[0])) and p.volume[1] == pytest.approx(100 + 10 * np.log(p.ratio[1]))
+    bumped = pts[:5] + [ProfilePoint(pts[5].log_ratio, 140.0, 1e4, ())] + pts[6:]  # a refit that stopped short
+    b = interval(bumped, 4.0)
+    assert b.ratio == pytest.approx(p.ratio) and b.volume == pytest.approx(p.volume)
+    flat = interval([ProfilePoint(a, 100.0 + 0.1 * a, 50.0, ()) for a in (0.0, 1.0, 2.0)], 4.0)
+    assert flat.open == (True, True) and flat.ratio == pytest.approx((1.0, np.exp(2.0)))
+
+
+def test_the_ratio_held_inclusion_predicts_and_differentiates_as_the_full_one(tiny):
+    from refine.model.measured import MeasuredModel
+    from refine.model.objective import Compiled
+    from refine.solid.inclusion import Inclusion
+    from refine.solid.inclusion_profile import RatioHeld
+
+    bundle, mesh, truth = tiny
+    model = MeasuredModel(bundle.experiment, bundle.observations, mesh=mesh)
+    compiled, z0 = Inclusion(model, (4.2, 2.1, 1.9), (1.6, 1.2, 1.0), tuple(map(tuple, np.eye(3))), 2.5).build()
+    z = np.asarray(z0) + np.r_[0.2, np.random.default_rng(1).normal(0, 0.05, 9)]
+    held = Compiled(model, RatioHeld(compiled.param, float(z[0]), z[1:]))
+    pred, J = compiled.evaluate(z)
+    assert np.allclose(held.predict(z[1:]), pred) and np.allclose(held.jacobian(z[1:]), J[..., 1:])
+    assert held.param.shape(z[1:]) == compiled.param.shape(z) and held.param.infeasibility(z[1:]) is None
+
+
 def test_a_solid_body_without_a_cavity_is_diagnosed_for_an_inclusion(tmp_path, tiny):
     from refine.bundle.io import read_bundle, write_bundle
     from refine.solid.inclusion_diagnosis import InclusionConfig, body_model, fills_hull
@@ -213,6 +259,45 @@ def test_hidden_inclusion_volume_and_ratio_are_recovered(stiffer):
     d, rep, truth = stiffer
     f = rep["findings"][0]
     assert abs(f["volume"] / truth.volume - 1) < 0.2 and abs(f["relative_elasticity"] / truth.ratio - 1) < 0.1
+
+
+@pytest.mark.slow
+def test_hidden_inclusion_strength_is_covered_by_its_profile(stiffer):
+    from refine.solid.inclusion_profile import strength
+
+    d, rep, truth = stiffer
+    f = rep["findings"][0]
+    s_true = strength(truth.volume, truth.ratio, 0.3)
+    assert abs(f["strength"] / s_true - 1) < 0.1
+    assert f["profile"]["strength"][0] <= s_true <= f["profile"]["strength"][1]
+    assert f["profile"]["ratio"][0] <= f["relative_elasticity"] <= f["profile"]["ratio"][1]
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="the 4 mm model's bias: seed 11's profile (nine unknowns refitted) rises by "
+                                       "10.1 at the truth's ratio 2.21 (threshold 4.2; 2.6 with a 3 mm model), the "
+                                       "interval 2.71-148; the strength's interval covers the truth's")
+def test_hidden_inclusion_volume_and_ratio_lie_in_their_profile_intervals(stiffer):
+    d, rep, truth = stiffer
+    p = rep["findings"][0]["profile"]
+    assert p["ratio"][0] <= truth.ratio <= p["ratio"][1] and p["volume"][0] <= truth.volume <= p["volume"][1]
+
+
+@pytest.mark.slow  # the data, a 3D field, the inclusion fitted and profiled on a 3 mm mesh: ~12 minutes
+def test_hidden_inclusion_profile_covers_the_truth_with_a_finer_fit_mesh(tmp_path):
+    from dataclasses import replace
+
+    from refine.bundle.io import read_bundle
+    from refine.solid.inclusion_diagnosis import InclusionConfig, diagnose_inclusion, inclusion_report
+    from refine.synthetic.block import BlockSetting, model_mesh, write_block_bundle
+
+    root, truth = write_block_bundle(tmp_path / "b", cause="stiffer-region", seed=11)
+    cfg = InclusionConfig(fit_mesh=model_mesh(replace(BlockSetting(), h_model=3.0)))
+    rep = inclusion_report(diagnose_inclusion(read_bundle(root), cfg, log=lambda m: None))
+    f = rep["findings"][0]
+    p = f["profile"]
+    assert rep["model"]["cells"] > 1500 and np.linalg.norm(np.subtract(f["centroid"], truth.centre)) < 0.03 * 40.0
+    assert p["ratio"][0] <= truth.ratio <= p["ratio"][1] and p["volume"][0] <= truth.volume <= p["volume"][1]
 
 
 @pytest.mark.slow  # a finer 3D solve for the data, the null test and a 3D field: ~5 minutes

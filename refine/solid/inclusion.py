@@ -16,7 +16,9 @@ stiffer inclusion ran to a fifth of its volume at the ratio's bound.
 
 Seen from the surface alone, the inclusion's volume and ratio trade against each other: fits
 place it within 1.3 % of the block's length but come out 40-55 % small and more extreme, some at
-the ratio's bound (:data:`MAX_LOG_RATIO`; benchmarks/inclusion3d.py).
+the ratio's bound (:data:`MAX_LOG_RATIO`; benchmarks/inclusion3d.py), with the strength the
+surface fixes (:func:`refine.solid.inclusion_profile.strength`) close to the truth's; the report
+gives the ratio's profile (:mod:`refine.solid.inclusion_profile`) for the intervals.
 
 Unknowns ``z (10,)``: the log ratio, the change of the centre (3) and of ``M``'s entries
 ``(M11, M22, M33, M12, M13, M23)``, all lengths in units of ``scale``.
