@@ -80,11 +80,7 @@ def test_padded_solves_equal_the_real_sizes_and_their_tangents_the_jvp():
     (a, theta_a), (b, theta_b) = _two_sheets(rng)
     for solver, theta in ((a, theta_a), (b, theta_b)):
         u = solver.solve(theta).u
-        ref = jf.Solver(solver.problem, "dense")
-        s = solver.sizes
-        ref.sizes = padding.sizes(s.n_cells, s.n_nodes, s.dim, s.nnz, s.n_fixed, pad=False)
-        ref.padded_arrays = {**ref.padded_arrays, **_unpadded(ref)}
-        want = ref.solve(theta).u
+        want = unpadded_solve(solver, theta)
         np.testing.assert_allclose(u, want, atol=1e-9 * np.abs(want).max())
     d = {k: np.zeros((2,) + np.shape(v)) for k, v in theta_b.items()}
     d["E"] = rng.normal(0, 5.0, d["E"].shape)
@@ -95,6 +91,16 @@ def test_padded_solves_equal_the_real_sizes_and_their_tangents_the_jvp():
         jv = jvp(theta_b, {k: v[i] for k, v in d.items()})
         np.testing.assert_allclose(du[i], jv, atol=1e-8 * np.abs(jv).max())
         assert np.abs(jv).max() > 1e-6
+
+
+def unpadded_solve(solver, theta):
+    """The displacements of ``solver``'s problem at ``theta`` solved densely at its real sizes (no
+    padding): the reference a padded solve must equal."""
+    ref = jf.Solver(solver.problem, "dense")
+    s = solver.sizes
+    ref.sizes = padding.sizes(s.n_cells, s.n_nodes, s.dim, s.nnz, s.n_fixed, pad=False)
+    ref.padded_arrays = {**ref.padded_arrays, **_unpadded(ref)}
+    return ref.solve(theta).u
 
 
 def _unpadded(solver):
