@@ -63,7 +63,11 @@ def test_errors_are_the_covariance_carried_to_every_quantity(kind):
         assert e.relative_elasticity is None
     else:
         assert linear[6] == pytest.approx(np.exp(z[0]) * sd[0], rel=1e-5)
-        assert e.relative_elasticity == pytest.approx(linear[6], rel=0.08)
+        # the ratio's error comes from draws of the region's strength (refine.diagnosis.valley,
+        # checked in tests/test_uncertainty_valley.py): it follows the size-ratio valley's bend,
+        # which the delta method's tangent misses, so it is never much below the delta method's
+        # and here somewhat above it (0.85 against 0.69 on the ellipse)
+        assert 0.95 * linear[6] <= e.relative_elasticity <= 1.5 * linear[6], (e.relative_elasticity, linear[6])
     assert len(shape_quantities(f.shapes)[0]) == len(QUANTITIES)
 
 
