@@ -106,7 +106,7 @@ def shape_errors(fitted) -> list[ShapeErrors] | None:
         return None
     G = quantity_jacobian(fitted)
     var = np.einsum("qk,kl,ql->q", G, cov, G).reshape(len(fitted.shapes), len(QUANTITIES))
-    sampled = sampled_variance(fitted, cov)
+    sampled = sampled_variance(fitted, cov, G=G)
     if sampled is not None:
         var = np.where(np.isnan(sampled), var, sampled)  # inf: a ratio the data bound from below only
     std = np.sqrt(np.clip(var, 0, None))
@@ -118,8 +118,8 @@ SAMPLES = 1000
 standard error; fixed seed, so a report is reproducible)."""
 
 
-def sampled_variance(fitted, cov: Float[np.ndarray, "k k"], draws: int = SAMPLES, seed: int = 0
-                     ) -> Float[np.ndarray, "shapes 7"] | None:
+def sampled_variance(fitted, cov: Float[np.ndarray, "k k"], draws: int = SAMPLES, seed: int = 0,
+                     G: Float[np.ndarray, "q k"] | None = None) -> Float[np.ndarray, "shapes 7"] | None:
     """The mean square change of every reported quantity (:data:`QUANTITIES`, one row per shape)
     when the fitted unknowns z are drawn from ``N(z, cov)`` and carried through the hypothesis'
     own map to shapes (``shapes_at``: no solve): the delta method without its linearisation.
@@ -134,7 +134,8 @@ def sampled_variance(fitted, cov: Float[np.ndarray, "k k"], draws: int = SAMPLES
     errors of a Gaussian (infinite where more than 4.55 % reach a rigid region: the data then
     bound the ratio from below only). Angle changes wrapped to half a turn; an ellipse's or a hole's orientation's
     spread taken at the unbiased estimate of its elongation (:func:`orientation_variance`).
-    None where ``cov`` is not finite."""
+    None where ``cov`` is not finite. ``G``: :func:`quantity_jacobian` of ``fitted`` where the
+    caller has it."""
     cov = np.asarray(cov, float)
     z = np.asarray(fitted.z, float)
     if not np.all(np.isfinite(cov)):
@@ -144,7 +145,8 @@ def sampled_variance(fitted, cov: Float[np.ndarray, "k k"], draws: int = SAMPLES
     dz = np.random.default_rng(seed).standard_normal((draws, z.size)) @ root.T
     q0 = shape_quantities(fitted.shapes)
     q = np.stack([shape_quantities(fitted.hypothesis.shapes_at(fitted.compiled, z + e)) for e in dz])
-    q[..., 6] = ratio_draws(q0, q, quantity_jacobian(fitted), dz)  # along the size-ratio valley
+    G = quantity_jacobian(fitted) if G is None else G
+    q[..., 6] = ratio_draws(q0, q, G, dz)  # along the size-ratio valley
     d = q - q0
     d[..., 4] = np.angle(np.exp(2j * d[..., 4])) / 2  # an orientation is defined modulo pi
     var = np.mean(d**2, axis=0)

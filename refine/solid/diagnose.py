@@ -30,7 +30,7 @@ from refine.diagnosis.candidates import missing_point_regions, strain_regions
 from refine.diagnosis.fitted import Fitted, NotApplicable, fit, refit
 from refine.diagnosis.noise import estimate_noise
 from refine.diagnosis.shapes import Hole
-from refine.diagnosis.uncertainty import discretisation_bias, discretisation_errors, shape_errors, total_errors
+from refine.diagnosis.uncertainty import discretisation_errors, shape_errors, total_errors, with_discretisation
 from refine.exceptions import ObservationError
 from refine.solid.cup import CupShape, bottom_points, check_closed, cup_shape
 from refine.solid.edge import EdgeEvidence, evidence_near, grid_lattice, NoLattice
@@ -262,9 +262,7 @@ def refit_whole(bundle: Bundle, local: Local, hole: Hole, sigma: float, cfg: Sol
     f = refit(fit(start, guide, validate, sigma), guide, validate, sigma, max_remesh=cfg.max_remesh, element="tet10")
     if cfg.discretisation_error:
         t0 = time.perf_counter()
-        disc = discretisation_bias(f, guide, validate, sigma)
-        if disc is not None:
-            f = replace(f, q_disc=disc, q_disc_parts={"mesh": disc})
+        f = with_discretisation(f, guide, validate, sigma)  # the mesh's share (no drive's in 3D)
         if seconds is not None:
             seconds["discretisation"] = time.perf_counter() - t0
     return f
