@@ -32,12 +32,14 @@ from refine.diagnosis.noise import estimate_noise
 from refine.diagnosis.shapes import Hole
 from refine.diagnosis.uncertainty import discretisation_errors, shape_errors, total_errors, with_discretisation
 from refine.exceptions import ObservationError
+from refine.measures import Residuals
 from refine.solid.cup import CupShape, bottom_points, check_closed, cup_shape
 from refine.solid.edge import EdgeEvidence, evidence_near, grid_lattice, NoLattice
 from refine.solid.global_model import held_by_fixture
 from refine.solid.inclusion_diagnosis import InclusionDiagnosis, diagnose_inclusion, fills_hull, inclusion_report
-from refine.solid.initial import checked_baseline
+from refine.solid.initial import initial_fit, initial_null
 from refine.solid.local import Local, SolidHole, Whole
+from refine.solid.null_level import global_null
 from refine.solid.start import best_start, bracket_starts
 
 
@@ -57,7 +59,12 @@ class SolidConfig:
     about 0.7 pitch of a hole's edge: :mod:`refine.solid.start`); None: no edge evidence.
     ``discretisation_error``: the global model's mesh's share of the found hole's error, reported
     beside its standard error (one more fit, on a mesh sqrt(2) coarser:
-    :func:`refine.diagnosis.uncertainty.discretisation_bias`)."""
+    :func:`refine.diagnosis.uncertainty.discretisation_bias`). ``null_model``: which model
+    the null test weighs against the noise: ``"global"``, the whole cup holder without a hole, a
+    uniform modulus fitted, its discretisation error in the null level as the 2D diagnosis's
+    (:func:`refine.solid.null_level.global_null`; two global solves: the local model, which leaves
+    the wall out, missed a sound cup's data by 14 x the noise's chi2); ``"local"``: the local
+    model's, with the drive's noise carried through it (before)."""
 
     h: float | None = None
     alpha: float = 0.01
@@ -68,6 +75,11 @@ class SolidConfig:
     local_remesh: int = 0
     edge_slack: float | None = 0.75
     discretisation_error: bool = True
+    null_model: str = "global"
+
+    def __post_init__(self):
+        if self.null_model not in ("global", "local"):
+            raise ValueError(f"SolidConfig.null_model is 'global' or 'local', not {self.null_model!r}")
 
 
 @dataclass
@@ -75,7 +87,9 @@ class SolidDiagnosis:
     """What the 3D diagnosis found: ``shape`` (the cup), ``local`` (its recipe), the initial
     local model's fit ``base``, the ``null`` test, the ``candidates`` tried, the hole fitted
     (``hole``, None where none could be) and the chosen fit (``chosen``: the hole or ``base``),
-    seconds per stage, the found hole refitted in the global model (``whole``; the finding)."""
+    seconds per stage, the found hole refitted in the global model (``whole``; the finding), how the
+    null test was made (``null_level``: :func:`refine.solid.null_level.global_null`'s, with the
+    local model's own misfit ratio; None: the local model's null test)."""
 
     shape: CupShape
     local: Local
@@ -86,6 +100,7 @@ class SolidDiagnosis:
     chosen: Fitted
     seconds: dict = field(default_factory=dict)
     whole: Fitted | None = None
+    null_level: dict | None = None
 
     @property
     def found(self) -> bool:
@@ -180,10 +195,16 @@ def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) 
     guide, validate = obs.roles == "guide", obs.roles == "validate"
     sigma = bundle.experiment.noise_std or estimate_noise(obs)
     model, _ = local.model()
-    base, null = checked_baseline(model, obs, sigma)
+    base = initial_fit(model, obs, sigma)
+    level = None
+    if cfg.null_model == "global":
+        null, level = global_null(bundle, local, guide, sigma)
+        level["local_ratio"] = base.chi2_fit / max(Residuals.at(obs.displacements, guide).n, 1)
+    else:  # the local model's (SolidConfig checks the name)
+        null = initial_null(base, obs, sigma)
     seconds = {"initial": time.perf_counter() - t0}
-    log(f"local model: {model.mesh.n_cells} cells, {len(obs.ids)} bottom points; misfit {null.ratio:.2f} x the "
-        f"noise's (p = {null.p_value:.2g})")
+    log(f"local model: {model.mesh.n_cells} cells, {len(obs.ids)} bottom points; the {cfg.null_model} model's "
+        f"misfit {null.ratio:.2f} x the null level's (p = {null.p_value:.2g}; discretisation {null.sigma_model:.3g})")
     tried, best = [], None
     if null.p_value < cfg.alpha:
         for start in hole_candidates(local, base, sigma, cfg.max_candidates):
@@ -209,7 +230,7 @@ def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) 
         whole = refit_whole(bundle, local, best.shapes[0], sigma, cfg, best.hypothesis.edge, log, seconds)
         log(f"  global model: {whole.describe()}")
         seconds["global_fit"] = time.perf_counter() - t0 - sum(seconds.values())
-    return SolidDiagnosis(shape, local, base, null, tried, best, chosen, seconds, whole)
+    return SolidDiagnosis(shape, local, base, null, tried, best, chosen, seconds, whole, level)
 
 
 def grid_edge(local: Local, start: Hole, cfg: SolidConfig, log=print) -> EdgeEvidence | None:
@@ -278,7 +299,10 @@ def report(d: SolidDiagnosis) -> dict:
     rms = lambda f, m: float(np.sqrt(f.chi2_holdout / n(m)) * f.sigma)  # noqa: E731
     validate = d.local.obs.roles == "validate"
     out = {"cause": d.chosen.cause, "null_test": {"statistic": d.null.statistic, "dof": d.null.dof,
-                                                   "p_value": d.null.p_value, "noise_std": d.null.sigma},
+                                                   "p_value": d.null.p_value, "noise_std": d.null.sigma,
+                                                   "ratio": d.null.ratio, "model_error_std": d.null.sigma_model,
+                                                   "model": "local" if d.null_level is None else "global",
+                                                   **({} if d.null_level is None else {"level": d.null_level})},
            "local_model": {"cells": int(d.base.model.mesh.n_cells), "h": d.local.h,
                            "points": int(len(d.local.obs.ids))},
            "validate_rms": {"initial": rms(d.base, validate)}, "findings": [], "seconds": d.seconds}
