@@ -8,8 +8,12 @@ than the body; with the modulus known, the fit enlarged the hole to soften it: +
 noise-free data, -1 % with it fitted); the report.
 
 The local model (:mod:`refine.solid.local`) is fitted on the bottom face's ``guide`` points and
-scored on its ``validate`` points; the null test weighs the ``guide`` residuals against the noise
-and the boundary points' noise carried through the model (:func:`refine.diagnosis.noise.null_test`).
+scored on its ``validate`` points; the null test weighs the global model's ``guide`` residuals (no
+hole, a uniform modulus fitted) against the noise and that model's discretisation error
+(:mod:`refine.solid.null_level`: the local model, which leaves the wall out, missed a sound cup
+holder's data by 14 x the noise's chi2), or with ``SolidConfig.null_model = "local"`` the local
+model's against the noise and the boundary points' noise carried through it
+(:func:`refine.diagnosis.noise.null_test`).
 """
 
 from __future__ import annotations
