@@ -41,15 +41,18 @@ def global_prediction(bundle: Bundle, local: Local, h: float | None = None) -> F
     """The global model without a hole (the whole cup holder held by the fixture's points and
     squeezed by the measured force, the recipe of :func:`refine.solid.diagnose.refit_whole`), at
     element size ``h`` (length unit; None: ``local.h``), predicting the local model's points
-    (``local.obs``, in its order): ``(frames, n, 3)``."""
+    (``local.obs``, in its order): ``(frames, n, 3)``. Raises the model's solve failure (naming
+    where Newton stopped) where it cannot be solved: a null test on NaN would pass silently."""
     obs = bundle.observations
     held = held_by_fixture(obs, local.shape, 0.05 * point_spacing(obs.reference))
     held = replace(held, reference=held.reference - local.shape.offset)
     whole = Whole(local.shape, local.experiment, held, local.force, h or local.h, local.linear_solver, local.layers)
     model, _ = whole.model()
-    pred = np.asarray(model.predict(model.params()))
     where = {int(i): k for k, i in enumerate(held.ids)}
-    return pred[:, [where[int(i)] for i in local.obs.ids]]
+    pred = np.asarray(model.predict(model.params()))[:, [where[int(i)] for i in local.obs.ids]]
+    if not np.isfinite(pred).all():
+        model.raise_solve_failure(model.params())
+    return pred
 
 
 def rms(d: Float[np.ndarray, "frames n 3"], points: Bool[np.ndarray, "n"]) -> float:
