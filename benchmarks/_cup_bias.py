@@ -29,14 +29,15 @@ import numpy as np  # noqa: E402
 from _timing import loadavg  # noqa: E402
 
 
-def data(seed: int, h_data: float, spacing: float, forces, cache: Path):
-    """Points, roles and noise-free displacements of the fine bundle of ``seed`` (cached)."""
+def data(seed: int, h_data: float, spacing: float, forces, cache: Path, sound: bool = False):
+    """Points, roles and noise-free displacements of the fine bundle of ``seed`` (cached);
+    ``sound``: the cup holder without a hole (the hole None)."""
     import jaxfem as jf
     from refine.synthetic.cup import CupGeometry, _points, random_hole, solve_cup
 
     g = CupGeometry()
-    hole = random_hole(g, seed)
-    f = cache / f"cup_bias_seed{seed}_h{h_data}_s{spacing}.npz"
+    hole = None if sound else random_hole(g, seed)
+    f = cache / f"cup_bias_seed{seed}{'_sound' if sound else ''}_h{h_data}_s{spacing}.npz"
     if f.exists():
         z = np.load(f)
         return g, hole, z["X"], z["roles"], z["U"]
@@ -61,17 +62,12 @@ def noisy(U, roles, X, g, variant: str, noise: float, seed: int):
     return U + N
 
 
-def whole_model(g, X, roles, U, forces, h: float, noise: float, tmp: Path, layers: int | None = None):
-    """The diagnosis's global-model recipe (refine.solid.diagnose.refit_whole) for these data."""
+def write_points(g, X, roles, U, forces, noise: float, tmp: Path) -> Path:
+    """A cup-holder bundle of these points (as refine.synthetic.cup.cup_bundle writes it) in ``tmp``."""
     import jaxfem as jf
     from refine.bundle.experiment import Experiment, MeshDomain
-    from refine.bundle.io import Bundle, read_bundle, write_bundle
+    from refine.bundle.io import Bundle, write_bundle
     from refine.bundle.observations import Forces, Observations
-    from refine.bundle.roles import point_spacing
-    from refine.solid.cup import bottom_points
-    from refine.solid.diagnose import SolidConfig, local_recipe
-    from refine.solid.global_model import held_by_fixture
-    from refine.solid.local import Whole
 
     F = np.zeros((len(forces), 1, 3))
     F[:, 0, 2] = forces
@@ -82,7 +78,19 @@ def whole_model(g, X, roles, U, forces, h: float, noise: float, tmp: Path, layer
     root.mkdir(parents=True, exist_ok=True)
     jf.write_vtu(root / "mesh.vtu", jf.cup_holder(g.r_in, g.r_out, g.height, g.bottom, 2.0).mesh)
     write_bundle(root, Bundle(exp, obs))
-    bundle = read_bundle(root)
+    return root
+
+
+def whole_model(g, X, roles, U, forces, h: float, noise: float, tmp: Path, layers: int | None = None):
+    """The diagnosis's global-model recipe (refine.solid.diagnose.refit_whole) for these data."""
+    from refine.bundle.io import read_bundle
+    from refine.bundle.roles import point_spacing
+    from refine.solid.cup import bottom_points
+    from refine.solid.diagnose import SolidConfig, local_recipe
+    from refine.solid.global_model import held_by_fixture
+    from refine.solid.local import Whole
+
+    bundle = read_bundle(write_points(g, X, roles, U, forces, noise, tmp))
     _, local, _ = local_recipe(bundle, SolidConfig(h=h))
     tol = 0.05 * point_spacing(bundle.observations.reference)
     held = held_by_fixture(bundle.observations, local.shape, tol)
@@ -92,9 +100,11 @@ def whole_model(g, X, roles, U, forces, h: float, noise: float, tmp: Path, layer
     return whole, (held.roles == "guide") & on, held.roles == "validate"
 
 
-def evaluate(whole, hole, scale: float, guide, validate, sigma: float, clamp_all: bool) -> dict:
+def evaluate(whole, hole, scale: float, guide, validate, sigma: float, clamp_all: bool,
+             modulus: float | None = None) -> dict:
     """One solve of the global model with ``hole`` scaled to ``scale`` x its area, the best uniform
-    modulus in closed form; chi2 per guide residual (at ``sigma``) and RMS (mm)."""
+    modulus in closed form; chi2 per guide residual (at ``sigma``) and RMS (mm); ``modulus``: the
+    chi2 per residual at that modulus held (``chi2_per_held``; the prediction scaled as 1/E)."""
     import jaxfem as jf
     from refine.measures import Residuals
 
@@ -115,6 +125,9 @@ def evaluate(whole, hole, scale: float, guide, validate, sigma: float, clamp_all
         r = r0 + (s - 1) * v
         out[name] = {"chi2_per": float(r @ r) / len(r), "chi2_per_E1": float(r0 @ r0) / len(r0),
                      "modulus": float(1 / s), "rms_mm": float(np.sqrt(np.mean(r ** 2)) * sigma)}
+        if modulus is not None:
+            rh = r0 + (1 / modulus - 1) * v
+            out[name]["chi2_per_held"] = float(rh @ rh) / len(rh)
     return out
 
 
@@ -149,6 +162,8 @@ def main() -> None:
     p.add_argument("--clamp-all", action="store_true")
     p.add_argument("--layers", type=int, default=None, help="the model's elements through the bottom (default: "
                    "bottom / h rounded)")
+    p.add_argument("--modulus", type=float, default=None, help="also the misfit at this uniform modulus held "
+                   "(e.g. the sound cup holder's fitted one: benchmarks/_cup_null.py)")
     p.add_argument("--out", type=Path, default=HERE / "results" / "cup_bias.jsonl")
     args = p.parse_args()
     cache = Path(tempfile.gettempdir()) / "cup_bias_cache"
@@ -162,7 +177,8 @@ def main() -> None:
             for scale in args.scales:
                 row = {"seed": args.seed, "variant": variant, "h": args.h, "clamp_all": args.clamp_all,
                        "h_data": args.h_data, "layers": args.layers,
-                       **evaluate(whole, hole, scale, guide, validate, args.noise, args.clamp_all),
+                       **evaluate(whole, hole, scale, guide, validate, args.noise, args.clamp_all, args.modulus),
+                       "held_modulus": args.modulus,
                        "load": loadavg()}
                 print(json.dumps(row), flush=True)
                 with args.out.open("a") as fh:

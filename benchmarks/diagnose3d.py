@@ -170,10 +170,22 @@ def targets_of(rows) -> dict:
         "centre_error_le_1pct": {"value": worst("centre_error_pct"), "pass": ok("centre_error_pct", 1.0)},
         "area_error_le_2pct": {"value": worst("area_error_pct"), "pass": ok("area_error_pct", 2.0)},
         "no_finding_without_hole": {"pass": all(r["cause"] == "none" for r in sound) if sound else None},
+        # the null test itself (not only no candidate): passes on a sound cup, rejects a holed one
+        "null_test_passes_without_hole": null_target(sound, lambda p: p >= 0.01),
+        "null_test_rejects_holes": null_target(holes, lambda p: p < 0.01),
         "local_diagnosis_lt_300s": {"value": local_s, "pass": bool(local_s < 300)},
         "global_prediction_lt_60s": {"value": global_s, "pass": bool(global_s < 60)},
         "every_case_ran": {"pass": len(ran) == len(rows), "failed": [r["seed"] for r in rows if "error" in r]},
     }
+
+
+def null_target(rows, ok) -> dict:
+    """Whether every row's null test's p-value is ``ok`` (None: no row), with each row's seed,
+    null model (``global``: refine.solid.null_level; rows before it: ``local``) and misfit ratio."""
+    tests = [(r["seed"], r["report"]["null_test"]) for r in rows]
+    value = [{"seed": s, "model": t.get("model", "local"), "ratio": t["statistic"] / max(t["dof"], 1),
+              "p_value": t["p_value"]} for s, t in tests]
+    return {"value": value, "pass": all(ok(t["p_value"]) for _, t in tests) if tests else None}
 
 
 def main() -> None:
