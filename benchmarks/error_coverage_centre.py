@@ -1,0 +1,139 @@
+"""Why a region's centre is covered less well across the pull (y) than along it (x): one
+``error_coverage.py`` case at a time (``--kind``, ``--seeds``), two measurements.
+
+    PYTHONPATH=. python benchmarks/error_coverage_centre.py --kind softer-region --seeds 9533 9525
+
+1. *The misfit's shape along each centre coordinate*: from the final fit (quadratic triangles,
+   every guide point), the unknowns moved along the linearised profile path of ``cx`` and ``cy``
+   (``dz = t C g / sqrt(g^T C g)``, ``C = (J^T J)^-1``, ``g = d q / dz``), ``t = -2, -1, 1, 2``
+   errors; a quadratic misfit rises by ``t^2`` there (4 at 2 errors). Less: the misfit is flatter
+   than the Gauss-Newton covariance says, the error too small (the true profile re-optimises the
+   other unknowns, so it lies lower still); more: inconclusive. No fits, one solve per point.
+2. *A bias*: the same case fitted on its noise-free data (same truth, points and start): the
+   centre's offset from the truth, in the noisy fit's reported errors.
+
+3. *The drive's noise* (``--drive-draws``): the boundary points' displacements drawn with the
+   noise (``sigma`` on each component), the model solved with them at the fitted unknowns, and
+   the unknowns' linear response ``(J^T J)^-1 J^T dr`` carried to ``cx`` and ``cy``: its scatter
+   beside what :func:`refine.diagnosis.uncertainty.drive_covariance` (first order, by adjoints)
+   gives. A check of that term's code, one solve per draw.
+
+Rows (one per seed) appended to ``results/error_coverage_centre_rows.jsonl``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+from error_coverage import FRACTIONS, _code_version, fit_true_kind, matched, started, true_quantities, truth_of
+
+OUT = Path(__file__).parent / "results"
+STEPS = (-2.0, -1.0, 1.0, 2.0)
+"""Where the misfit is evaluated along a quantity's linearised profile path (its errors)."""
+
+
+def profile_path(f, guide, quantity: int, steps=STEPS) -> dict:
+    """The misfit's rise (chi2 on ``guide``) and the quantity's change when the fitted unknowns
+    move ``t`` Gauss-Newton errors of ``quantity`` (index into ``QUANTITIES``) along its
+    linearised profile path, for each ``t`` of ``steps``."""
+    from refine.diagnosis.uncertainty import quantity_jacobian, shape_quantities
+    from refine.measures import Residuals
+
+    res = Residuals.at(f.compiled.model.obs.displacements, guide, f.sigma)
+    J = res.jacobian(f.compiled.jacobian(f.z))
+    C = np.linalg.inv(J.T @ J)
+    g = quantity_jacobian(f)[quantity]
+    std = float(np.sqrt(g @ C @ g))
+    d = C @ g / std
+    chi0 = res.chi2(f.compiled.predict(f.z))
+    q0 = shape_quantities(f.shapes)[0, quantity]
+    rise, moved = [], []
+    for t in steps:
+        z = f.z + t * d
+        rise.append(float(res.chi2(f.compiled.predict(z)) - chi0))
+        moved.append(float(shape_quantities(f.hypothesis.shapes_at(f.compiled, z))[0, quantity] - q0))
+    return {"std_gauss_newton_unscaled": std, "steps": list(steps), "chi2_rise": rise, "moved": moved}
+
+
+def drive_check(f, guide, draws: int, seed: int = 0) -> dict:
+    """The scatter of ``cx`` and ``cy`` due to the drive's noise alone, from ``draws`` draws of
+    the boundary points' displacements (one solve each, linear response of the unknowns),
+    beside the first-order ``drive_covariance``'s errors."""
+    from refine.diagnosis.uncertainty import drive_covariance, quantity_jacobian
+    from refine.measures import Residuals
+
+    model = f.compiled.model
+    res = Residuals.at(model.obs.displacements, guide, f.sigma)
+    J = res.jacobian(f.compiled.jacobian(f.z))
+    B = np.asarray(model.measured_boundary())
+    p0 = np.asarray(model.predict(f.theta))
+    rng = np.random.default_rng(seed)
+    sigma_drive = model.experiment.noise_std or f.sigma
+    dz = []
+    for _ in range(draws):
+        dp = np.asarray(model.predict(f.theta, boundary=B + rng.normal(0.0, sigma_drive, B.shape))) - p0
+        dz.append(np.linalg.solve(J.T @ J, J.T @ res.weighted(dp)))
+    G = quantity_jacobian(f)[:2]
+    drawn = np.std(np.asarray(dz) @ G.T, axis=0, ddof=1)
+    formula = np.sqrt(np.einsum("qk,kl,ql->q", G, drive_covariance(f, guide, f.sigma), G))
+    return {"draws": draws, "std_drawn": drawn.tolist(), "std_first_order": formula.tolist()}
+
+
+def run(kind: str, seed: int, noise: float, spacing: float, drive_draws: int = 0, noisy: bool = True) -> dict:
+    """One case: the noisy fit's profile paths of ``cx`` and ``cy`` (not with ``noisy`` False)
+    and the noise-free fit's centre (see the module's docstring)."""
+    from refine.diagnosis.uncertainty import shape_errors, shape_quantities
+    from refine.synthetic.sheet import synthetic_bundle
+
+    t0 = time.perf_counter()
+    truth = truth_of(kind, seed)
+    q_true = true_quantities(truth)
+    row = {"kind": kind, "seed": seed, "noise": noise, "spacing": spacing, "truth": q_true.tolist()}
+    for name, level in (("noisy", noise), ("noise_free", 0.0))[0 if noisy else 1:]:
+        bundle = synthetic_bundle(truth, seed=seed, spacing=spacing, noise=level, fractions=FRACTIONS[1])
+        start = started(q_true, kind, spacing, np.random.default_rng(seed + 1))
+        f, _ = fit_true_kind(bundle, kind, start, sigma=noise)  # the noise-free fit weighted as the noisy one
+        q = matched(shape_quantities(f.shapes)[0], q_true)
+        err = shape_errors(f)[0]
+        row[name] = {"estimate": q.tolist(), "std_centre": list(err.centroid), "chi2": f.chi2_fit,
+                     "fitted": f.describe()}
+        if name == "noisy":
+            guide = bundle.observations.mask("guide")
+            row[name]["profile"] = {"cx": profile_path(f, guide, 0), "cy": profile_path(f, guide, 1)}
+            if drive_draws:
+                row[name]["drive_check"] = drive_check(f, guide, drive_draws)
+                print("drive", row[name]["drive_check"], flush=True)
+        print(name, json.dumps(row[name]), flush=True)
+    std = np.array(row["noisy" if noisy else "noise_free"]["std_centre"])  # the noise-free fit's, weighted as noisy
+    row["bias_in_errors"] = ((np.array(row["noise_free"]["estimate"][:2]) - q_true[:2]) / std).tolist()
+    if noisy:
+        row["z_noisy"] = ((np.array(row["noisy"]["estimate"][:2]) - q_true[:2]) / std).tolist()
+    row.update(seconds=time.perf_counter() - t0, load_average=[round(x, 2) for x in os.getloadavg()],
+               code=_code_version())
+    return row
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--kind", required=True, choices=("stiffer-region", "softer-region", "hole", "rectangle"))
+    p.add_argument("--seeds", type=int, nargs="+", required=True)
+    p.add_argument("--noise", type=float, default=0.02)
+    p.add_argument("--spacing", type=float, default=10.0)
+    p.add_argument("--drive-draws", type=int, default=0, help="draws of the drive's noise (0: no drive check)")
+    p.add_argument("--noise-free-only", action="store_true", help="measurement 2 alone")
+    p.add_argument("--rows", type=Path, default=OUT / "error_coverage_centre_rows.jsonl")
+    args = p.parse_args()
+    for seed in args.seeds:
+        row = run(args.kind, seed, args.noise, args.spacing, args.drive_draws, not args.noise_free_only)
+        with open(args.rows, "a") as out:
+            out.write(json.dumps(row) + "\n")
+        print(f"{args.kind} {seed}: bias {row['bias_in_errors']} {row['seconds']:.0f} s", flush=True)
+
+
+if __name__ == "__main__":
+    main()
