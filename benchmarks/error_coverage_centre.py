@@ -18,7 +18,8 @@
    beside what :func:`refine.diagnosis.uncertainty.drive_covariance` (first order, by adjoints)
    gives. A check of that term's code, one solve per draw.
 
-Rows (one per seed) appended to ``results/error_coverage_centre_rows.jsonl``.
+Rows (one per seed) appended to ``results/error_coverage_centre_rows.jsonl``; ``--summary``
+writes ``results/error_coverage_centre.json`` with ``targets``.
 """
 
 from __future__ import annotations
@@ -118,16 +119,52 @@ def run(kind: str, seed: int, noise: float, spacing: float, drive_draws: int = 0
     return row
 
 
+def summary(rows: list[dict]) -> dict:
+    """The rows' measurements side by side, x against y; targets: the misfit quadratic along both
+    centre coordinates (rise at 2 errors within 10 % of 4), the drive term within the chi-square
+    95 % interval of its draws, the noise-free offsets under half an error."""
+    from scipy.stats import chi2
+
+    prof = [r["noisy"]["profile"] for r in rows if "noisy" in r]
+    rise = {c: [v for p in prof for t, v in zip(p[c]["steps"], p[c]["chi2_rise"]) if abs(t) == 2] for c in ("cx", "cy")}
+    checks = [r["noisy"]["drive_check"] for r in rows if "drive_check" in r.get("noisy", {})]
+    ratio = [np.array(c["std_first_order"]) / np.array(c["std_drawn"]) for c in checks]
+    # the drawn std over the true one lies in [a, b] 95 % of the time: first order / drawn in [1/b, 1/a]
+    lo, hi = [float(np.sqrt((c["draws"] - 1) / chi2.ppf(q, c["draws"] - 1))) for q in (0.975, 0.025) for c in checks[:1]]
+    bias = np.array([r["bias_in_errors"] for r in rows])
+    worst = {c: float(np.max(np.abs(bias[:, i]))) for i, c in enumerate(("cx", "cy"))}
+    return {"cases": [(r["kind"], r["seed"]) for r in rows],
+            "chi2_rise_at_2_errors": rise,
+            "drive_first_order_over_drawn": [x.tolist() for x in ratio], "drawn_interval_95": [lo, hi],
+            "noise_free_offset_in_errors": {f"{r['kind']} {r['seed']}": r["bias_in_errors"] for r in rows},
+            "targets": {
+                "misfit_quadratic_along_the_centre": {
+                    "value": {c: [min(v), max(v)] for c, v in rise.items()}, "range": [3.6, 4.4],
+                    "pass": bool(all(3.6 <= x <= 4.4 for v in rise.values() for x in v))},
+                "drive_term_as_its_draws": {
+                    "value": [x.tolist() for x in ratio], "range": [lo, hi],
+                    "pass": bool(all(lo <= v <= hi for x in ratio for v in x))},
+                "noise_free_centre_offset_under_half_an_error": {
+                    "value": worst, "target": 0.5, "pass": bool(max(worst.values()) < 0.5)}}}
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--kind", required=True, choices=("stiffer-region", "softer-region", "hole", "rectangle"))
-    p.add_argument("--seeds", type=int, nargs="+", required=True)
+    p.add_argument("--kind", choices=("stiffer-region", "softer-region", "hole", "rectangle"))
+    p.add_argument("--seeds", type=int, nargs="*", default=[])
     p.add_argument("--noise", type=float, default=0.02)
     p.add_argument("--spacing", type=float, default=10.0)
     p.add_argument("--drive-draws", type=int, default=0, help="draws of the drive's noise (0: no drive check)")
     p.add_argument("--noise-free-only", action="store_true", help="measurement 2 alone")
     p.add_argument("--rows", type=Path, default=OUT / "error_coverage_centre_rows.jsonl")
+    p.add_argument("--summary", action="store_true", help="only summarise the rows")
     args = p.parse_args()
+    if args.summary:
+        rows = [json.loads(line) for line in open(args.rows)]
+        out = summary(rows)
+        (OUT / "error_coverage_centre.json").write_text(json.dumps({**out, "rows": rows}, indent=1))
+        print(json.dumps(out["targets"], indent=1))
+        return
     for seed in args.seeds:
         row = run(args.kind, seed, args.noise, args.spacing, args.drive_draws, not args.noise_free_only)
         with open(args.rows, "a") as out:
