@@ -148,6 +148,23 @@ def summary(rows: list[dict]) -> dict:
                     "value": worst, "target": 0.5, "pass": bool(max(worst.values()) < 0.5)}}}
 
 
+def before_after(before: list[dict], after: list[dict]) -> dict:
+    """Per quantity the reported total errors' coverage (within 2, exact binomial 95 % interval)
+    on two sets of ``error_coverage.py`` rows, side by side, and the centre's y target: its
+    coverage on ``after`` with 95 % inside its binomial interval."""
+    from error_coverage_summary import summarise
+
+    per = {}
+    for name, rows in (("before", before), ("after", after)):
+        q = summarise(rows)["variants"]["reported"]["per_quantity"]
+        per[name] = {k: {"within_2": v.get("within_2_std"), "n": v["n"], "binomial_95": v.get("binomial_95")} for k, v in q.items()}
+    cy = per["after"]["cy"]
+    seeds = {name: [min(r["seed"] for r in rows), max(r["seed"] for r in rows)] for name, rows in (("before", before), ("after", after))}
+    return {"seeds": seeds, "per_quantity": per,
+            "target": {"cy_covered_as_about_95_percent": {"value": cy["within_2"], "binomial_95": cy["binomial_95"], "n": cy["n"],
+                                                          "pass": bool(cy["binomial_95"][0] <= 0.95 <= cy["binomial_95"][1])}}}
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--kind", choices=("stiffer-region", "softer-region", "hole", "rectangle"))
@@ -158,10 +175,16 @@ def main():
     p.add_argument("--noise-free-only", action="store_true", help="measurement 2 alone")
     p.add_argument("--rows", type=Path, default=OUT / "error_coverage_centre_rows.jsonl")
     p.add_argument("--summary", action="store_true", help="only summarise the rows")
+    p.add_argument("--before", type=Path, help="with --summary: error_coverage.py rows before (coverage side by side)")
+    p.add_argument("--after", type=Path, help="with --summary: error_coverage.py rows after")
     args = p.parse_args()
     if args.summary:
         rows = [json.loads(line) for line in open(args.rows)]
         out = summary(rows)
+        if args.before and args.after:
+            read = lambda path: [r for r in map(json.loads, open(path)) if "error" not in r]  # noqa: E731
+            out["coverage_before_after"] = ba = before_after(read(args.before), read(args.after))
+            out["targets"].update(ba.pop("target"))
         (OUT / "error_coverage_centre.json").write_text(json.dumps({**out, "rows": rows}, indent=1))
         print(json.dumps(out["targets"], indent=1))
         return
