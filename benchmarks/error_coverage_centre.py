@@ -9,6 +9,7 @@
    errors; a quadratic misfit rises by ``t^2`` there (4 at 2 errors). Less: the misfit is flatter
    than the Gauss-Newton covariance says, the error too small (the true profile re-optimises the
    other unknowns, so it lies lower still); more: inconclusive. No fits, one solve per point.
+   ``--quantities`` picks other quantities (e.g. a hole's ``angle``).
 2. *A bias*: the same case fitted on its noise-free data (same truth, points and start): the
    centre's offset from the truth, in the noisy fit's reported errors.
 
@@ -32,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 from error_coverage import FRACTIONS, _code_version, fit_true_kind, matched, started, true_quantities, truth_of
+from error_coverage_summary import QUANTITIES
 
 OUT = Path(__file__).parent / "results"
 STEPS = (-2.0, -1.0, 1.0, 2.0)
@@ -85,7 +87,8 @@ def drive_check(f, guide, draws: int, seed: int = 0) -> dict:
     return {"draws": draws, "std_drawn": drawn.tolist(), "std_first_order": formula.tolist()}
 
 
-def run(kind: str, seed: int, noise: float, spacing: float, drive_draws: int = 0, noisy: bool = True) -> dict:
+def run(kind: str, seed: int, noise: float, spacing: float, drive_draws: int = 0, noisy: bool = True,
+        quantities=("cx", "cy")) -> dict:
     """One case: the noisy fit's profile paths of ``cx`` and ``cy`` (not with ``noisy`` False)
     and the noise-free fit's centre (see the module's docstring)."""
     from refine.diagnosis.uncertainty import shape_errors, shape_quantities
@@ -105,7 +108,7 @@ def run(kind: str, seed: int, noise: float, spacing: float, drive_draws: int = 0
                      "fitted": f.describe()}
         if name == "noisy":
             guide = bundle.observations.mask("guide")
-            row[name]["profile"] = {"cx": profile_path(f, guide, 0), "cy": profile_path(f, guide, 1)}
+            row[name]["profile"] = {q: profile_path(f, guide, QUANTITIES.index(q)) for q in quantities}
             if drive_draws:
                 row[name]["drive_check"] = drive_check(f, guide, drive_draws)
                 print("drive", row[name]["drive_check"], flush=True)
@@ -172,6 +175,7 @@ def main():
     p.add_argument("--noise", type=float, default=0.02)
     p.add_argument("--spacing", type=float, default=10.0)
     p.add_argument("--drive-draws", type=int, default=0, help="draws of the drive's noise (0: no drive check)")
+    p.add_argument("--quantities", nargs="+", default=["cx", "cy"], help="profile paths of these quantities")
     p.add_argument("--noise-free-only", action="store_true", help="measurement 2 alone")
     p.add_argument("--rows", type=Path, default=OUT / "error_coverage_centre_rows.jsonl")
     p.add_argument("--summary", action="store_true", help="only summarise the rows")
@@ -189,7 +193,8 @@ def main():
         print(json.dumps(out["targets"], indent=1))
         return
     for seed in args.seeds:
-        row = run(args.kind, seed, args.noise, args.spacing, args.drive_draws, not args.noise_free_only)
+        row = run(args.kind, seed, args.noise, args.spacing, args.drive_draws, not args.noise_free_only,
+                  args.quantities)
         with open(args.rows, "a") as out:
             out.write(json.dumps(row) + "\n")
         print(f"{args.kind} {seed}: bias {row['bias_in_errors']} {row['seconds']:.0f} s", flush=True)
