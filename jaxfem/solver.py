@@ -262,7 +262,8 @@ class Solver:
         free = self.problem.free_mask[:, None]
         rhs = np.where(free, -(csr(self.pattern, v) @ gap), gap)
         K = v * self._keep_host + self._diag_fixed_host  # the constrained matrix, as the programs solve it
-        du = np.asarray(self._lin._cache(K, rhs)).T if m else np.zeros((0, n))  # every direction in one call
+        with self.program.lock:  # the host solver's factorisation is the programs' too: one user at a time
+            du = np.asarray(self._lin._cache(K, rhs)).T if m else np.zeros((0, n))  # every direction in one call
         dim = self.problem.mesh.dim
         return self._unpad(u), jax.device_put(np.ascontiguousarray(du).reshape(m, -1, dim)), info
 
