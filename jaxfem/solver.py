@@ -227,13 +227,20 @@ class Solver:
             ``(u (n_nodes, dim), du (k, n_nodes, dim), info)``.
         """
         u, info, vals = self._solve_padded(theta, start)
-        th = padding.pad_theta(theta, self.sizes)
+        return self._unpad(u), self.tangents_at((padding.pad_theta(theta, self.sizes), u, vals), directions), info
+
+    def tangents_at(self, state, directions):
+        """``du (k, n_nodes, dim)``: the equilibrium's derivatives along ``k`` parameter
+        ``directions`` (as in :meth:`solve_with_tangents`) at the converged ``state`` of
+        :meth:`solve_for_adjoint`, for a caller that solved already and asks for them later (or
+        not at all: a fit's rejected steps)."""
+        th, u, vals = state
         k = np.shape(jax.tree.leaves(directions)[0])[0]
         dirs = padding.pad_theta(padding.pad_batch(directions, k), self.sizes, tangent=True, axis=1)
         with self.program.lock:
             du = [np.asarray(self.program.tangents(th, u, vals, jax.tree.map(lambda v: v[i: i + padding.BATCH], dirs),
                                                    self.padded_arrays)) for i in range(0, k, padding.BATCH)]
-        return self._unpad(u), self._unpad(np.concatenate(du)[:k]), info
+        return self._unpad(np.concatenate(du)[:k])
 
     def solve_with_prescribed_tangents(self, theta, du_D, start=None):
         """The equilibrium and its derivatives along ``m`` directions of the prescribed values
