@@ -156,7 +156,9 @@ class Compiled:
     reuse the same evaluation. ``evaluate(z) -> (prediction, jacobian)`` with shapes
     ``(frames, points, dim)`` and ``(frames, points, dim, k)`` (forward mode: one tangent solve
     per unknown and frame at the converged state, next to the forward solve); ``predict`` and
-    ``jacobian`` are its halves.
+    ``jacobian`` are its halves, and ``predict`` alone solves no tangents (they are solved from
+    the kept converged states when ``jacobian`` asks for the same ``z``: a fit's rejected steps
+    and its last one cost the forward solves only).
 
     The solves run on the solver's shared programs (:mod:`jaxfem.program`: Newton, then the
     tangents along the k parameter directions), which every model of about the same mesh size,
