@@ -239,7 +239,8 @@ class Compiled:
 
     def evaluate(self, z) -> tuple[Float[np.ndarray, "frames n_points dim"],
                                    Float[np.ndarray, "frames n_points dim k"]]:
-        return self.predict(z), self.jacobian(z)
+        J = self.jacobian(z)
+        return self.predict(z), J
 
     def predict(self, z) -> Float[np.ndarray, "frames n_points dim"]:
         s = self._at(z)
@@ -250,6 +251,7 @@ class Compiled:
     def jacobian(self, z) -> Float[np.ndarray, "frames n_points dim k"]:
         s = self._at(z)
         if "J" not in s:
-            s["pred"], s["J"] = self._derivatives(s)
+            pred, s["J"] = self._derivatives(s)
+            s.setdefault("pred", pred)  # (the same figures as a prediction made alone)
             del s["states"]  # the tangent matrices are not needed again
         return s["J"]
