@@ -31,6 +31,7 @@ from . import padding
 from .assembly import make_pattern
 from .exceptions import SolverError
 from .linsolve import HostSolver, make_linear_solver
+from .linsolve._base import csr
 from .newton import REASONS, NewtonOptions
 from .problem import LOAD_KEYS, Problem
 from .program import program
@@ -97,6 +98,7 @@ class Solver:
         diag_fixed[pat.diag[~free]] = 1.0
         # the real sizes, for callers that assemble themselves (series, post-processing)
         # (device_put, not jnp.asarray: that compiles a small program per array shape)
+        self._keep_host, self._diag_fixed_host = keep.astype(np.float64), diag_fixed  # for host-side tangents
         self.arrays = jax.device_put({
             "cells": mesh.cells.astype(np.int32), "edofs": pat.edofs, "slots": pat.slots, "rows": pat.rows,
             "cols": pat.cols, "diag": pat.diag, "fixed": problem.fixed.astype(np.int32),
@@ -225,13 +227,52 @@ class Solver:
             ``(u (n_nodes, dim), du (k, n_nodes, dim), info)``.
         """
         u, info, vals = self._solve_padded(theta, start)
-        th = padding.pad_theta(theta, self.sizes)
+        return self._unpad(u), self.tangents_at((padding.pad_theta(theta, self.sizes), u, vals), directions), info
+
+    def tangents_at(self, state, directions):
+        """``du (k, n_nodes, dim)``: the equilibrium's derivatives along ``k`` parameter
+        ``directions`` (as in :meth:`solve_with_tangents`) at the converged ``state`` of
+        :meth:`solve_for_adjoint`, for a caller that solved already and asks for them later (or
+        not at all: a fit's rejected steps)."""
+        th, u, vals = state
         k = np.shape(jax.tree.leaves(directions)[0])[0]
         dirs = padding.pad_theta(padding.pad_batch(directions, k), self.sizes, tangent=True, axis=1)
         with self.program.lock:
             du = [np.asarray(self.program.tangents(th, u, vals, jax.tree.map(lambda v: v[i: i + padding.BATCH], dirs),
                                                    self.padded_arrays)) for i in range(0, k, padding.BATCH)]
-        return self._unpad(u), self._unpad(np.concatenate(du)[:k]), info
+        return self._unpad(np.concatenate(du)[:k])
+
+    def solve_with_prescribed_tangents(self, theta, du_D, start=None):
+        """The equilibrium and its derivatives along ``m`` directions of the prescribed values
+        alone, ``du_D (m, n_fixed)`` (e.g. a measured drive's columns): as
+        :meth:`solve_with_tangents` with every other parameter held, the same figures to
+        round-off. Where the linear solver factorises on the host, the right-hand sides are the
+        converged tangent's coupling of the free to the prescribed dofs (one sparse product on the
+        host, ``K du = -K_fd du_D``) and every direction a back-substitution of one factorisation
+        (in one call): no assembly per direction (the tangents program's ``jvp`` of the residual
+        assembles the material's tangent once per direction; a drive of ~130 values a frame
+        took ~16 batches of it per frame). Other solvers: :meth:`solve_with_tangents`.
+
+        Returns:
+            ``(u (n_nodes, dim), du (m, n_nodes, dim), info)``; NaN where the solve failed.
+        """
+        du_D = np.asarray(du_D, np.float64)
+        m = du_D.shape[0]
+        if not isinstance(self._lin, HostSolver):
+            zero = {k: np.zeros((m,) + np.shape(v)) for k, v in theta.items() if k != "u_D"}
+            return self.solve_with_tangents(theta, {**zero, "u_D": du_D}, start=start)
+        u, info, vals = self._solve_padded(theta, start)
+        n, nnz = self.problem.n_dofs, self.pattern.nnz
+        v = np.asarray(vals)[:nnz]
+        gap = np.zeros((n, m))
+        gap[self.problem.fixed] = du_D.T
+        free = self.problem.free_mask[:, None]
+        rhs = np.where(free, -(csr(self.pattern, v) @ gap), gap)
+        K = v * self._keep_host + self._diag_fixed_host  # the constrained matrix, as the programs solve it
+        with self.program.lock:  # the host solver's factorisation is the programs' too: one user at a time
+            du = np.asarray(self._lin._cache(K, rhs)).T if m else np.zeros((0, n))  # every direction in one call
+        dim = self.problem.mesh.dim
+        return self._unpad(u), jax.device_put(np.ascontiguousarray(du).reshape(m, -1, dim)), info
 
     def solve_for_adjoint(self, theta, start=None):
         """The equilibrium ``u (n_nodes, dim)`` (NaN where the solve failed; no error raised) and

@@ -68,14 +68,14 @@ class PardisoHandle:
         fn, pt, n = _mkl_pardiso(), self.pt, self.n
         weakref.finalize(self, PardisoHandle._release, fn, pt, self.iparm.copy(), n)
 
-    def _call(self, phase, a, b=None, x=None):
+    def _call(self, phase, a, b=None, x=None, nrhs=1):
         err = ctypes.c_int32(0)
         one, i32 = ctypes.c_int32(1), ctypes.c_int32
         ptr = lambda arr: None if arr is None else arr.ctypes.data  # noqa: E731
         _mkl_pardiso()(self.pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(one),
                        ctypes.byref(i32(1)), ctypes.byref(i32(-2)), ctypes.byref(i32(phase)),
                        ctypes.byref(i32(self.n)), ptr(a), ptr(self.ia), ptr(self.ja), None,
-                       ctypes.byref(i32(1)), ptr(self.iparm), ctypes.byref(i32(0)), ptr(b), ptr(x),
+                       ctypes.byref(i32(nrhs)), ptr(self.iparm), ctypes.byref(i32(0)), ptr(b), ptr(x),
                        ctypes.byref(err))
         return err.value
 
@@ -98,10 +98,11 @@ class PardisoHandle:
         return self._call(22, a) == 0
 
     def solve(self, b):
-        """x with A x = b for the last factorised A; NaN if the substitution failed."""
-        b = np.ascontiguousarray(b, dtype=np.float64)
-        x = np.empty_like(b)
-        if self._call(33, self.a, b, x) != 0:
+        """x with A x = b for the last factorised A, ``b (n,)`` or ``(n, k)`` (k right-hand sides
+        in one call: blocked substitutions); NaN if the substitution failed."""
+        b = np.asfortranarray(b, dtype=np.float64)  # PARDISO reads the right-hand sides column after column
+        x = np.empty_like(b, order="F")
+        if self._call(33, self.a, b, x, nrhs=1 if b.ndim == 1 else b.shape[1]) != 0:
             x[:] = np.nan
         return x
 

@@ -3,8 +3,8 @@ measured boundary displacements that drive it (the drive covariance of
 :mod:`refine.diagnosis.uncertainty` needs rows of them).
 
 Two ways to the rows ``C dP/dB`` of ``c`` cotangents ``C``: forward, the whole Jacobian by one
-tangent solve per boundary value and frame (:func:`boundary_jacobian`, on the tangents program
-every fit compiles already); reverse, one adjoint solve per cotangent and frame
+tangent solve per boundary value and frame (:func:`boundary_jacobian`: one back-substitution
+each on the host, :meth:`jaxfem.Solver.solve_with_prescribed_tangents`); reverse, one adjoint solve per cotangent and frame
 (:func:`boundary_vjp`'s pull-back, which compiles the adjoint program and the points'
 pull-back for the model's bucket). :func:`boundary_vjp` takes the forward way where the boundary
 values are few (at most :data:`FORWARD_BATCHES` batches of tangents over all frames: a
@@ -39,12 +39,11 @@ def boundary_jacobian(model, theta) -> np.ndarray:
     if not model.shares_programs:
         return np.asarray(jax.jit(jax.jacfwd(lambda b: model.predict(theta, boundary=b)))(B))
     n_f, m = B.shape
-    zero = {k: np.zeros((m,) + np.shape(v)) for k, v in theta.items() if k != "u_D"}
     start, U, dU, T = model.frame_starts(theta), [], [], model.frame_tractions(theta["X"])
     for f in range(n_f):
         D = model.drives[f].matrix  # (n_fixed, m): u_D = D @ B[f], so the directions are its columns
         loads = {"u_D": D @ B[f], **frame_traction(T, f)}
-        u, du, _ = model.solver.solve_with_tangents({**theta, **loads}, {**zero, "u_D": D.T}, start=start)
+        u, du, _ = model.solver.solve_with_prescribed_tangents({**theta, **loads}, D.T, start=start)
         start = (np.asarray(u).reshape(-1), {**start[1], **loads})
         U.append(u)
         dU.append(du)

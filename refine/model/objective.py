@@ -156,7 +156,9 @@ class Compiled:
     reuse the same evaluation. ``evaluate(z) -> (prediction, jacobian)`` with shapes
     ``(frames, points, dim)`` and ``(frames, points, dim, k)`` (forward mode: one tangent solve
     per unknown and frame at the converged state, next to the forward solve); ``predict`` and
-    ``jacobian`` are its halves.
+    ``jacobian`` are its halves, and ``predict`` alone solves no tangents (they are solved from
+    the kept converged states when ``jacobian`` asks for the same ``z``: a fit's rejected steps
+    and its last one cost the forward solves only).
 
     The solves run on the solver's shared programs (:mod:`jaxfem.program`: Newton, then the
     tangents along the k parameter directions), which every model of about the same mesh size,
@@ -187,10 +189,12 @@ class Compiled:
             self._evaluate = jax.jit(jax.jacfwd(f, has_aux=True))
         self._last = None
 
-    def _solve(self, z):
-        """``(U, dU)``: nodal displacements ``(frames, n_nodes, dim)`` and their derivatives
-        ``(k, frames, n_nodes, dim)`` at ``z``, frame after frame from the one before; and ``theta``,
-        ``dX (k, n_nodes, dim)``."""
+    def _solve(self, z) -> dict:
+        """The equilibrium at ``z``, frame after frame from the one before: ``{"z", "U": nodal
+        displacements (frames, n_nodes, dim), "states": each frame's converged state, "dirs":
+        each frame's parameter directions (k leading), "theta", "dX" (k, n_nodes, dim)}``; the
+        tangents along the directions are left for :meth:`_derivatives` (a fit asks for the
+        Jacobian at its accepted steps only, not at a rejected step or the last one)."""
         model = self.model
         theta, T = self._apply(np.asarray(z, float))
         k = int(np.size(z))
@@ -198,31 +202,56 @@ class Compiled:
         dirs["u_D"] = np.zeros((k, len(model.problem.fixed)))  # the drive does not depend on z
         B, start = model.measured_boundary(), model.frame_starts(theta)
         T, dT = (None, None) if self._tractions is None else self._tractions(np.asarray(z, float))
-        U, dU = [], []
+        U, states, frame_dirs = [], [], []
         for f in range(model.obs.n_frames):
             loads = {"u_D": model.drives[f].matrix @ B[f], **frame_traction(T, f)}
-            d = dirs if T is None else {**dirs, "traction": np.moveaxis(np.asarray(dT[f]), -1, 0)}
-            u, du, _ = model.solver.solve_with_tangents({**theta, **loads}, d, start=start)
+            frame_dirs.append(dirs if T is None else {**dirs, "traction": np.moveaxis(np.asarray(dT[f]), -1, 0)})
+            u, state = model.solver.solve_for_adjoint({**theta, **loads}, start=start)
             start = (np.asarray(u).reshape(-1), {**start[1], **loads})
             U.append(u)
-            dU.append(du)
-        return np.stack(U), np.stack(dU, 1), theta, np.asarray(dirs["X"])
+            states.append(state)
+        return {"z": np.asarray(z, float).copy(), "U": np.stack(U), "states": states, "dirs": frame_dirs,
+                "theta": theta, "dX": np.asarray(dirs["X"])}
+
+    def _derivatives(self, s: dict):
+        """``(prediction, Jacobian (frames, n_points, dim, k))`` of a :meth:`_solve` result: the
+        tangents at its converged states, then the points' interpolation and its derivatives."""
+        dU = np.stack([self.model.solver.tangents_at(st, d) for st, d in zip(s["states"], s["dirs"])], 1)
+        pred, J = self.model.at_points_and_derivatives(s["U"], dU, s["theta"]["X"], s["dX"])
+        return pred, np.moveaxis(J, 0, -1)
+
+    def _prediction(self, s: dict):
+        """The prediction of a :meth:`_solve` result alone: the program of :meth:`_derivatives`
+        along a zero direction (the same figures)."""
+        U, X = s["U"], s["theta"]["X"]
+        return self.model.at_points_and_derivatives(U, np.zeros((1,) + U.shape), X, np.zeros((1,) + np.shape(X)))[0]
+
+    def _at(self, z) -> dict:
+        """The evaluation at ``z``, kept until another ``z`` is evaluated."""
+        z = np.asarray(z, float)
+        if self._last is None or not np.array_equal(self._last["z"], z):
+            if self.model.shares_programs:
+                self._last = self._solve(z)
+            else:
+                J, pred = self._evaluate(jnp.asarray(z))
+                self._last = {"z": z.copy(), "pred": np.asarray(pred), "J": np.asarray(J)}
+        return self._last
 
     def evaluate(self, z) -> tuple[Float[np.ndarray, "frames n_points dim"],
                                    Float[np.ndarray, "frames n_points dim k"]]:
-        z = np.asarray(z, float)
-        if self._last is None or not np.array_equal(self._last[0], z):
-            if self.model.shares_programs:
-                U, dU, theta, dX = self._solve(z)
-                pred, J = self.model.at_points_and_derivatives(U, dU, theta["X"], dX)
-                self._last = (z.copy(), pred, np.moveaxis(J, 0, -1))
-            else:
-                J, pred = self._evaluate(jnp.asarray(z))
-                self._last = (z.copy(), np.asarray(pred), np.asarray(J))
-        return self._last[1], self._last[2]
+        J = self.jacobian(z)
+        return self.predict(z), J
 
     def predict(self, z) -> Float[np.ndarray, "frames n_points dim"]:
-        return self.evaluate(z)[0]
+        s = self._at(z)
+        if "pred" not in s:
+            s["pred"] = self._prediction(s)
+        return s["pred"]
 
     def jacobian(self, z) -> Float[np.ndarray, "frames n_points dim k"]:
-        return self.evaluate(z)[1]
+        s = self._at(z)
+        if "J" not in s:
+            pred, s["J"] = self._derivatives(s)
+            s.setdefault("pred", pred)  # (the same figures as a prediction made alone)
+            del s["states"]  # the tangent matrices are not needed again
+        return s["J"]
