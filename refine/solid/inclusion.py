@@ -90,11 +90,17 @@ def cell_size(mesh) -> float:
     return float(np.cbrt(6.0 * mesh.volumes().mean()))
 
 
+def cell_sizes(mesh) -> Float[np.ndarray, "cells"]:
+    """``(n_cells,)``: each cell's size (length unit), the side of the cube six such cells fill (a
+    graded mesh's vary: :mod:`refine.solid.inclusion_mesh`)."""
+    return np.cbrt(6.0 * mesh.volumes())
+
+
 @dataclass(frozen=True, eq=False)
 class EllipsoidModulus:
     """The parametrisation of one ellipsoidal inclusion (see the module): started at ``centre0
     (3,)`` and ``M0 (3, 3)`` on ``mesh``, lengths in units of ``scale``, the indicator's ``width``
-    (length unit), a semi-axis kept above ``min_axis``, the start's log ratio ``log_ratio0``, the
+    (length unit: a number, or ``(n_cells, 1)`` per cell), a semi-axis kept above ``min_axis``, the start's log ratio ``log_ratio0``, the
     material's Poisson ratio ``nu``."""
 
     mesh: object
@@ -227,10 +233,16 @@ class Inclusion:
         return self.model.experiment.law
 
     def build(self) -> tuple[Compiled, np.ndarray]:
-        h = cell_size(self.model.mesh)
+        mesh = self.model.mesh
         R = np.asarray(self.rotation, float)
         M0 = R @ np.diag(self.axes) @ R.T
-        param = EllipsoidModulus(self.model.mesh, np.asarray(self.centre, float), M0, 0.5 * h, 0.1 * h, 0.25 * h,
+        sizes = cell_sizes(mesh)
+        # the unknowns' unit and the least semi-axis from the cells where the ellipsoid starts (a
+        # graded mesh's fine ones), the indicator's width from each cell's own size
+        local = (mesh.centroids() - np.asarray(self.centre, float)) @ R / np.asarray(self.axes, float)
+        within = (local**2).sum(1) <= 1.0
+        h = float(np.median(sizes[within])) if within.any() else cell_size(mesh)
+        param = EllipsoidModulus(mesh, np.asarray(self.centre, float), M0, 0.5 * h, 0.1 * sizes[:, None], 0.25 * h,
                                  float(np.log(self.ratio)), float(self.model.experiment.nu))
         return Compiled(self.model, param), np.asarray(param.z0)
 

@@ -28,6 +28,7 @@ from refine.model.measured import MeasuredModel
 from refine.solid.field import Field, modulus_field
 from refine.solid.initial import checked_baseline
 from refine.solid.inclusion import MAX_LOG_RATIO, Inclusion, ellipsoid_errors
+from refine.solid.inclusion_mesh import FocusedMesh, refit_focused
 from refine.solid.inclusion_profile import Profile, profile_ratio, strength
 
 
@@ -41,7 +42,10 @@ class InclusionConfig:
     per side); ``fit_mesh``: a finer mesh of the same body on which the inclusions are fitted and
     profiled (and the initial model they are compared with solved again), the field staying on the
     bundle's (None: the bundle's mesh throughout; a 4 mm model biased seed 11's volume 39 % low,
-    a 3 mm one 24 %, benchmarks/README.md's inclusion3d)."""
+    a 3 mm one 24 %, benchmarks/README.md's inclusion3d); ``focus``: without ``fit_mesh``, the
+    inclusion found on the bundle's mesh is refitted and profiled on the body's box graded fine
+    around it (:func:`refine.solid.inclusion_mesh.refit_focused`; None: not; a body that is no box
+    keeps its mesh)."""
 
     alpha: float = 0.01
     max_candidates: int = 2
@@ -52,6 +56,7 @@ class InclusionConfig:
     profile_threshold: float = 4.0
     profile_steps: int = 4
     fit_mesh: jf.Mesh | None = None
+    focus: FocusedMesh | None = FocusedMesh()
 
 
 @dataclass
@@ -133,6 +138,13 @@ def diagnose_inclusion(bundle: Bundle, cfg: InclusionConfig = InclusionConfig(),
         seconds["inclusion"] = time.perf_counter() - t0 - sum(seconds.values())
     chosen = base
     if best is not None and best.bic < base.bic and best.chi2_holdout < base.chi2_holdout:
+        if cfg.fit_mesh is None and cfg.focus is not None:  # refitted where the coarse model's bias is
+            t1 = time.perf_counter()
+            fine_base, g = refit_focused(best, guide, validate, sigma, cfg.focus)
+            if g is not None and np.isfinite(g.chi2_fit):
+                base, best = fine_base, g
+                log(f"  on a graded mesh ({g.model.mesh.n_cells} cells): {g.describe()}")
+            seconds["focus"] = time.perf_counter() - t1
         best = chosen = with_errors(best, guide, sigma)
     prof = None
     if chosen is not base and cfg.profile:

@@ -70,7 +70,7 @@ class BlockSetting:
     grip: tuple = (1.6, 3.2)
     E: float = 50.0
     nu: float = 0.3
-    h_data: float = 2.5
+    h_data: float = 2.0
     h_model: float = 4.0
     spacing: float = 2.5
     noise: float = 0.01
