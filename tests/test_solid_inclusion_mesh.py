@@ -94,3 +94,14 @@ def test_focus_of_a_fitted_shape_pads_its_axes():
     s = EllipsoidShape((10.0, 5.0, 6.0), (4.0, 3.0, 2.0), tuple(map(tuple, np.eye(3))), 3.0)
     f = focus_of(s, pad=1.25)
     assert np.allclose(f.axes, [5.0, 3.75, 2.5]) and np.allclose(f.centroid, s.centre)
+
+
+def test_the_diagnosis_refits_on_a_graded_box_by_default_and_keeps_a_non_box_as_it_is():
+    from refine.solid.inclusion import EllipsoidShape
+    from refine.solid.inclusion_diagnosis import InclusionConfig
+    from refine.solid.inclusion_mesh import FocusedMesh, refit_focused
+
+    assert InclusionConfig().focus == FocusedMesh() and InclusionConfig().fit_mesh is None
+    shape = EllipsoidShape((8.0, 0.0, 5.0), (2.0, 1.5, 1.0), tuple(map(tuple, np.eye(3))), 3.0)
+    cup = SimpleNamespace(model=SimpleNamespace(mesh=jf.cup_holder(8.0, 11.0, 8.0, 3.0, 4.0).mesh), shapes=[shape])
+    assert refit_focused(cup, None, None, 0.01) == (None, None)  # no solve: nothing to grade
