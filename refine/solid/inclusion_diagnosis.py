@@ -36,7 +36,8 @@ from refine.solid.inclusion_profile import Profile, profile_ratio, strength
 class InclusionConfig:
     """Settings of a solid body's diagnosis: ``alpha`` the null test's level, ``max_candidates``
     field regions tried as inclusions, the field's smoothing ``field_weight`` (x residuals per
-    cell) and ``field_iterations`` (L-BFGS-B), ``linear_solver``; whether the finding's ratio is
+    cell) and ``field_iterations`` (L-BFGS-B; 45: the field only places the start, the fit on the
+    graded mesh does the rest), ``linear_solver``; whether the finding's ratio is
     ``profile``d (:func:`refine.solid.inclusion_profile.profile_ratio`: the interval where chi^2
     rises by at most ``profile_threshold`` times the reduced chi^2, at most ``profile_steps`` refits
     per side); ``fit_mesh``: a finer mesh of the same body on which the inclusions are fitted and
@@ -50,7 +51,7 @@ class InclusionConfig:
     alpha: float = 0.01
     max_candidates: int = 2
     field_weight: float = 2.0
-    field_iterations: int = 60
+    field_iterations: int = 45
     linear_solver: str = "auto"
     profile: bool = True
     profile_threshold: float = 4.0
