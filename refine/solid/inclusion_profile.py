@@ -158,7 +158,8 @@ def profile_ratio(f: Fitted, points, sigma: float, threshold: float = 4.0, max_s
                   first_step: float | None = None, log=print) -> Profile:
     """The profile of ``f`` (a fitted :class:`~refine.solid.inclusion.Inclusion`) over its log
     ratio on the ``points`` mask with noise ``sigma`` (see the module). Steps start at the log
-    ratio's standard error (``f.z_std[0]``, clipped to 0.1-0.5: seed 13 stepped 0.83 then 1.24 and its refit there ran to 73543 mm3) or ``first_step``, grow by half each
+    ratio's standard error (``f.z_std[0]``, clipped to 0.1-0.5: seed 13 stepped 0.83 then 1.24,
+    its refit there ran to 73543 mm^3) or ``first_step``, grow by half each
     step, stop where chi^2 has risen past the threshold, at the ratio's bound or after
     ``max_steps`` per side; each refit is a Levenberg-Marquardt fit of the nine shape unknowns (the
     fit's own ratio refitted too where the fit ran to the ratio's bound), warm started from the one
