@@ -290,8 +290,9 @@ def test_hidden_inclusion_profile_covers_the_truth_with_a_finer_fit_mesh(tmp_pat
     from refine.solid.inclusion_diagnosis import InclusionConfig, diagnose_inclusion, inclusion_report
     from refine.synthetic.block import BlockSetting, model_mesh, write_block_bundle
 
-    root, truth = write_block_bundle(tmp_path / "b", cause="stiffer-region", seed=11)
-    cfg = InclusionConfig(fit_mesh=model_mesh(replace(BlockSetting(), h_model=3.0)))
+    setting = BlockSetting(h_data=2.5)  # as measured (benchmarks/README.md's inclusion3d, --h-fit 3)
+    root, truth = write_block_bundle(tmp_path / "b", cause="stiffer-region", seed=11, setting=setting)
+    cfg = InclusionConfig(fit_mesh=model_mesh(replace(setting, h_model=3.0)))
     rep = inclusion_report(diagnose_inclusion(read_bundle(root), cfg, log=lambda m: None))
     f = rep["findings"][0]
     p = f["profile"]
