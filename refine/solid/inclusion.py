@@ -18,7 +18,9 @@ Seen from the surface alone, the inclusion's volume and ratio trade against each
 place it within 1.3 % of the block's length but come out 40-55 % small and more extreme, some at
 the ratio's bound (:data:`MAX_LOG_RATIO`; benchmarks/inclusion3d.py), with the strength the
 surface fixes (:func:`refine.solid.inclusion_profile.strength`) close to the truth's; the report
-gives the ratio's profile (:mod:`refine.solid.inclusion_profile`) for the intervals.
+gives the ratio's profile (:mod:`refine.solid.inclusion_profile`) for the intervals. Part of
+the smallness is the coarse model's bias along that valley: the diagnosis refits the inclusion on
+the block graded fine around it (:mod:`refine.solid.inclusion_mesh`).
 
 Unknowns ``z (10,)``: the log ratio, the change of the centre (3) and of ``M``'s entries
 ``(M11, M22, M33, M12, M13, M23)``, all lengths in units of ``scale``.

@@ -1,8 +1,9 @@
 """The 3D diagnosis of a solid body without a cavity (a block held by grips; issue 23's "stiff
 inclusion in a block"): is anything wrong beyond the noise (the null test on the ``guide``
 points), where (the regularised modulus field on the model's mesh, :mod:`refine.solid.field`), is
-it an ellipsoidal inclusion (:mod:`refine.solid.inclusion`, fitted by exact gradients, with
-standard errors), how much better the held-out ``validate`` points are predicted; the report.
+it an ellipsoidal inclusion (:mod:`refine.solid.inclusion`, fitted by exact gradients, then
+refitted on the block graded fine around it, :mod:`refine.solid.inclusion_mesh`, with standard
+errors and its ratio's profile), how much better the held-out ``validate`` points are predicted; the report.
 
 The model is the bundle's mesh as it is (``domain = { mesh = ... }``), driven by its ``boundary``
 points (e.g. markers on the grips' jaws) with the experiment's law, ``E`` and ``nu``; under pure
