@@ -26,6 +26,9 @@ def test_graded_ticks_are_fine_over_the_focus_and_grow_to_coarse(seed):
     inside = (t[:-1] >= max(a, lo) - 1e-9) & (t[1:] <= min(b, hi) + 1e-9)
     assert d[inside].max() <= fine + 1e-9 and d.max() <= max(coarse, growth * fine) * (1 + 1e-9)
     assert d.max() > fine or (b - a) >= hi - lo - 2 * fine  # coarser away from a focus that leaves room
+    assert d.min() >= 0.5 * fine * (1 - 1e-9) or len(d) == 1
+    for edge in (graded_ticks(0.0, 20.0, (3.0, 19.995), 2.5, 5.0), graded_ticks(0.0, 20.0, (0.01, 12.0), 2.5, 5.0)):
+        assert np.diff(edge).min() > 1.0  # a focus at an end leaves no sliver cell
     with pytest.raises(MeshError, match="fine <= coarse"):
         graded_ticks(lo, hi, (a, b), 3.0, 2.0)
 
