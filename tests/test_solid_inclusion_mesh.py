@@ -108,3 +108,17 @@ def test_the_diagnosis_refits_on_a_graded_box_by_default_and_keeps_a_non_box_as_
     shape = EllipsoidShape((8.0, 0.0, 5.0), (2.0, 1.5, 1.0), tuple(map(tuple, np.eye(3))), 3.0)
     cup = SimpleNamespace(model=SimpleNamespace(mesh=jf.cup_holder(8.0, 11.0, 8.0, 3.0, 4.0).mesh), shapes=[shape])
     assert refit_focused(cup, None, None, 0.01) == (None, None)  # no solve: nothing to grade
+
+
+def test_points_on_a_graded_box_are_located_beyond_the_nearest_fine_centroids():
+    from scipy.spatial import cKDTree
+
+    from jaxfem.probe import find_cells_among
+
+    m = graded_box([graded_ticks(0, 40, (22, 36), 2.5, 5, 1.6), graded_ticks(0, 20, (5, 17), 2.5, 5, 1.6),
+                    graded_ticks(0, 20, (8, 20), 2.5, 5, 1.6)])
+    rng = np.random.default_rng(0)
+    P = np.c_[rng.uniform(0, 40, 4000), rng.uniform(0, 20, 4000), np.full(4000, 20.0)]
+    assert (find_cells_among(m, P, cKDTree(m.centroids()), 24)[2] > 1e-2).any()  # 24 candidates miss some
+    probe = jf.locate(m, P, tol=1e-6)  # the fallback finds them
+    assert np.allclose(probe(np.asarray(m.nodes)), P)
