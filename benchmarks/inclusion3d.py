@@ -52,6 +52,9 @@ def case(seed: int, cause: str, args) -> dict:
     from refine.solid import diagnose_solid, report
     from refine.synthetic.block import BlockSetting, write_block_bundle
 
+    from refine.solid.inclusion_diagnosis import InclusionConfig, diagnose_inclusion
+    from refine.solid.inclusion_mesh import FocusedMesh
+
     setting = BlockSetting(h_data=args.h_data, h_model=args.h_model, noise=args.noise)
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
@@ -59,11 +62,13 @@ def case(seed: int, cause: str, args) -> dict:
         t_data = time.perf_counter() - t0
         t0 = time.perf_counter()
         if args.h_fit:  # the inclusion diagnosis with its fits on a finer mesh (the field on the bundle's)
-            from refine.solid.inclusion_diagnosis import InclusionConfig, diagnose_inclusion
             from refine.synthetic.block import model_mesh
 
             cfg = InclusionConfig(fit_mesh=model_mesh(replace(setting, h_model=args.h_fit)))
             d = diagnose_inclusion(read_bundle(root), cfg, log=lambda m: None)
+        elif args.fine != FocusedMesh().fine or args.coarse != FocusedMesh().coarse:
+            focus = None if args.fine <= 0 else FocusedMesh(fine=args.fine, coarse=args.coarse)
+            d = diagnose_inclusion(read_bundle(root), InclusionConfig(focus=focus), log=lambda m: None)
         else:
             d = diagnose_solid(read_bundle(root), log=lambda m: None)
         seconds = time.perf_counter() - t0
@@ -154,15 +159,21 @@ def targets_of(rows) -> dict:
 
 
 def main() -> None:
+    from refine.solid.inclusion_mesh import FocusedMesh
+
+    FOCUS = FocusedMesh()  # the diagnosis's default, as --fine and --coarse
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--stiffer", type=int, nargs="*", default=[11, 12])
     p.add_argument("--softer", type=int, nargs="*", default=[13])
     p.add_argument("--sound", type=int, nargs="*", default=[14])
-    p.add_argument("--h-data", type=float, default=2.5)
+    p.add_argument("--h-data", type=float, default=2.0)
     p.add_argument("--h-model", type=float, default=4.0)
     p.add_argument("--noise", type=float, default=0.01)
     p.add_argument("--h-fit", type=float, default=None,
                    help="fit and profile the inclusion on a mesh of this size (mm), the field on --h-model's")
+    p.add_argument("--fine", type=float, default=FOCUS.fine,
+                   help="the found inclusion refitted on the box graded from this size (mm) around it; 0: not")
+    p.add_argument("--coarse", type=float, default=FOCUS.coarse, help="the graded box's size away from it (mm)")
     p.add_argument("--out", type=Path, default=RESULTS / "inclusion3d.json", help="results JSON (the plot beside it)")
     p.add_argument("--merge", type=Path, nargs="*", default=[],
                    help="run no case: the rows of these results JSONs (one case per process) together")

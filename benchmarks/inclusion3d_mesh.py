@@ -15,6 +15,10 @@ volume at a given ratio. It writes benchmarks/results/inclusion3d_mesh.json (row
 inclusion3d_mesh.png.
 
     python benchmarks/inclusion3d_mesh.py --seed 11 --h-models 4 3
+    python benchmarks/inclusion3d_mesh.py --seed 13 --cause softer-region --h-data 2 --h-models --graded 2.5 5
+
+``--graded FINE COARSE`` adds a box graded from FINE mm around the truth's extent to COARSE mm
+(refine.solid.inclusion_mesh.focused_mesh, as the diagnosis grades around its coarse fit).
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ import json
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
@@ -36,8 +41,9 @@ from _timing import loadavg  # noqa: E402
 RESULTS = HERE / "results"
 
 
-def row(bundle, truth, setting, h: float) -> dict:
-    """One model mesh size's figures (see the module)."""
+def row(bundle, truth, setting, h: float, fine: float | None = None) -> dict:
+    """One model mesh's figures (see the module): a box at ``h`` (mm), or with ``fine`` a box graded
+    from ``fine`` around the truth's extent to ``h`` (refine.solid.inclusion_mesh)."""
     from dataclasses import replace
 
     from refine.diagnosis.fitted import fit
@@ -48,12 +54,16 @@ def row(bundle, truth, setting, h: float) -> dict:
     from refine.solid.inclusion import Inclusion
     from refine.solid.inclusion_diagnosis import with_errors
     from refine.solid.inclusion_profile import RatioHeld, strength
+    from refine.solid.inclusion_mesh import FocusedMesh, focused_mesh
     from refine.synthetic.block import model_mesh
 
     t0 = time.perf_counter()
     obs, sigma = bundle.observations, setting.noise
     guide, validate = obs.roles == "guide", obs.roles == "validate"
     mesh = model_mesh(replace(setting, h_model=h))
+    if fine is not None:
+        mesh = focused_mesh(mesh, [SimpleNamespace(centroid=truth.centre, axes=truth.axes, rotation=truth.rotation)],
+                            FocusedMesh(fine=fine, coarse=h))
     model = MeasuredModel(bundle.experiment, obs, mesh=mesh)
     at = Residuals.at(obs.displacements, guide, sigma)
     hyp = Inclusion(model, truth.centre, truth.axes, truth.rotation, truth.ratio)
@@ -67,7 +77,7 @@ def row(bundle, truth, setting, h: float) -> dict:
     res = levenberg_marquardt(c, guide, sigma, z0=held.start, max_steps=12, chi2_tol=0.1)
     zs = np.asarray(res.values["z"])
     rise = at.chi2(c.predict(zs)) - f.chi2_fit
-    out = {"h_model": h, "cells": int(mesh.n_cells), "chi2_truth_shape": chi2_truth, "chi2_fit": f.chi2_fit,
+    out = {"h_model": h, "fine": fine, "cells": int(mesh.n_cells), "chi2_truth_shape": chi2_truth, "chi2_fit": f.chi2_fit,
            "n_residuals": int(at.n), "fit": {"volume": s.volume, "ratio": s.ratio,
                                              "strength": float(strength(s.volume, s.ratio, setting.nu))},
            "volume_error_pct": 100 * (s.volume / truth.volume - 1), "ratio_error_pct": 100 * (s.ratio / truth.ratio - 1),
@@ -82,16 +92,19 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=11)
     p.add_argument("--cause", default="stiffer-region")
     p.add_argument("--h-data", type=float, default=2.5)
-    p.add_argument("--h-models", type=float, nargs="+", default=[4.0, 3.0])
+    p.add_argument("--h-models", type=float, nargs="*", default=[4.0, 3.0])
+    p.add_argument("--graded", type=float, nargs=2, action="append", default=[], metavar=("FINE", "COARSE"),
+                   help="a box graded from FINE mm around the truth to COARSE mm (repeatable)")
     p.add_argument("--out", type=Path, default=RESULTS / "inclusion3d_mesh.json")
     args = p.parse_args()
     from refine.solid.inclusion_profile import strength
     from refine.synthetic.block import BlockSetting, block_bundle
 
-    setting = BlockSetting(h_data=args.h_data, h_model=max(args.h_models))
+    setting = BlockSetting(h_data=args.h_data, h_model=max([*args.h_models, *(g[1] for g in args.graded)]))
     bundle, _, truth = block_bundle(args.cause, args.seed, setting)
     rows = [row(bundle, truth, setting, h) for h in args.h_models]
-    finest = min(rows, key=lambda r: r["h_model"])
+    rows += [row(bundle, truth, setting, coarse, fine) for fine, coarse in args.graded]
+    finest = min(rows, key=lambda r: r["fine"] or r["h_model"])
     targets = {"truth_ratio_inside_on_the_finest_model": {"value": finest["rise_at_truth_ratio"],
                                                           "pass": finest["truth_ratio_inside"]},
                "volume_at_truth_ratio_within_10pct": {"value": finest["volume_at_truth_ratio"], "pass": bool(
@@ -113,16 +126,16 @@ def plot(out, path) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(1, 2, figsize=(9, 3.5))
-    h = [r["h_model"] for r in out["rows"]]
+    h = [f"{r['h_model']:g}" if r.get("fine") is None else f"{r['fine']:g}-{r['h_model']:g}" for r in out["rows"]]
     ax[0].plot(h, [r["volume_error_pct"] for r in out["rows"]], "o-", label="volume")
     ax[0].plot(h, [r["ratio_error_pct"] for r in out["rows"]], "s-", label="ratio")
     ax[0].axhline(0, color="k", lw=0.5)
-    ax[0].set_xlabel("model element size (mm)")
+    ax[0].set_xlabel("model element size (mm; graded: fine-coarse)")
     ax[0].set_ylabel("fit's error (%)")
     ax[0].legend()
-    ax[1].bar([str(v) for v in h], [r["rise_at_truth_ratio"] for r in out["rows"]])
+    ax[1].bar(h, [r["rise_at_truth_ratio"] for r in out["rows"]])
     ax[1].axhline(out["rows"][-1]["threshold"], color="C1", ls="--", label="threshold")
-    ax[1].set_xlabel("model element size (mm)")
+    ax[1].set_xlabel("model element size (mm; graded: fine-coarse)")
     ax[1].set_ylabel("chi2 rise at the truth's ratio")
     ax[1].legend()
     fig.suptitle(f"seed {out['seed']} {out['cause']} (load {out['rows'][-1]['load']:.1f})")

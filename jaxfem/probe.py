@@ -183,7 +183,25 @@ def find_cells(mesh: Mesh, points):
         xi, out = _inverse_map(mesh, c, pts)
         better = out < best_out
         best_cell[better], best_xi[better], best_out[better] = c[better], xi[better], out[better]
+    far = np.flatnonzero(best_out > 1e-6)
+    if far.size and mesh.n_cells > k:  # a graded mesh: a coarse cell's centroid lies beyond 24 fine ones
+        sub = find_cells_among(mesh, pts[far], tree, min(8 * k, mesh.n_cells))
+        better = sub[2] < best_out[far]
+        for a, b in zip((best_cell, best_xi, best_out), sub):
+            a[far[better]] = b[better]
     return best_cell, best_xi, best_out
+
+
+def find_cells_among(mesh: Mesh, pts, tree, k: int):
+    """:func:`find_cells` over the ``k`` cells of nearest centroids (``tree``: their KD-tree)."""
+    _, cand = tree.query(pts, k=k)
+    cand = cand.reshape(len(pts), k)
+    best = np.full(len(pts), -1), np.zeros((len(pts), mesh.el.dim)), np.full(len(pts), np.inf)
+    for j in range(k):
+        xi, out = _inverse_map(mesh, cand[:, j], pts)
+        better = out < best[2]
+        best[0][better], best[1][better], best[2][better] = cand[better, j], xi[better], out[better]
+    return best
 
 
 def _inverse_map(mesh, c, pts):

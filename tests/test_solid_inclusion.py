@@ -238,11 +238,12 @@ def diagnosed(tmp_path, cause, seed):
 @pytest.fixture(scope="module")
 def stiffer(tmp_path_factory):
     """A block with a stiffer ellipsoid drawn under seed 11, diagnosed (the default settings of
-    refine.synthetic.block: data tet10 at 2.5 mm with 0.01 mm noise, the model tet10 at 4 mm)."""
+    refine.synthetic.block: data tet10 at 2.0 mm with 0.01 mm noise, the model tet10 at 4 mm, the
+    inclusion refitted and profiled on the box graded from 2.5 mm around it to 5 mm)."""
     return diagnosed(tmp_path_factory.mktemp("block"), "stiffer-region", 11)
 
 
-@pytest.mark.slow  # a finer 3D solve for the data, a 3D field and an inclusion fit: ~6 minutes on 2 shared cores
+@pytest.mark.slow  # a finer 3D solve for the data, a 3D field, the fits and the profile: ~12 minutes on 2 shared cores
 def test_hidden_inclusion_in_a_block_is_found(stiffer):
     d, rep, truth = stiffer
     assert rep["cause"] == "stiffer-region" and rep["held_out_gain"] > 1.3
@@ -254,7 +255,8 @@ def test_hidden_inclusion_in_a_block_is_found(stiffer):
 
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason="surface points alone trade the inclusion's volume against its ratio: seed 11 "
-                                       "came out 41 % small and twice as stiff (within 2 standard errors of the ratio)")
+                                       "came out 23 % small and 29 % stiffer on the graded box (within 2 standard "
+                                       "errors of the ratio; its profile intervals hold the truth)")
 def test_hidden_inclusion_volume_and_ratio_are_recovered(stiffer):
     d, rep, truth = stiffer
     f = rep["findings"][0]
@@ -273,10 +275,7 @@ def test_hidden_inclusion_strength_is_covered_by_its_profile(stiffer):
     assert f["profile"]["ratio"][0] <= f["relative_elasticity"] <= f["profile"]["ratio"][1]
 
 
-@pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="the 4 mm model's bias: seed 11's profile (nine unknowns refitted) rises by "
-                                       "10.1 at the truth's ratio 2.21 (threshold 4.2; 2.6 with a 3 mm model), the "
-                                       "interval 2.71-148; the strength's interval covers the truth's")
+@pytest.mark.slow  # the 4 mm model's bias kept the truth out (rise 10.1, threshold 4.2); the graded box's lets it in
 def test_hidden_inclusion_volume_and_ratio_lie_in_their_profile_intervals(stiffer):
     d, rep, truth = stiffer
     p = rep["findings"][0]["profile"]
@@ -291,8 +290,9 @@ def test_hidden_inclusion_profile_covers_the_truth_with_a_finer_fit_mesh(tmp_pat
     from refine.solid.inclusion_diagnosis import InclusionConfig, diagnose_inclusion, inclusion_report
     from refine.synthetic.block import BlockSetting, model_mesh, write_block_bundle
 
-    root, truth = write_block_bundle(tmp_path / "b", cause="stiffer-region", seed=11)
-    cfg = InclusionConfig(fit_mesh=model_mesh(replace(BlockSetting(), h_model=3.0)))
+    setting = BlockSetting(h_data=2.5)  # as measured (benchmarks/README.md's inclusion3d, --h-fit 3)
+    root, truth = write_block_bundle(tmp_path / "b", cause="stiffer-region", seed=11, setting=setting)
+    cfg = InclusionConfig(fit_mesh=model_mesh(replace(setting, h_model=3.0)))
     rep = inclusion_report(diagnose_inclusion(read_bundle(root), cfg, log=lambda m: None))
     f = rep["findings"][0]
     p = f["profile"]
@@ -304,3 +304,14 @@ def test_hidden_inclusion_profile_covers_the_truth_with_a_finer_fit_mesh(tmp_pat
 def test_sound_block_gives_no_finding(tmp_path):
     d, rep, truth = diagnosed(tmp_path, "none", 12)
     assert truth is None and rep["cause"] == "none" and rep["findings"] == []
+
+
+@pytest.mark.slow  # the data, a 3D field, the fits and the profile of a softer inclusion: ~20 minutes
+@pytest.mark.xfail(strict=True, reason="the graded box's bias on a softer inclusion: seed 13's profile rises by 11.4 "
+                                       "at the truth's ratio 0.384 (threshold 4.6), fitted 0.12 with 55 % of the "
+                                       "volume (benchmarks/results/inclusion3d_mesh_graded13.json)")
+def test_softer_inclusion_ratio_lies_in_its_profile_interval(tmp_path):
+    d, rep, truth = diagnosed(tmp_path, "softer-region", 13)
+    assert rep["cause"] == "softer-region"
+    p = rep["findings"][0]["profile"]
+    assert p["ratio"][0] <= truth.ratio <= p["ratio"][1] and p["volume"][0] <= truth.volume <= p["volume"][1]

@@ -130,9 +130,10 @@ class Fitted:
 
 
 def fit_compiled(hypothesis: Hypothesis, compiled: Compiled, fit_mask: Mask, hold_mask: Mask, sigma: float,
-                 z0=None) -> Fitted:
-    """Fit ``compiled`` by Levenberg-Marquardt on the fitting points, score on both sets."""
-    res = levenberg_marquardt(compiled, fit_mask, sigma, z0=z0)
+                 z0=None, max_steps: int = 30) -> Fitted:
+    """Fit ``compiled`` by Levenberg-Marquardt (at most ``max_steps`` evaluations) on the fitting
+    points, score on both sets."""
+    res = levenberg_marquardt(compiled, fit_mask, sigma, z0=z0, max_steps=max_steps)
     z = np.asarray(res.values["z"])
     pred = compiled.predict(z)
     fit, hold = (Residuals.at(compiled.model.obs.displacements, m, sigma) for m in (fit_mask, hold_mask))

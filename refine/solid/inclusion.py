@@ -18,7 +18,9 @@ Seen from the surface alone, the inclusion's volume and ratio trade against each
 place it within 1.3 % of the block's length but come out 40-55 % small and more extreme, some at
 the ratio's bound (:data:`MAX_LOG_RATIO`; benchmarks/inclusion3d.py), with the strength the
 surface fixes (:func:`refine.solid.inclusion_profile.strength`) close to the truth's; the report
-gives the ratio's profile (:mod:`refine.solid.inclusion_profile`) for the intervals.
+gives the ratio's profile (:mod:`refine.solid.inclusion_profile`) for the intervals. Part of
+the smallness is the coarse model's bias along that valley: the diagnosis refits the inclusion on
+the block graded fine around it (:mod:`refine.solid.inclusion_mesh`).
 
 Unknowns ``z (10,)``: the log ratio, the change of the centre (3) and of ``M``'s entries
 ``(M11, M22, M33, M12, M13, M23)``, all lengths in units of ``scale``.
@@ -90,11 +92,17 @@ def cell_size(mesh) -> float:
     return float(np.cbrt(6.0 * mesh.volumes().mean()))
 
 
+def cell_sizes(mesh) -> Float[np.ndarray, "cells"]:
+    """``(n_cells,)``: each cell's size (length unit), the side of the cube six such cells fill (a
+    graded mesh's vary: :mod:`refine.solid.inclusion_mesh`)."""
+    return np.cbrt(6.0 * mesh.volumes())
+
+
 @dataclass(frozen=True, eq=False)
 class EllipsoidModulus:
     """The parametrisation of one ellipsoidal inclusion (see the module): started at ``centre0
     (3,)`` and ``M0 (3, 3)`` on ``mesh``, lengths in units of ``scale``, the indicator's ``width``
-    (length unit), a semi-axis kept above ``min_axis``, the start's log ratio ``log_ratio0``, the
+    (length unit: a number, or ``(n_cells, 1)`` per cell), a semi-axis kept above ``min_axis``, the start's log ratio ``log_ratio0``, the
     material's Poisson ratio ``nu``."""
 
     mesh: object
@@ -227,10 +235,16 @@ class Inclusion:
         return self.model.experiment.law
 
     def build(self) -> tuple[Compiled, np.ndarray]:
-        h = cell_size(self.model.mesh)
+        mesh = self.model.mesh
         R = np.asarray(self.rotation, float)
         M0 = R @ np.diag(self.axes) @ R.T
-        param = EllipsoidModulus(self.model.mesh, np.asarray(self.centre, float), M0, 0.5 * h, 0.1 * h, 0.25 * h,
+        sizes = cell_sizes(mesh)
+        # the unknowns' unit and the least semi-axis from the cells where the ellipsoid starts (a
+        # graded mesh's fine ones), the indicator's width from each cell's own size
+        local = (mesh.centroids() - np.asarray(self.centre, float)) @ R / np.asarray(self.axes, float)
+        within = (local**2).sum(1) <= 1.0
+        h = float(np.median(sizes[within])) if within.any() else cell_size(mesh)
+        param = EllipsoidModulus(mesh, np.asarray(self.centre, float), M0, 0.5 * h, 0.1 * sizes[:, None], 0.25 * h,
                                  float(np.log(self.ratio)), float(self.model.experiment.nu))
         return Compiled(self.model, param), np.asarray(param.z0)
 

@@ -1,8 +1,9 @@
 """The 3D diagnosis of a solid body without a cavity (a block held by grips; issue 23's "stiff
 inclusion in a block"): is anything wrong beyond the noise (the null test on the ``guide``
 points), where (the regularised modulus field on the model's mesh, :mod:`refine.solid.field`), is
-it an ellipsoidal inclusion (:mod:`refine.solid.inclusion`, fitted by exact gradients, with
-standard errors), how much better the held-out ``validate`` points are predicted; the report.
+it an ellipsoidal inclusion (:mod:`refine.solid.inclusion`, fitted by exact gradients, then
+refitted on the block graded fine around it, :mod:`refine.solid.inclusion_mesh`, with standard
+errors and its ratio's profile), how much better the held-out ``validate`` points are predicted; the report.
 
 The model is the bundle's mesh as it is (``domain = { mesh = ... }``), driven by its ``boundary``
 points (e.g. markers on the grips' jaws) with the experiment's law, ``E`` and ``nu``; under pure
@@ -28,6 +29,7 @@ from refine.model.measured import MeasuredModel
 from refine.solid.field import Field, modulus_field
 from refine.solid.initial import checked_baseline
 from refine.solid.inclusion import MAX_LOG_RATIO, Inclusion, ellipsoid_errors
+from refine.solid.inclusion_mesh import FocusedMesh, refit_focused
 from refine.solid.inclusion_profile import Profile, profile_ratio, strength
 
 
@@ -35,23 +37,28 @@ from refine.solid.inclusion_profile import Profile, profile_ratio, strength
 class InclusionConfig:
     """Settings of a solid body's diagnosis: ``alpha`` the null test's level, ``max_candidates``
     field regions tried as inclusions, the field's smoothing ``field_weight`` (x residuals per
-    cell) and ``field_iterations`` (L-BFGS-B), ``linear_solver``; whether the finding's ratio is
+    cell) and ``field_iterations`` (L-BFGS-B; 45: the field only places the start, the fit on the
+    graded mesh does the rest), ``linear_solver``; whether the finding's ratio is
     ``profile``d (:func:`refine.solid.inclusion_profile.profile_ratio`: the interval where chi^2
     rises by at most ``profile_threshold`` times the reduced chi^2, at most ``profile_steps`` refits
     per side); ``fit_mesh``: a finer mesh of the same body on which the inclusions are fitted and
     profiled (and the initial model they are compared with solved again), the field staying on the
     bundle's (None: the bundle's mesh throughout; a 4 mm model biased seed 11's volume 39 % low,
-    a 3 mm one 24 %, benchmarks/README.md's inclusion3d)."""
+    a 3 mm one 24 %, benchmarks/README.md's inclusion3d); ``focus``: without ``fit_mesh``, the
+    inclusion found on the bundle's mesh is refitted and profiled on the body's box graded fine
+    around it (:func:`refine.solid.inclusion_mesh.refit_focused`; None: not; a body that is no box
+    keeps its mesh)."""
 
     alpha: float = 0.01
     max_candidates: int = 2
     field_weight: float = 2.0
-    field_iterations: int = 60
+    field_iterations: int = 45
     linear_solver: str = "auto"
     profile: bool = True
     profile_threshold: float = 4.0
     profile_steps: int = 4
     fit_mesh: jf.Mesh | None = None
+    focus: FocusedMesh | None = FocusedMesh()
 
 
 @dataclass
@@ -133,6 +140,13 @@ def diagnose_inclusion(bundle: Bundle, cfg: InclusionConfig = InclusionConfig(),
         seconds["inclusion"] = time.perf_counter() - t0 - sum(seconds.values())
     chosen = base
     if best is not None and best.bic < base.bic and best.chi2_holdout < base.chi2_holdout:
+        if cfg.fit_mesh is None and cfg.focus is not None:  # refitted where the coarse model's bias is
+            t1 = time.perf_counter()
+            fine_base, g = refit_focused(best, guide, validate, sigma, cfg.focus)
+            if g is not None and np.isfinite(g.chi2_fit):
+                base, best = fine_base, g
+                log(f"  on a graded mesh ({g.model.mesh.n_cells} cells): {g.describe()}")
+            seconds["focus"] = time.perf_counter() - t1
         best = chosen = with_errors(best, guide, sigma)
     prof = None
     if chosen is not base and cfg.profile:

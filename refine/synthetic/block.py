@@ -63,14 +63,16 @@ class Ellipsoid:
 class BlockSetting:
     """A synthetic block experiment: the ``block`` ``(x0, y0, z0, x1, y1, z1)`` (mm), the right grip's
     motion along x per frame (mm, negative: compression), the material (``E`` kPa, ``nu``), the
-    data's and the model's ``tet10`` element sizes (mm, ``h_data < h_model``), the grid ``spacing``
-    (mm), the ``noise`` std of each displacement component (mm) and the ``faces`` seen."""
+    data's and the model's ``tet10`` element sizes (mm, ``h_data < h_model``; the data at 2 mm, finer
+    than the 2.5 mm the diagnosis refits an inclusion on, :mod:`refine.solid.inclusion_mesh`), the
+    grid ``spacing`` (mm), the ``noise`` std of each displacement component (mm) and the ``faces``
+    seen."""
 
     block: tuple = (0.0, 0.0, 0.0, 40.0, 20.0, 20.0)
     grip: tuple = (1.6, 3.2)
     E: float = 50.0
     nu: float = 0.3
-    h_data: float = 2.5
+    h_data: float = 2.0
     h_model: float = 4.0
     spacing: float = 2.5
     noise: float = 0.01
