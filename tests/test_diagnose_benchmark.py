@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -118,7 +119,12 @@ def test_a_committed_case_rerun_through_the_script_gives_its_row(committed, tmp_
                and g["cause"] == "none" and r["k"] == 1)
     assert (row["found"], row["truth"], row["passed"], row["gain"], row["points"]) == (
         old["found"], old["truth"], old["passed"], old["gain"], old["points"])
+    # the hypotheses' misfits are the search's, on the search's frames since the search chose a subset
+    # of frames (issue 22 item 2): the committed rows (df5f359) predate it and carry the misfits on every
+    # frame. Compared: the hypotheses' names and counts, and the chosen model's misfits on every frame
+    # (its final refit) to their printed digits
     for a, b in zip(row["hypotheses"], old["hypotheses"], strict=True):
-        assert a["hypothesis"] == b["hypothesis"] and a["k"] == b["k"]
-        assert a["chi2_fit"] == pytest.approx(b["chi2_fit"], abs=0.02)
-        assert a["chi2_holdout"] == pytest.approx(b["chi2_holdout"], abs=0.02)
+        assert a["hypothesis"].split(" chi2")[0] == b["hypothesis"].split(" chi2")[0] and a["k"] == b["k"]
+    new_fit, old_fit = (re.search(r"chi2 (\S+) holdout (\S+)", r["chosen"]).groups() for r in (row, old))
+    assert row["chosen"].split(" chi2")[0] == old["chosen"].split(" chi2")[0]
+    assert [float(x) for x in new_fit] == pytest.approx([float(x) for x in old_fit], abs=1.0)
