@@ -122,7 +122,8 @@ def test_rectangles_are_tried_only_where_the_points_resolve_corners():
     the noise does not explain; True / False force it."""
     from types import SimpleNamespace
 
-    from refine.diagnosis.pipeline import DiagnoseConfig, _rectangles_wanted
+    from refine.diagnosis.config import DiagnoseConfig
+    from refine.diagnosis.search import _rectangles_wanted
     from refine.diagnosis.shapes import RegionShape
 
     model = SimpleNamespace(spacing=5.0)
@@ -143,7 +144,8 @@ def test_a_soft_region_over_tracked_material_is_not_renamed_a_hole():
     stays (drawn under a seed: a soft ellipse's place and size on a 5 mm grid)."""
     from types import SimpleNamespace
 
-    from refine.diagnosis.pipeline import DiagnoseConfig, _hole_if_as_likely
+    from refine.diagnosis.config import DiagnoseConfig
+    from refine.diagnosis.final_fit import _hole_if_as_likely
     from refine.diagnosis.shapes import RegionShape
     from refine.bundle.experiment import Experiment, RectangleDomain
     from refine.synthetic.sheet import grid_points

@@ -28,7 +28,7 @@ class DiagnoseConfig:
             a worse place than the very soft region does, and then loses the comparison).
         hole_refit_below: a chosen softer region whose refit on every guide point falls below
             this ratio (it carries almost no load) is compared with a hole at its outline once
-            more (:func:`~refine.diagnosis.pipeline._hole_if_as_likely`); lower than
+            more (:func:`~refine.diagnosis.final_fit._hole_if_as_likely`); lower than
             ``hole_below`` because the hole's fit and remesh cost true soft regions minutes.
         seed: seeds the holdout split.
         try_rectangles: when the first region, fitted as an ellipse, is the best hypothesis so

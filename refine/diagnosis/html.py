@@ -83,7 +83,7 @@ def findings_table(report: dict) -> str:
 
 def hypotheses_table(d) -> str:
     """Every hypothesis tried with its score, and why the chosen one won (HTML)."""
-    from refine.diagnosis.pipeline import _choose, _score
+    from refine.diagnosis.search import _choose, _score
 
     base, cfg = d.baseline, d.config
     winner = _choose(base, d.tried, cfg)

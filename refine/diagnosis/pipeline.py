@@ -48,7 +48,7 @@ from refine.diagnosis.scale import at_frames, drives_alike, every_frame, mesh_si
 from refine.model.measured import MeasuredModel, grid_spacing
 from refine.diagnosis.noise import NullTest, estimate_noise, null_test, propagated_noise
 from refine.diagnosis.provenance import provenance
-from refine.diagnosis.search import Trials, _choose, _rectangles_wanted, _score, _try_hypotheses  # noqa: F401 (also the report's)
+from refine.diagnosis.search import Trials, _choose, _try_hypotheses
 from refine.diagnosis.final_fit import _hole_if_as_likely, _refit_on_every_frame
 
 
