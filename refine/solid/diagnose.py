@@ -19,7 +19,7 @@ model's against the noise and the boundary points' noise carried through it
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -39,7 +39,6 @@ from refine.exceptions import ObservationError
 from refine.measures import Residuals
 from refine.solid.cup import CupShape, bottom_points, check_closed, cup_shape
 from refine.solid.edge import EdgeEvidence, evidence_near, grid_lattice, NoLattice
-from refine.solid.global_model import held_by_fixture
 from refine.solid.inclusion_diagnosis import InclusionDiagnosis, diagnose_inclusion, fills_hull, inclusion_report
 from refine.solid.initial import initial_fit, initial_null
 from refine.solid.local import Local, SolidHole, Whole
@@ -286,12 +285,8 @@ def refit_whole(bundle: Bundle, local: Local, hole: Hole, sigma: float, cfg: Sol
     out, sizes the hole wrongly: -37 % to +92 % on the benchmark's cases), from the modulus that
     start fitted, and keeps to it. With ``cfg.discretisation_error`` the mesh's share of the
     hole's error is estimated (its seconds into ``seconds["discretisation"]``)."""
-    obs = bundle.observations
-    tol = 0.05 * point_spacing(obs.reference)
-    held = held_by_fixture(obs, local.shape, tol)
-    on = bottom_points(local.shape, held.reference, tol)
-    held = replace(held, reference=held.reference - local.shape.offset)
-    whole = Whole(local.shape, local.experiment, held, local.force, local.h, local.linear_solver)
+    whole, on = Whole.of(local, bundle.observations)
+    held = whole.obs
     guide = (held.roles == "guide") & on
     validate = held.roles == "validate"
     e, E = jf.Ellipse(*hole.centre, *hole.axes, hole.angle), None

@@ -19,6 +19,9 @@ from jaxtyping import Float
 
 import jaxfem as jf
 from jaxfem.graded import graded_box, graded_ticks
+from refine.diagnosis.fitted import baseline, fit_compiled
+from refine.model.measured import MeasuredModel
+from refine.solid.inclusion import Inclusion
 
 
 @dataclass(frozen=True)
@@ -79,10 +82,6 @@ def refit_focused(f, fit_mask, hold_mask, sigma: float, cfg: FocusedMesh = Focus
     the body's box graded fine around it (:func:`focused_mesh` of :func:`focus_of` its shape),
     started from its shape and ratio; returns the initial model's fit on that mesh and the refit
     (both None where the body is no box)."""
-    from refine.diagnosis.fitted import baseline, fit_compiled
-    from refine.model.measured import MeasuredModel
-    from refine.solid.inclusion import Inclusion
-
     coarse = f.model
     mesh = focused_mesh(coarse.mesh, [focus_of(f.shapes[0])], cfg)
     if mesh is None:

@@ -1,8 +1,8 @@
 """The initial model of a solid diagnosis and its null test: the model without an effect fitted
 on the guide points, refused where its solve fails, and its misfit tested against the noise with
-the boundary points' noise carried through the model (:func:`refine.diagnosis.noise.null_test`)
-and, where given, the model's own error (``sigma_model``: the cup holder's local model,
-:mod:`refine.solid.null_level`). Shared by the cup holder's and the block's diagnoses."""
+the boundary points' noise carried through the model (:func:`refine.diagnosis.noise.null_test`).
+Shared by the cup holder's and the block's diagnoses (the cup holder's default null test weighs the
+global model instead: :mod:`refine.solid.null_level`)."""
 
 from __future__ import annotations
 
@@ -13,16 +13,14 @@ from refine.diagnosis.noise import NullTest, null_test, propagated_noise
 from refine.measures import Residuals
 
 
-def checked_baseline(model, obs, sigma: float, samples: int = 8, sigma_model: float = 0.0
-                     ) -> tuple[Fitted, NullTest]:
+def checked_baseline(model, obs, sigma: float, samples: int = 8) -> tuple[Fitted, NullTest]:
     """The initial model ``model`` (a :class:`refine.model.MeasuredModel` of the observations
-    ``obs``) on their guide points,
-    held-out errors on its validate points, and the null test of its guide misfit at the noise
-    ``sigma`` (length unit) with ``samples`` noisy copies of the drive and the model's own error
-    ``sigma_model`` (length unit; :func:`initial_null`). Raises the model's solve failure (naming
-    where Newton stopped) where the initial model cannot be solved."""
+    ``obs``) on their guide points, held-out errors on its validate points, and the null test of
+    its guide misfit at the noise ``sigma`` (length unit) with ``samples`` noisy copies of the drive
+    (:func:`initial_null`). Raises the model's solve failure (naming where Newton stopped) where
+    the initial model cannot be solved."""
     base = initial_fit(model, obs, sigma)
-    return base, initial_null(base, obs, sigma, samples, sigma_model)
+    return base, initial_null(base, obs, sigma, samples)
 
 
 def initial_fit(model, obs, sigma: float) -> Fitted:
@@ -35,13 +33,11 @@ def initial_fit(model, obs, sigma: float) -> Fitted:
     return base
 
 
-def initial_null(base: Fitted, obs, sigma: float, samples: int = 8, sigma_model: float = 0.0) -> NullTest:
-    """The null test of the initial fit ``base``'s guide misfit: the noise ``sigma``, the model's
-    own error ``sigma_model`` (both length unit, an independent error of that std per residual, as
-    the 2D diagnosis's discretisation floor) and ``samples`` noisy copies of the drive carried
-    through the model."""
+def initial_null(base: Fitted, obs, sigma: float, samples: int = 8) -> NullTest:
+    """The null test of the initial fit ``base``'s guide misfit against the noise ``sigma``
+    (length unit) and ``samples`` noisy copies of the drive carried through the model."""
     guide = obs.roles == "guide"
     at = Residuals.at(obs.displacements, guide, sigma)
     model = base.model
-    return null_test(at.difference(base.predicted), at.valid, sigma, float(sigma_model),
+    return null_test(at.difference(base.predicted), at.valid, sigma, 0.0,
                      propagated_noise(model, model.params(), sigma, guide, samples=samples))

@@ -25,9 +25,9 @@ from refine.diagnosis.holes import HoleShape, hole_hypothesis
 from refine.diagnosis.shapes import Hole
 from refine.model.objective import Compiled
 from refine.model.parametrize import Combined, UniformParameter
-from refine.solid.cup import CupShape
+from refine.solid.cup import CupShape, bottom_points
 from refine.solid.edge import EdgeEvidence, EdgeGeometry
-from refine.solid.global_model import fixture_nodes
+from refine.solid.global_model import fixture_nodes, held_by_fixture
 from refine.solid.loaded import LoadedModel
 from refine.solid.morph import ExtrudedMorph
 
@@ -83,6 +83,17 @@ class Whole(Local):
     found by the local model is refitted in it (:class:`SolidHole` takes either recipe): the local
     model leaves the wall out, which bends the floor's edge as the wall does not (its hole came
     out 23 % small on noise-free data)."""
+
+    @classmethod
+    def of(cls, local: Local, obs: Observations, h: float | None = None) -> tuple[Whole, np.ndarray]:
+        """The global model of ``local``'s cup holder, held by the fixture's points among the
+        bundle's observations ``obs`` (moved into the cup's frame), at element size ``h`` (length
+        unit; None: ``local.h``), and which of its points lie on the bottom (``(n,)`` bool)."""
+        tol = 0.05 * point_spacing(obs.reference)
+        held = held_by_fixture(obs, local.shape, tol)
+        on = bottom_points(local.shape, held.reference, tol)
+        held = replace(held, reference=held.reference - local.shape.offset)
+        return cls(local.shape, local.experiment, held, local.force, h or local.h, local.linear_solver, local.layers), on
 
     def model(self, hole: jf.Ellipse | None = None) -> tuple[LoadedModel, jf.CupHolder]:
         s = self.shape

@@ -21,16 +21,12 @@ out (three rings of points averaged onto the rim, 8 mm away).
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 from jaxtyping import Bool, Float
 
 from refine.bundle.io import Bundle
-from refine.bundle.roles import point_spacing
 from refine.diagnosis.noise import NullTest, null_test
 from refine.measures import Residuals
-from refine.solid.global_model import held_by_fixture
 from refine.solid.local import Local, Whole
 
 COARSER = float(np.sqrt(2.0))
@@ -39,14 +35,12 @@ COARSER = float(np.sqrt(2.0))
 
 def global_prediction(bundle: Bundle, local: Local, h: float | None = None) -> Float[np.ndarray, "frames n 3"]:
     """The global model without a hole (the whole cup holder held by the fixture's points and
-    squeezed by the measured force, the recipe of :func:`refine.solid.diagnose.refit_whole`), at
-    element size ``h`` (length unit; None: ``local.h``), predicting the local model's points
+    squeezed by the measured force: :meth:`refine.solid.local.Whole.of`, as the hole's global
+    refit), at element size ``h`` (length unit; None: ``local.h``), predicting the local model's points
     (``local.obs``, in its order): ``(frames, n, 3)``. Raises the model's solve failure (naming
     where Newton stopped) where it cannot be solved: a null test on NaN would pass silently."""
-    obs = bundle.observations
-    held = held_by_fixture(obs, local.shape, 0.05 * point_spacing(obs.reference))
-    held = replace(held, reference=held.reference - local.shape.offset)
-    whole = Whole(local.shape, local.experiment, held, local.force, h or local.h, local.linear_solver, local.layers)
+    whole, _ = Whole.of(local, bundle.observations, h)
+    held = whole.obs
     model, _ = whole.model()
     where = {int(i): k for k, i in enumerate(held.ids)}
     pred = np.asarray(model.predict(model.params()))[:, [where[int(i)] for i in local.obs.ids]]
