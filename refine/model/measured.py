@@ -22,6 +22,7 @@ from jaxfem.padding import BATCH, pad_batch
 from refine.exceptions import ObservationError
 from refine.bundle.experiment import Experiment, FromPointsDomain, MeshDomain, RectangleDomain
 from refine.bundle.outline import resolve_domain
+from refine.model.interpolation import PaddedProbe, padded_probe, points_and_derivatives
 from refine.model.boundary import outline_tolerance, place_points, place_surface_points, side_nodes
 from refine.bundle.roles import point_spacing
 from refine.bundle.observations import Observations
@@ -317,10 +318,25 @@ class MeasuredModel:
         directions ``dU (k, n_frames, n_nodes, dim)``, ``dX (k, n_nodes, dim)`` (host numpy),
         ``(n_frames, n_points, dim)`` and ``(k, n_frames, n_points, dim)``; by :attr:`points_jvp`
         in batches of ``jaxfem.padding.BATCH`` directions (one program for any k)."""
+        pp = self._padded_probe
+        if pp is not None:
+            return points_and_derivatives(pp, U, dU, X, dX)
         k = len(dU)
         dU, dX = pad_batch(dU, k), pad_batch(dX, k)
         out = [self.points_jvp(U, dU[i: i + BATCH], X, dX[i: i + BATCH]) for i in range(0, len(dU), BATCH)]
         return np.asarray(out[0][0]), np.concatenate([np.asarray(d) for _, d in out])[:k]
+
+    @cached_property
+    def _padded_probe(self) -> PaddedProbe | None:
+        """The probe's arrays for the interpolation program shared by models of about this size
+        (:mod:`refine.model.interpolation`), padded as the solver's arrays are; ``None`` where
+        this model interpolates its own way (no candidate cells, or a subclass's :meth:`at_points`)."""
+        if (type(self).at_points is not MeasuredModel.at_points or self.probe.neighbours is None
+                or self.mesh.element not in ("tri3", "tet4", "tri6")):
+            return None
+        s = getattr(getattr(self, "solver", None), "sizes", None)
+        n_nodes_p, n_cells_p = (s.n_nodes_p, s.n_cells_p) if s is not None else (self.mesh.n_nodes, self.mesh.n_cells)
+        return padded_probe(self.probe, self.positions, self.mesh.n_nodes, n_nodes_p, n_cells_p)
 
     @cached_property
     def points_jvp(self):
