@@ -22,7 +22,7 @@ from jaxfem.padding import BATCH, pad_batch
 from refine.exceptions import ObservationError
 from refine.bundle.experiment import Experiment, FromPointsDomain, MeshDomain, RectangleDomain
 from refine.bundle.outline import resolve_domain
-from refine.model.interpolation import PaddedProbe, padded_probe, points_and_derivatives
+from refine.model.interpolation import PaddedProbe, padded_probe, points, points_and_derivatives
 from refine.model.boundary import outline_tolerance, place_points, place_surface_points, side_nodes
 from refine.bundle.roles import point_spacing
 from refine.bundle.observations import Observations
@@ -355,6 +355,9 @@ class MeasuredModel:
         """Nodal displacements ``U (n_frames, n_nodes, dim)`` (from :meth:`solve_frames`) at every
         tracked point, ``(n_frames, n_points, dim)``: for callers that also need the nodal
         solution (reaction forces in :mod:`refine.diagnosis.forces`, strain maps), so they solve once."""
+        pp = self._padded_probe
+        if pp is not None and not _traced(U, theta["X"]):  # concrete: the program shared by models of this size
+            return points(pp, U, theta["X"])
         probe = self.probe
         if self.mesh.element in ("tri3", "tet4", "tri6"):  # follow a geometry morph of the reference nodes
             probe = probe.moved(theta["X"], self.positions)
