@@ -248,3 +248,53 @@ def test_host_solves_run_inside_their_programs_lock():
     finally:
         host._cache = inner
     assert seen and all(seen), f"{seen.count(False)} of {len(seen)} host solves ran outside the program's lock"
+
+
+def test_a_second_quadratic_model_of_the_bucket_compiles_no_interpolation():
+    """The tracked points' interpolation and its derivatives (refine.model.interpolation): a
+    second quadratic model of another mesh in the same bucket, on other frames, compiles no
+    program of its own; unmorphed, the interpolation is the probe's own weights'."""
+    from refine.model import interpolation
+
+    rng = np.random.default_rng(23)
+    ex, obs = _sheet_bundle(rng)
+    h1, h2 = rng.uniform(3.0, 3.4), rng.uniform(3.7, 4.2)
+    m1, m2 = (MeasuredModel(ex, obs, h=h, element="tri6") for h in (h1, h2))
+    assert m1.mesh.n_nodes != m2.mesh.n_nodes and m1.solver.sizes.n_nodes_p == m2.solver.sizes.n_nodes_p
+
+    def run(m, frames):
+        U = rng.normal(size=(frames, m.mesh.n_nodes, 2))
+        dU, dX = rng.normal(size=(3, frames, m.mesh.n_nodes, 2)), rng.normal(size=(3, m.mesh.n_nodes, 2))
+        pred, d = m.at_points_and_derivatives(U, dU, np.asarray(m.mesh.nodes), 1e-3 * dX)
+        assert d.shape == (3, frames, obs.n_points, 2)
+        np.testing.assert_allclose(pred, np.stack([m.probe(u) for u in U]), rtol=0, atol=1e-12)
+
+    run(m1, 2)
+    cached = interpolation._jvp._cache_size()  # other tests may have filled other buckets
+    run(m2, 3)
+    assert interpolation._jvp._cache_size() == cached, "the second model compiled its own interpolation"
+
+
+@pytest.mark.slow
+def test_shared_interpolation_equals_the_models_own_program():
+    """On a smoothly morphed mesh, linear and quadratic: the shared interpolation and its
+    derivatives are bitwise those of the model's own program (``points_jvp``), and the concrete
+    interpolation equal to the one run op by op to 1e-12 (another order of operations)."""
+    from jaxfem.padding import BATCH, pad_batch
+
+    rng = np.random.default_rng(29)
+    ex, obs = _sheet_bundle(rng)
+    for element in ("tri3", "tri6"):
+        m = MeasuredModel(ex, obs, h=rng.uniform(3.0, 4.0), element=element)
+        X0 = np.asarray(m.mesh.nodes)
+        X = X0 + rng.uniform(0.2, 0.5) * np.sin(X0[:, ::-1] / rng.uniform(8, 12))
+        for frames in (2, 3):
+            U = rng.normal(size=(frames, m.mesh.n_nodes, 2))
+            dU, dX = rng.normal(size=(11, frames, m.mesh.n_nodes, 2)), 1e-2 * rng.normal(size=(11, m.mesh.n_nodes, 2))
+            pred, d = m.at_points_and_derivatives(U, dU, X, dX)
+            dUp, dXp = pad_batch(dU, 11), pad_batch(dX, 11)
+            own = [m.points_jvp(U, dUp[i: i + BATCH], X, dXp[i: i + BATCH]) for i in range(0, len(dUp), BATCH)]
+            assert np.array_equal(pred, np.asarray(own[0][0]))
+            assert np.array_equal(d, np.concatenate([np.asarray(b) for _, b in own])[:11])
+            eager = jax.vmap(m.probe.moved(X, m.positions))(U)
+            np.testing.assert_allclose(np.asarray(m.at_points(U, {"X": X})), eager, rtol=0, atol=1e-12)

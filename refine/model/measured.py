@@ -317,7 +317,9 @@ class MeasuredModel:
         """:meth:`at_points` of ``U (n_frames, n_nodes, dim)`` and its derivatives along ``k``
         directions ``dU (k, n_frames, n_nodes, dim)``, ``dX (k, n_nodes, dim)`` (host numpy),
         ``(n_frames, n_points, dim)`` and ``(k, n_frames, n_points, dim)``; by :attr:`points_jvp`
-        in batches of ``jaxfem.padding.BATCH`` directions (one program for any k)."""
+        in batches of ``jaxfem.padding.BATCH`` directions (one program for any k), on the program
+        shared by models of about this size (:mod:`refine.model.interpolation`) where the model
+        interpolates on simplices, else on this model's own :attr:`points_jvp`."""
         pp = self._padded_probe
         if pp is not None:
             return points_and_derivatives(pp, U, dU, X, dX)
@@ -340,7 +342,8 @@ class MeasuredModel:
 
     @cached_property
     def points_jvp(self):
-        """``(U, dU, X, dX) -> (at points, its derivatives)``, compiled once per model: the
+        """``(U, dU, X, dX) -> (at points, its derivatives)``, compiled once per model (used
+        where :mod:`refine.model.interpolation`'s shared program does not apply): the
         nodal displacements ``U (n_frames, n_nodes, dim)`` at every tracked point (:meth:`at_points`)
         and its derivatives along ``k`` directions ``dU (k, n_frames, n_nodes, dim)``, ``dX (k,
         n_nodes, dim)`` of the displacements and the reference nodes (a morph moves the points'

@@ -164,7 +164,8 @@ class Compiled:
     tangents along the k parameter directions), which every model of about the same mesh size,
     element and law reuses: a hypothesis remeshed at its fitted shapes compiles no solve again.
     What is compiled per instance is small: the parametrisation and its Jacobian
-    (``theta(z)``, ``dtheta/dz``), and per model the points' interpolation and its derivative."""
+    (``theta(z)``, ``dtheta/dz``); the points' interpolation and its derivative run on a program
+    shared by models of about the same size (:mod:`refine.model.interpolation`)."""
 
     def __init__(self, model: MeasuredModel, param, theta=None):
         self.model, self.param = model, param
