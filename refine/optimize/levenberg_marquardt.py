@@ -101,6 +101,9 @@ def minimise(residuals: Callable[[Vector], Float[np.ndarray, "n"]],
                         message="converged" if ok else f"stopped after {max_steps} steps")
 
 
+_MARGIN = 1e-9  # how far inside its constraints a slid step ends (their units: mm for a hole's gaps)
+
+
 def constrained_step(constraints: Callable[[Vector], np.ndarray], z: Vector, dz: Vector, A, g) -> Vector:
     """The step's quadratic model ``g.d + d.A.d / 2`` minimised where ``constraints(z + d) >= 0``
     (SLSQP from ``d = 0``; a parametrisation's cheap checks without a solve, e.g. a hole kept off
@@ -110,8 +113,10 @@ def constrained_step(constraints: Callable[[Vector], np.ndarray], z: Vector, dz:
     from scipy import optimize
 
     r = optimize.minimize(lambda d: g @ d + 0.5 * d @ A @ d, np.zeros_like(dz), jac=lambda d: g + A @ d,
-                          constraints=[{"type": "ineq", "fun": lambda d: constraints(z + d)}], method="SLSQP",
-                          options={"maxiter": 100})
-    # the caller checks it again: SLSQP ends on the constraints up to round-off (-6e-8)
+                          constraints=[{"type": "ineq", "fun": lambda d: constraints(z + d) - _MARGIN}],
+                          method="SLSQP", options={"maxiter": 100, "ftol": 1e-12})
+    # the caller checks it again: SLSQP ends on its constraints up to round-off (-6e-8 seen), so they
+    # are asked with a margin; without it SciPy 1.17's SLSQP ends a hair outside, every step is
+    # rejected, and the fit stops short of the constrained minimum (4e-5 on the toy wall)
     return np.asarray(r.x, float) if r.success else dz
 
