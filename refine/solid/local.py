@@ -9,7 +9,7 @@ the rest is free. The wall above is left out: the driven ring holds the floor as
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -37,7 +37,9 @@ class Local:
     """How to build the local model: the cup's ``shape``, the bundle's ``experiment``, the bottom
     face's points ``obs`` in the cup's frame, the squeeze ``force (n_frames, 3)``, the element
     size ``h`` (length unit), the linear solver, ``layers`` of elements through the bottom (None:
-    ``bottom / h`` rounded, :func:`jaxfem.cup.cup_holder`)."""
+    ``bottom / h`` rounded, :func:`jaxfem.cup.cup_holder`), ``hole_ratio``: elements along a hole's
+    curve of at most that many times its smallest radius of curvature (:meth:`hole_h`; None: ``h``
+    there too)."""
 
     shape: CupShape
     experiment: Experiment
@@ -46,11 +48,26 @@ class Local:
     h: float
     linear_solver: str = "auto"
     layers: int | None = None
+    hole_ratio: float | None = None
+
+    def hole_h(self, hole: jf.Ellipse | None) -> float | None:
+        """The element size (length unit) along ``hole``'s curve: ``hole_ratio`` times its smallest
+        radius of curvature (an ellipse's at the major axis's ends, b^2 / a), at most ``h``; None
+        without a hole or a ratio."""
+        if hole is None or self.hole_ratio is None:
+            return None
+        a, b = max(hole.rx, hole.ry), min(hole.rx, hole.ry)
+        return min(self.h, self.hole_ratio * b * b / a)
+
+    def coarser(self, h: float) -> Local:
+        """The same recipe at element size ``h`` everywhere, the hole's included (its ratio scaled
+        by ``h / self.h``): a mesh uniformly coarser or finer."""
+        return replace(self, h=h, hole_ratio=None if self.hole_ratio is None else self.hole_ratio * h / self.h)
 
     def model(self, hole: jf.Ellipse | None = None) -> tuple[LoadedModel, CupBottom]:
         """The local model (``tet10``) with ``hole`` cut through it, and its slab mesh."""
         s = self.shape
-        slab = cup_bottom(s.r_in, s.r_out, s.bottom, self.h, hole, layers=self.layers)
+        slab = cup_bottom(s.r_in, s.r_out, s.bottom, self.h, hole, layers=self.layers, hole_h=self.hole_h(hole))
         model = LoadedModel(self.experiment, self.obs, slab.mesh, slab.facets, self.force, h=self.h,
                             linear_solver=self.linear_solver)
         return model, slab
@@ -93,11 +110,13 @@ class Whole(Local):
         held = held_by_fixture(obs, local.shape, tol)
         on = bottom_points(local.shape, held.reference, tol)
         held = replace(held, reference=held.reference - local.shape.offset)
-        return cls(local.shape, local.experiment, held, local.force, h or local.h, local.linear_solver, local.layers), on
+        whole = replace(local, obs=held) if h is None else replace(local.coarser(h), obs=held)
+        return cls(**{f.name: getattr(whole, f.name) for f in fields(Local)}), on
 
     def model(self, hole: jf.Ellipse | None = None) -> tuple[LoadedModel, jf.CupHolder]:
         s = self.shape
-        cup = jf.cup_holder(s.r_in, s.r_out, s.height, s.bottom, self.h, hole=hole, layers=self.layers)
+        cup = jf.cup_holder(s.r_in, s.r_out, s.height, s.bottom, self.h, hole=hole, layers=self.layers,
+                            hole_h=self.hole_h(hole))
         driven = fixture_nodes(cup.mesh, self.obs, max(4 * (self.experiment.noise_std or 0.0), 0.05 * self.h))
         model = LoadedModel(self.experiment, self.obs, cup.mesh, cup.bottom_outer_facets, self.force, h=self.h,
                             linear_solver=self.linear_solver, driven=driven)
@@ -149,7 +168,7 @@ class SolidHole(HoleShape):
         return self.local.experiment.law
 
     def build(self) -> tuple[Compiled, None]:
-        local = self.local if self.h is None else replace(self.local, h=self.h)
+        local = self.local if self.h is None else self.local.coarser(self.h)
         model, slab = local.model(self.hole)
         sp = model.spacing
         slack = 0.0 if self.edge is None else max(self.edge.slack, self.edge.missing_outside(self.hole.params) + 1e-9)
