@@ -37,6 +37,7 @@ import resource
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -69,8 +70,9 @@ def case(seed: int, hole: bool, args) -> dict:
         if args.data_only:
             return {"seed": seed, "hole": None, "data_seconds": t_data, "bundle": str(root)}, None
         cpu0 = time.process_time()
-        cfg = SolidConfig(h=args.model_h) if args.hole_ratio is None else SolidConfig(
-            h=args.model_h, hole_ratio=None if args.hole_ratio == "none" else float(args.hole_ratio))
+        cfg = SolidConfig(h=args.model_h)
+        if args.hole_ratio is not None:
+            cfg = replace(cfg, hole_ratio=None if args.hole_ratio == "none" else float(args.hole_ratio))
         d, rep = diagnose_and_write(root, Path(tmp) / "out", cfg, quiet=True)
         cpu = time.process_time() - cpu0
     row = {"seed": seed, "hole": None if truth is None else [float(v) for v in truth.params],
