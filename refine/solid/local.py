@@ -53,16 +53,16 @@ class Local:
 
     def hole_h(self, hole: jf.Ellipse | None) -> float | None:
         """The element size (length unit) along ``hole``'s curve: ``hole_ratio`` times its smallest
-        radius of curvature (an ellipse's at the major axis's ends, b^2 / a), at most ``h``; None
-        without a hole or a ratio."""
+        radius of curvature (an ellipse's at the major axis's ends, b^2 / a), at most the floor's
+        size (``floor_h`` or ``h``); None without a hole or a ratio."""
         if hole is None or self.hole_ratio is None:
             return None
         a, b = max(hole.rx, hole.ry), min(hole.rx, hole.ry)
         return min(self.floor_h or self.h, self.hole_ratio * b * b / a)
 
     def coarser(self, h: float) -> Local:
-        """The same recipe at element size ``h`` everywhere, the hole's included (its ratio scaled
-        by ``h / self.h``): a mesh uniformly coarser or finer."""
+        """The same recipe at element size ``h`` everywhere, the hole's and the floor's included
+        (``hole_ratio`` and ``floor_h`` scaled by ``h / self.h``): a mesh uniformly coarser or finer."""
         k = h / self.h
         return replace(self, h=h, hole_ratio=None if self.hole_ratio is None else self.hole_ratio * k,
                        floor_h=None if self.floor_h is None else self.floor_h * k)
@@ -109,7 +109,8 @@ class Whole(Local):
     def of(cls, local: Local, obs: Observations, h: float | None = None) -> tuple[Whole, np.ndarray]:
         """The global model of ``local``'s cup holder, held by the fixture's points among the
         bundle's observations ``obs`` (moved into the cup's frame), at element size ``h`` (length
-        unit; None: ``local.h``), and which of its points lie on the bottom (``(n,)`` bool)."""
+        unit; None: ``local.h``; otherwise :meth:`Local.coarser`), and which of its points lie on
+        the bottom (``(n,)`` bool)."""
         tol = 0.05 * point_spacing(obs.reference)
         held = held_by_fixture(obs, local.shape, tol)
         on = bottom_points(local.shape, held.reference, tol)
