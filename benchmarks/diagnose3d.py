@@ -33,9 +33,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -68,12 +70,16 @@ def case(seed: int, hole: bool, args) -> dict:
         if args.data_only:
             return {"seed": seed, "hole": None, "data_seconds": t_data, "bundle": str(root)}, None
         cpu0 = time.process_time()
-        d, rep = diagnose_and_write(root, Path(tmp) / "out", SolidConfig(h=args.model_h), quiet=True)
+        cfg = SolidConfig(h=args.model_h)
+        if args.hole_ratio is not None:
+            cfg = replace(cfg, hole_ratio=None if args.hole_ratio == "none" else float(args.hole_ratio))
+        d, rep = diagnose_and_write(root, Path(tmp) / "out", cfg, quiet=True)
         cpu = time.process_time() - cpu0
     row = {"seed": seed, "hole": None if truth is None else [float(v) for v in truth.params],
            "data_seconds": t_data, "local_seconds": sum(rep["seconds"].values()), "cpu_seconds": cpu,
            "global_seconds": max(v["seconds"] for k, v in rep["global"].items() if isinstance(v, dict)),
-           "points": len(d.local.obs.ids), "cause": rep["cause"], "report": rep, "load": loadavg()}
+           "points": len(d.local.obs.ids), "cause": rep["cause"], "hole_ratio": d.local.hole_ratio,
+           "max_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6, "report": rep, "load": loadavg()}
     errors_of(row, truth, g)
     print(json.dumps({k: v for k, v in row.items() if k != "report"}), flush=True)
     return row, d
@@ -134,7 +140,8 @@ def end_to_end(seed: int, args) -> dict:
     row = {"seed": seed, "e2e": True, "hole": [float(v) for v in truth.params], "data_seconds": t_data,
            "track_seconds": t_track, "local_seconds": sum(rep["seconds"].values()),
            "global_seconds": max(v["seconds"] for k, v in rep["global"].items() if isinstance(v, dict)),
-           "points": len(d.local.obs.ids), "cause": rep["cause"], "report": rep, "load": loadavg()}
+           "points": len(d.local.obs.ids), "cause": rep["cause"], "hole_ratio": d.local.hole_ratio,
+           "max_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6, "report": rep, "load": loadavg()}
     errors_of(row, truth, g)
     print(json.dumps({k: v for k, v in row.items() if k != "report"}), flush=True)
     return row
@@ -198,6 +205,9 @@ def main() -> None:
     p.add_argument("--forces", type=float, nargs="+", default=[1.0, 2.0, 3.0], help="squeeze force per frame (N)")
     p.add_argument("--model-h", type=float, default=None, help="the local and global models' element size (mm; "
                    "default refine.solid.diagnose.model_h: 1.5 point spacings, at least 0.4 bottoms)")
+    p.add_argument("--hole-ratio", default=None, help="elements along a hole's curve at most this many times its "
+                   "smallest radius of curvature in the hole's models ('none': h there too; default "
+                   "refine.solid.diagnose.SolidConfig's)")
     p.add_argument("--e2e", type=int, nargs="*", default=[2], help="seeds of the end-to-end rows (images in)")
     p.add_argument("--depth-noise", type=float, default=0.02, help="range noise of the end-to-end rows (mm)")
     p.add_argument("--out", type=Path, default=RESULTS / "diagnose3d.json", help="results JSON (the plot beside it)")

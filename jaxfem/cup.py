@@ -66,10 +66,15 @@ def _check(r_in, r_out, height, bottom, h, hole):
                             f"h/4 = {0.25 * h} to the inner wall; make it smaller or move it to the centre")
 
 
-def _plan(r_in, r_out, h, hole):
+def _plan(r_in, r_out, h, hole, hole_h=None, floor_h=None):
     """The 2D mesh of the disk: nodes ``(n, 2)``, triangles ``(m, 3)`` and whether each is in the
-    annulus ``(m,)``."""
-    inner = domain(Ellipse(0.0, 0.0, r_in, r_in), h, holes=() if hole is None else (hole,))
+    annulus ``(m,)``; elements of at most ``hole_h`` along the hole's curve (None: the floor's), of
+    ``floor_h`` inside ``r_in`` (None: ``h``)."""
+    for name, v in (("hole_h", hole_h), ("floor_h", floor_h)):
+        if v is not None and not v > 0:
+            raise MeshError(f"the element size {name} must be positive, got {v}")
+    inner = domain(Ellipse(0.0, 0.0, r_in, r_in), floor_h or h, holes=() if hole is None else (hole,),
+                   curve_h=None if hole is None else [hole_h])
     ring = curve_nodes(inner, Ellipse(0.0, 0.0, r_in, r_in))
     theta = np.arctan2(inner.nodes[ring, 1], inner.nodes[ring, 0])
     ring = ring[np.argsort(theta)]
@@ -100,19 +105,24 @@ def _prisms_to_tets(tri, n2, layers):
 
 
 def cup_holder(r_in: float, r_out: float, height: float, bottom: float, h: float, hole: Ellipse | None = None,
-               element: str = "tet10", layers: int | None = None) -> CupHolder:
+               element: str = "tet10", layers: int | None = None, hole_h: float | None = None,
+               floor_h: float | None = None) -> CupHolder:
     """Mesh a cup holder of inner/outer radius ``r_in``/``r_out``, total ``height`` and ``bottom``
     thickness, target element size ``h`` (all length units), ``element`` ``"tet10"`` (default; the
     locking-free choice for nearly incompressible foams) or ``"tet4"``.
 
     ``hole``: an :class:`Ellipse` (centre, semi-axes, angle in the (x, y) plane) cut through the
     bottom's whole thickness; it must lie inside the floor ``r < r_in``. ``layers``: levels of
-    elements through the bottom (default ``bottom / h`` rounded, at least 1).
+    elements through the bottom (default ``bottom / h`` rounded, at least 1). ``hole_h``: the
+    largest element size (in plane) along the hole's curve (None: ``h``; the mesher also refines
+    where the curve bends sharply); the plan grades from it to ``h`` away from the hole
+    (:func:`jaxfem.mesher.domain`'s ``curve_h``). ``floor_h``: the element size (in plane) of the
+    floor inside ``r_in`` (None: ``h``; the annulus under the wall keeps ``h`` radially).
     """
     if element not in ("tet4", "tet10"):
         raise MeshError(f"cup_holder() makes tet4 or tet10 meshes, not {element!r}")
     _check(r_in, r_out, height, bottom, h, hole)
-    nodes2, tri, in_wall = _plan(r_in, r_out, h, hole)
+    nodes2, tri, in_wall = _plan(r_in, r_out, h, hole, hole_h, floor_h)
     n_bot = layers or max(1, int(round(bottom / h)))
     n_wall = max(1, int(round((height - bottom) / h)))
     z = np.r_[np.linspace(0.0, bottom, n_bot + 1), np.linspace(bottom, height, n_wall + 1)[1:]]
@@ -162,14 +172,17 @@ class CupBottom:
 
 
 def cup_bottom(r_in: float, r_out: float, bottom: float, h: float, hole: Ellipse | None = None,
-               element: str = "tet10", layers: int | None = None) -> CupBottom:
+               element: str = "tet10", layers: int | None = None, hole_h: float | None = None,
+               floor_h: float | None = None) -> CupBottom:
     """Mesh the bottom slab of the cup holder :func:`cup_holder` would mesh with the same
     arguments (the same plan, ``layers`` levels through the thickness, default ``bottom / h``
-    rounded), with the elliptic through-``hole`` if given. Lengths in the caller's unit."""
+    rounded, at most ``hole_h`` along the hole, ``floor_h`` inside ``r_in``), with the elliptic
+    through-``hole`` if given.
+    Lengths in the caller's unit."""
     if element not in ("tet4", "tet10"):
         raise MeshError(f"cup_bottom() makes tet4 or tet10 meshes, not {element!r}")
     _check(r_in, r_out, 2 * bottom, bottom, h, hole)
-    nodes2, tri, _ = _plan(r_in, r_out, h, hole)
+    nodes2, tri, _ = _plan(r_in, r_out, h, hole, hole_h, floor_h)
     n = layers or max(1, int(round(bottom / h)))
     mesh, column = _extrude(nodes2, tri, np.linspace(0.0, bottom, n + 1), lambda level: np.ones(len(tri), bool),
                             lambda level: 0, {0: "bottom"}, element)

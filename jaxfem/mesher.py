@@ -36,7 +36,7 @@ def plate(x0: float, y0: float, x1: float, y1: float, h: float, holes=(), inclus
     return domain(Rect(x0, y0, x1, y1), h, holes, inclusions, element)
 
 
-def domain(outline, h: float, holes=(), inclusions=(), element: str = "tri3") -> Mesh:
+def domain(outline, h: float, holes=(), inclusions=(), element: str = "tri3", curve_h=None) -> Mesh:
     """Mesh of the inside of ``outline`` minus ``holes``, element edges following every curve.
 
     Args:
@@ -48,6 +48,9 @@ def domain(outline, h: float, holes=(), inclusions=(), element: str = "tri3") ->
             ``"inclusion1"``...), or a dict ``{name: shape}``.
         element: ``"tri3"``, ``"tri6"`` (mid-edge nodes on the curves) or ``"quad4"`` (each
             triangle of size 2h split into three quadrilaterals).
+        curve_h: the largest element size on each hole's and inclusion's curve, in the order
+            ``holes`` then ``inclusions`` (length units; None, or an entry None: ``h``); the mesh
+            grades from it to ``h`` away from the curve as it does from a sharply bent one.
 
     Returns:
         A :class:`Mesh` with nodes ``(n, 2)``; :func:`curve_nodes` gives the nodes on a curve.
@@ -63,7 +66,12 @@ def domain(outline, h: float, holes=(), inclusions=(), element: str = "tri3") ->
         f"inclusion{k + 1}": s for k, s in enumerate(inclusions)}
     shapes = [outline, *holes, *named.values()]
     size = 2 * h if element == "quad4" else h
-    nodes, tri, regions, loops = _triangulate(shapes, _sample_loops(shapes, size), size, len(holes))
+    caps = [h, *(curve_h or [None] * (len(shapes) - 1))]
+    if len(caps) != len(shapes) or not all(c is None or c > 0 for c in caps):
+        raise MeshError(f"curve_h needs one positive size (or None) per hole and inclusion ({len(shapes) - 1}), "
+                        f"got {curve_h}")
+    caps = [size * min(1.0, (c or h) / h) for c in caps]
+    nodes, tri, regions, loops = _triangulate(shapes, _sample_loops(shapes, size, caps), size, len(holes))
     mesh = Mesh(nodes, tri, "tri3", regions, {k + 1: n for k, n in enumerate(named)})
     if element != "tri3":
         mesh = _curved_quadratic(mesh, shapes, loops)
@@ -73,19 +81,20 @@ def domain(outline, h: float, holes=(), inclusions=(), element: str = "tri3") ->
     return mesh
 
 
-def _sample_loops(shapes, h):
-    """Nodes on every curve, ``[(m_i, 2)]``, spaced ``min(h, turn * radius, gap, shape width)``,
+def _sample_loops(shapes, h, caps=None):
+    """Nodes on every curve, ``[(m_i, 2)]``, spaced ``min(cap, turn * radius, gap, shape width)``
+    (``caps``: one size per shape, each at most ``h``; None: ``h``),
     then no more than the size that the other curves' nodes ask for nearby (see
     :func:`_size_field`), growing by at most ``_GRADING`` per unit length along the curve."""
     dense = [shape._pieces(h) for shape in shapes]
     pts = [np.concatenate([p for p, _ in d]) for d in dense]
     _check_layout(shapes, pts)
-    sizes = []
+    sizes, caps = [], caps or [h] * len(shapes)
     for i, (shape, pieces) in enumerate(zip(shapes, dense)):
         others = [q for j, q in enumerate(pts) if j != i]
         gap = cKDTree(np.concatenate(others)).query(pts[i], distance_upper_bound=h)[0] if others else np.inf
         rho = np.concatenate([r for _, r in pieces])
-        sizes.append(np.minimum(np.minimum(h, _TURN * rho), np.minimum(gap, shape._max_size)))
+        sizes.append(np.minimum(np.minimum(caps[i], _TURN * rho), np.minimum(gap, shape._max_size)))
     first = [_place(shape, pieces, size) for shape, pieces, size in zip(shapes, dense, sizes)]
     loops = []
     for i, (shape, pieces, size) in enumerate(zip(shapes, dense, sizes)):

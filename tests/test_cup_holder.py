@@ -87,3 +87,42 @@ def test_compressed_cup_holder_hole_makes_the_bottom_softer():
         lift[seed] = u[cup.sets["bottom_inner"], 2].mean()
         assert 0.0 < lift[seed] < 0.5 * HEIGHT  # pushed in, not through the rim
     assert lift[5] > 1.1 * lift[None], lift
+
+
+@pytest.mark.parametrize("seed", [5])
+def test_cup_holder_hole_h_resolves_a_sharp_hole(seed):
+    """``hole_h`` sizes the elements along the hole's curve: a random elongated hole (ends sharper
+    than the mesh's h) gets edges along its curve below its smallest radius of curvature, the mesh
+    stays valid and closed, and the refinement stays near the hole."""
+    rng = np.random.default_rng(seed)
+    b = rng.uniform(1.0, 1.4)
+    a = b * rng.uniform(1.5, 1.9)
+    r, phi = rng.uniform(0.0, R_IN - a - 1.0), rng.uniform(0, 2 * np.pi)
+    hole = jf.Ellipse(r * np.cos(phi), r * np.sin(phi), a, b, rng.uniform(0, np.pi))
+    rho, h = b * b / a, 1.5
+    assert rho < 0.75 * h  # the case this is for: ends sharper than the mesh
+    plain = cup_holder(R_IN, R_OUT, HEIGHT, BOTTOM, h, hole=hole, element="tet4", layers=1)
+    fine = cup_holder(R_IN, R_OUT, HEIGHT, BOTTOM, h, hole=hole, element="tet4", layers=1, hole_h=0.5 * rho)
+    mesh = fine.mesh
+    assert mesh.jacobian_dets().min() > 0
+    f = mesh.boundary_facets()[:, :3]
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    assert np.all(np.unique(e, axis=0, return_counts=True)[1] == 2)  # a closed surface
+    vol = np.pi * R_OUT**2 * HEIGHT - np.pi * R_IN**2 * (HEIGHT - BOTTOM) - hole.area * BOTTOM
+    assert mesh.volumes().sum() == pytest.approx(vol, rel=0.03)
+
+    def curve_edges(cup):  # the plan's boundary edges on the hole's curve: (lengths, midpoints)
+        P, t = cup.plan.nodes, cup.plan.cells
+        ed = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+        u, n = np.unique(ed, axis=0, return_counts=True)
+        u = u[n == 1]
+        on = np.abs(np.linalg.norm(hole.to_unit(P[u].reshape(-1, 2)), axis=1) - 1).reshape(-1, 2).max(1) < 1e-9
+        return np.linalg.norm(P[u[on, 0]] - P[u[on, 1]], axis=1)
+
+    assert curve_edges(plain).max() > rho  # without it the flanks' edges are longer than the ends' radius
+    assert curve_edges(fine).max() < rho
+    assert len(curve_edges(fine)) >= 2 * np.pi * np.sqrt(0.5 * (a * a + b * b)) / (0.5 * rho) * 0.9
+    # graded back to h away from the hole: the plan grows by what the hole's neighbourhood needs
+    assert fine.plan.n_cells < 1.6 * plain.plan.n_cells
+    with pytest.raises(jf.MeshError, match="hole_h"):
+        cup_holder(R_IN, R_OUT, HEIGHT, BOTTOM, h, hole=hole, element="tet4", hole_h=0.0)

@@ -181,3 +181,21 @@ def test_rendered_cup_holder_through_track_range_and_diagnose(tmp_path):
     f = rep["findings"][0]
     assert np.hypot(f["centroid"][0] - hole.cx, f["centroid"][1] - hole.cy) < 0.02 * 22.0, (f, hole)
     assert f["area"] == pytest.approx(hole.area, rel=0.1), (f, hole)
+
+
+def test_hole_mesh_rule_sizes_the_hole_from_its_curvature_and_coarsens_with_h():
+    """``Local.hole_h``: the element size along a hole's curve is the ratio times its smallest
+    radius of curvature (b^2 / a), at most the floor's h; the coarser recipe (the discretisation
+    error's refit) scales the hole's and the floor's sizes with h, so its mesh is coarser there too."""
+    from refine.solid.local import Local
+
+    rng = np.random.default_rng(7)
+    a, b = rng.uniform(2.2, 2.8), rng.uniform(1.3, 1.6)
+    hole = jf.Ellipse(*rng.uniform(-1, 1, 2), a, b, rng.uniform(0, np.pi))
+    local = Local(None, None, None, None, 1.2, hole_ratio=0.5)
+    assert local.hole_h(hole) == pytest.approx(0.5 * b * b / a)
+    assert local.hole_h(None) is None and Local(None, None, None, None, 1.2).hole_h(hole) is None
+    assert Local(None, None, None, None, 1.2, hole_ratio=5.0).hole_h(hole) == 1.2  # never above h
+    coarse = Local(None, None, None, None, 1.2, hole_ratio=0.5, floor_h=0.9).coarser(1.2 * np.sqrt(2))
+    assert coarse.h == pytest.approx(1.2 * np.sqrt(2)) and coarse.floor_h == pytest.approx(0.9 * np.sqrt(2))
+    assert coarse.hole_h(hole) == pytest.approx(np.sqrt(2) * local.hole_h(hole))

@@ -67,7 +67,10 @@ class SolidConfig:
     uniform modulus fitted, its discretisation error in the null level as the 2D diagnosis's
     (:func:`refine.solid.null_level.global_null`; two global solves: the local model, which leaves
     the wall out, missed a sound cup's data by 14 x the noise's chi2); ``"local"``: the local
-    model's, with the drive's noise carried through it (before)."""
+    model's, with the drive's noise carried through it (before). ``hole_ratio``: a hole's models
+    (local and global, remeshed as it moves) have elements along its curve of at most this many
+    times its smallest radius of curvature, graded to ``h`` away from it
+    (:meth:`refine.solid.local.Local.hole_h`); None: ``h`` there too."""
 
     h: float | None = None
     alpha: float = 0.01
@@ -79,6 +82,7 @@ class SolidConfig:
     edge_slack: float | None = 0.75
     discretisation_error: bool = True
     null_model: str = "global"
+    hole_ratio: float | None = None
 
     def __post_init__(self):
         if self.null_model not in ("global", "local"):
@@ -157,7 +161,8 @@ def local_recipe(bundle: Bundle, cfg: SolidConfig) -> tuple[CupShape, Local, np.
     X[:, 2] = 0.0  # on the face's plane (a depth's noise would put a point outside the slab)
     local_obs = Observations(obs.ids[on], X, roles, obs.displacements[:, on])
     h = cfg.h or model_h(point_spacing(X[:, :2]), shape.bottom)
-    return shape, Local(shape, exp, local_obs, squeeze_force(obs), h, cfg.linear_solver), on
+    return shape, Local(shape, exp, local_obs, squeeze_force(obs), h, cfg.linear_solver,
+                        hole_ratio=cfg.hole_ratio), on
 
 
 def model_h(spacing: float, bottom: float) -> float:

@@ -9,7 +9,7 @@ the rest is free. The wall above is left out: the driven ring holds the floor as
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -24,7 +24,7 @@ from refine.diagnosis.fitted import NotApplicable
 from refine.diagnosis.holes import HoleShape, hole_hypothesis
 from refine.diagnosis.shapes import Hole
 from refine.model.objective import Compiled
-from refine.model.parametrize import Combined, UniformParameter
+from refine.model.parametrize import Combined, RegionModuli, UniformParameter
 from refine.solid.cup import CupShape, bottom_points
 from refine.solid.edge import EdgeEvidence, EdgeGeometry
 from refine.solid.global_model import fixture_nodes, held_by_fixture
@@ -37,7 +37,9 @@ class Local:
     """How to build the local model: the cup's ``shape``, the bundle's ``experiment``, the bottom
     face's points ``obs`` in the cup's frame, the squeeze ``force (n_frames, 3)``, the element
     size ``h`` (length unit), the linear solver, ``layers`` of elements through the bottom (None:
-    ``bottom / h`` rounded, :func:`jaxfem.cup.cup_holder`)."""
+    ``bottom / h`` rounded, :func:`jaxfem.cup.cup_holder`), ``hole_ratio``: elements along a hole's
+    curve of at most that many times its smallest radius of curvature (:meth:`hole_h`; None: ``h``
+    there too), ``floor_h``: the element size inside the floor ``r < r_in`` (None: ``h``)."""
 
     shape: CupShape
     experiment: Experiment
@@ -46,11 +48,30 @@ class Local:
     h: float
     linear_solver: str = "auto"
     layers: int | None = None
+    hole_ratio: float | None = None
+    floor_h: float | None = None
+
+    def hole_h(self, hole: jf.Ellipse | None) -> float | None:
+        """The element size (length unit) along ``hole``'s curve: ``hole_ratio`` times its smallest
+        radius of curvature (an ellipse's at the major axis's ends, b^2 / a), at most the floor's
+        size (``floor_h`` or ``h``); None without a hole or a ratio."""
+        if hole is None or self.hole_ratio is None:
+            return None
+        a, b = max(hole.rx, hole.ry), min(hole.rx, hole.ry)
+        return min(self.floor_h or self.h, self.hole_ratio * b * b / a)
+
+    def coarser(self, h: float) -> Local:
+        """The same recipe at element size ``h`` everywhere, the hole's and the floor's included
+        (``hole_ratio`` and ``floor_h`` scaled by ``h / self.h``): a mesh uniformly coarser or finer."""
+        k = h / self.h
+        return replace(self, h=h, hole_ratio=None if self.hole_ratio is None else self.hole_ratio * k,
+                       floor_h=None if self.floor_h is None else self.floor_h * k)
 
     def model(self, hole: jf.Ellipse | None = None) -> tuple[LoadedModel, CupBottom]:
         """The local model (``tet10``) with ``hole`` cut through it, and its slab mesh."""
         s = self.shape
-        slab = cup_bottom(s.r_in, s.r_out, s.bottom, self.h, hole, layers=self.layers)
+        slab = cup_bottom(s.r_in, s.r_out, s.bottom, self.h, hole, layers=self.layers, hole_h=self.hole_h(hole),
+                          floor_h=self.floor_h)
         model = LoadedModel(self.experiment, self.obs, slab.mesh, slab.facets, self.force, h=self.h,
                             linear_solver=self.linear_solver)
         return model, slab
@@ -88,16 +109,19 @@ class Whole(Local):
     def of(cls, local: Local, obs: Observations, h: float | None = None) -> tuple[Whole, np.ndarray]:
         """The global model of ``local``'s cup holder, held by the fixture's points among the
         bundle's observations ``obs`` (moved into the cup's frame), at element size ``h`` (length
-        unit; None: ``local.h``), and which of its points lie on the bottom (``(n,)`` bool)."""
+        unit; None: ``local.h``; otherwise :meth:`Local.coarser`), and which of its points lie on
+        the bottom (``(n,)`` bool)."""
         tol = 0.05 * point_spacing(obs.reference)
         held = held_by_fixture(obs, local.shape, tol)
         on = bottom_points(local.shape, held.reference, tol)
         held = replace(held, reference=held.reference - local.shape.offset)
-        return cls(local.shape, local.experiment, held, local.force, h or local.h, local.linear_solver, local.layers), on
+        whole = replace(local, obs=held) if h is None else replace(local.coarser(h), obs=held)
+        return cls(**{f.name: getattr(whole, f.name) for f in fields(Local)}), on
 
     def model(self, hole: jf.Ellipse | None = None) -> tuple[LoadedModel, jf.CupHolder]:
         s = self.shape
-        cup = jf.cup_holder(s.r_in, s.r_out, s.height, s.bottom, self.h, hole=hole, layers=self.layers)
+        cup = jf.cup_holder(s.r_in, s.r_out, s.height, s.bottom, self.h, hole=hole, layers=self.layers,
+                            hole_h=self.hole_h(hole), floor_h=self.floor_h)
         driven = fixture_nodes(cup.mesh, self.obs, max(4 * (self.experiment.noise_std or 0.0), 0.05 * self.h))
         model = LoadedModel(self.experiment, self.obs, cup.mesh, cup.bottom_outer_facets, self.force, h=self.h,
                             linear_solver=self.linear_solver, driven=driven)
@@ -110,16 +134,30 @@ class ModulusHole(Hole):
     starts from that modulus (:meth:`SolidHole.at`)."""
 
     E: float | None = None
+    wall: float | None = None
 
 
 @dataclass(frozen=True, eq=False)
 class WithModulus(Combined):
-    """A hole's geometry (:class:`~refine.solid.edge.EdgeGeometry`) and a uniform modulus (the
-    last unknown): the geometry's :meth:`~refine.solid.edge.EdgeGeometry.constraints` on its
-    unknowns, so the fit's steps slide along them."""
+    """A hole's geometry (:class:`~refine.solid.edge.EdgeGeometry`, the first unknowns) and a
+    uniform modulus (next; then, where given, the wall's modulus relative to it): the geometry's
+    :meth:`~refine.solid.edge.EdgeGeometry.constraints` on its unknowns, so the fit's steps slide
+    along them."""
 
     def constraints(self, z) -> np.ndarray:
-        return self.parts[0].constraints(np.asarray(z, float)[:-1])
+        return self.parts[0].constraints(np.asarray(z, float)[:self.parts[0].size])
+
+
+@dataclass(frozen=True, eq=False)
+class WallModulus(RegionModuli):
+    """The cup wall's modulus relative to the uniform one (a factor exp(z) on the wall's cells),
+    started at ``start``."""
+
+    start: float = 1.0
+
+    @property
+    def z0(self):
+        return np.array([np.log(self.start)])
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,6 +180,8 @@ class SolidHole(HoleShape):
     edge: EdgeEvidence | None = None
     E_start: float | None = None
     h: float | None = None
+    wall_modulus: bool = False
+    wall_start: float | None = None
     remeshable = True
 
     @property
@@ -149,7 +189,7 @@ class SolidHole(HoleShape):
         return self.local.experiment.law
 
     def build(self) -> tuple[Compiled, None]:
-        local = self.local if self.h is None else replace(self.local, h=self.h)
+        local = self.local if self.h is None else self.local.coarser(self.h)
         model, slab = local.model(self.hole)
         sp = model.spacing
         slack = 0.0 if self.edge is None else max(self.edge.slack, self.edge.missing_outside(self.hole.params) + 1e-9)
@@ -159,17 +199,24 @@ class SolidHole(HoleShape):
         if self.free_modulus:
             E = float(self.local.experiment.E)
             start = float(np.clip(self.E_start or E, 0.55 * E, 1.9 * E))  # inside the bounds' sigmoid
-            param = WithModulus((param, UniformParameter("E", start, 0.5 * E, 2.0 * E)))
+            parts = (param, UniformParameter("E", start, 0.5 * E, 2.0 * E))
+            if self.wall_modulus and model.mesh.region_names.get(1) == "wall":
+                wall = (np.asarray(model.mesh.regions) == 1)[None].astype(float)
+                parts += (WallModulus(wall, E, ("wall",), start=float(self.wall_start or 1.0)),)
+            param = WithModulus(parts)
         return Compiled(model, param), None
 
     def shapes_at(self, compiled: Compiled, z):
         if self.free_modulus:
-            s = super().shapes_at(SimpleNamespace(param=compiled.param.parts[0]), np.asarray(z)[:-1])[0]
-            E = float(compiled.param.parts[1].value(np.asarray(z)[-1:]))
-            return (ModulusHole(s.centre, s.axes, s.angle, E),)
+            z = np.asarray(z)
+            g = compiled.param.parts[0].size
+            s = super().shapes_at(SimpleNamespace(param=compiled.param.parts[0]), z[:g])[0]
+            E = float(compiled.param.parts[1].value(z[g:g + 1]))
+            wall = float(np.exp(z[g + 1])) if len(compiled.param.parts) > 2 else None
+            return (ModulusHole(s.centre, s.axes, s.angle, E, wall),)
         return super().shapes_at(compiled, z)
 
     def at(self, shapes, element: str = "tet10") -> SolidHole:
         s = shapes[0]
         return SolidHole(self.local, jf.Ellipse(*s.centre, *s.axes, s.angle), self.free_modulus, self.edge,
-                         getattr(s, "E", None), self.h)
+                         getattr(s, "E", None), self.h, self.wall_modulus, getattr(s, "wall", None))
