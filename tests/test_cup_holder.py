@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import jaxfem as jf
-from jaxfem.cup import cup_holder
+from jaxfem.cup import cup_bottom, cup_holder
 
 R_IN, R_OUT, HEIGHT, BOTTOM = 8.0, 11.0, 8.0, 3.0  # mm
 H = 3.0  # element size, mm
@@ -126,3 +126,23 @@ def test_cup_holder_hole_h_resolves_a_sharp_hole(seed):
     assert fine.plan.n_cells < 1.6 * plain.plan.n_cells
     with pytest.raises(jf.MeshError, match="hole_h"):
         cup_holder(R_IN, R_OUT, HEIGHT, BOTTOM, h, hole=hole, element="tet4", hole_h=0.0)
+
+
+def test_the_datas_hole_is_the_drawn_ellipse_to_a_fraction_of_a_percent():
+    """The data's mesh cuts the hole as a polygon: at the data's h 0.8 alone it kept 97-98.5 % of the
+    drawn ellipse (a bias of the size of the 2 % target); cut along the hole at
+    ``data_hole_h`` it keeps more than 99.5 % (seeds drawn as the benchmark draws them)."""
+    from refine.synthetic.cup import CupGeometry, data_hole_h, random_hole
+
+    g = CupGeometry()
+
+    def volume(mesh):
+        x = mesh.nodes[mesh.cells[:, :4]]
+        return np.abs(np.linalg.det(x[:, 1:] - x[:, :1])).sum() / 6
+
+    for seed in (6,):  # the most elongated hole of the benchmark's seeds
+        hole = random_hole(g, seed)
+        kept = [(volume(cup_bottom(g.r_in, g.r_out, g.bottom, 0.8, layers=1).mesh)
+                 - volume(cup_bottom(g.r_in, g.r_out, g.bottom, 0.8, hole, layers=1, hole_h=hh).mesh))
+                / (g.bottom * hole.area) for hh in (None, data_hole_h(hole, 0.8))]
+        assert kept[0] < 0.99 and kept[1] > 0.995, (seed, kept)

@@ -20,6 +20,7 @@ import numpy as np
 import jaxfem as jf
 import tracking
 
+from refine.synthetic.cup import data_hole_h
 from refine.synthetic.solid_render import SolidView, SurfaceGrid, render_solid
 
 R_IN, R_OUT, HEIGHT, BOTTOM = 8.0, 11.0, 8.0, 3.0  # mm
@@ -54,8 +55,10 @@ class CupScene:
     noise_sigma: float = 2.0
 
     def mesh(self, h: float, element: str = "tet10") -> jf.CupHolder:
-        """The cup holder meshed at element size ``h`` (mm)."""
-        return jf.cup_holder(self.r_in, self.r_out, self.height, self.bottom, h, hole=self.hole, element=element)
+        """The cup holder meshed at element size ``h`` (mm), finer along the hole
+        (:func:`refine.synthetic.cup.data_hole_h`: the data's hole is the drawn ellipse to 0.2 %)."""
+        return jf.cup_holder(self.r_in, self.r_out, self.height, self.bottom, h, hole=self.hole, element=element,
+                             hole_h=data_hole_h(self.hole, h))
 
 
 def cup_camera(model: str = "orthographic", scale: float = 0.1, distance: float = 60.0,
