@@ -15,6 +15,12 @@ least 1, as :func:`refine.diagnosis.fitted.covariance` scales); the volume's int
 range of the refitted volumes over the ratio's interval (the valley is one-dimensional), and the
 strength's likewise. An end not reached before :data:`~refine.solid.inclusion.MAX_LOG_RATIO` (or
 before ``max_steps``) is open: the data fix only a bound there.
+
+A profile's point is a refit, so it can land lower than the fit it was stepped from where that fit
+stopped short along the flat valley (softer seed 13's refit, capped at 10 evaluations, lay 3.9
+above its profile's point at another ratio): :func:`profiled_fit` then refits from that point and
+profiles again about the new minimum, so that the fit reported is the lowest point found and the
+intervals are about it.
 """
 
 from __future__ import annotations
