@@ -187,7 +187,9 @@ def inclusion_report(d: InclusionDiagnosis) -> dict:
     :func:`~refine.solid.inclusion_profile.strength`) and ``profile`` (the intervals of ratio,
     volume and strength where chi^2 rises by at most the threshold: these, not the linearised
     standard errors, cover the volume-ratio valley), ``fit_start`` (which start gave the fit: the
-    graded refit, the fit, or a profile point lower than it) with all ``starts``, the field's
+    graded refit, the fit, or a profile point lower than it) with all ``starts``, the
+    ``coarse_fit`` where the fit was refitted on another mesh (the profile's intervals are the
+    fit mesh's: a bias the mesh left, of the sign of the coarse-to-fine move, they do not hold), the field's
     regions, the null test, the held-out gain, seconds."""
     obs = d.base.model.obs
     validate = obs.roles == "validate"
@@ -213,6 +215,12 @@ def inclusion_report(d: InclusionDiagnosis) -> dict:
                                 "strength": float(strength(s.volume, s.ratio, d.base.model.experiment.nu))})
         if d.profile is not None:
             out["findings"][0]["profile"] = d.profile.as_dict()
+        coarse = [c for c in d.candidates if c.shapes and c.model is not d.chosen.model and np.isfinite(c.chi2_fit)]
+        if coarse:  # the fit on the bundle's mesh before the graded refit: how far the mesh moved it
+            c = min(coarse, key=lambda g: g.chi2_fit).shapes[0]
+            out["findings"][0]["coarse_fit"] = {
+                "cells": int(coarse[0].model.mesh.n_cells), "centroid": list(c.centre), "volume": c.volume,
+                "relative_elasticity": c.ratio, "strength": float(strength(c.volume, c.ratio, d.base.model.experiment.nu))}
         if d.starts:  # which start gave the reported fit (the last), and the ones before it
             out["findings"][0]["fit_start"] = d.starts[-1]["start"]
             out["findings"][0]["starts"] = d.starts
