@@ -13,6 +13,11 @@ inclusion fitted by exact gradients) and measures:
   better than either);
 - whether the truth's ratio, volume and strength (refine.solid.inclusion_profile.strength) lie in
   the report's profile intervals (chi2 within 4 x the reduced chi2 of its least value);
+- which start gave the reported fit (the graded refit, or a lower point of its ratio profile
+  refitted: refine.solid.inclusion_profile.profiled_fit);
+- after the diagnosis (not timed with it; --no-at-truth: not), the profile's point at the truth's
+  ratio: its chi2 rise over the least value against the threshold and the volume refitted there,
+  and the chi2 of the truth's own shape on the fit mesh (how far the model is from the data there);
 - no finding on sound blocks;
 - seconds of the diagnosis (target < 600 s on 2 shared cores).
 
