@@ -2,12 +2,17 @@
 
 A cell partly inside the fitted ellipsoid gets the Mori-Tanaka modulus of the background holding
 that share of the inclusion's material (refine.solid.inclusion.mori_tanaka): the Hashin-Shtrikman
-bound with the background as matrix, the lower bound for a stiffer inclusion and the upper one
-for a softer. So a boundary cell is always estimated nearer the background than a cell cut by a
-sharp surface acts (a layered cell lies between the bounds), and the fit makes up for it with a
-smaller, more extreme inclusion: the direction of the bias seen on every seed (volumes 23-45 %
-small, ratios more extreme). The data (benchmarks/inclusion3d.py's block) have a sharp inclusion
-on 2 mm cells.
+bound with the background as matrix (the upper bound for a softer inclusion, the lower for a
+stiffer one), where a cell cut by the data's sharp surface (benchmarks/inclusion3d.py's block, a
+sharp inclusion on 2 mm cells) acts somewhere between the bounds. Does the rule move the fit along
+the volume-ratio valley (every seed's fit 23-45 % small, its ratio more extreme)?
+
+Measured 26 Nov on softer seed 13 (results/inclusion3d_mixing13.json; Mori-Tanaka's row from
+results/inclusion3d_mesh_graded13.json, the same data and mesh): the fit's chi2 is the same
+(2182.0) under all three rules; the other bound and the geometric mean fit smaller (556 and 584
+mm3 for Mori-Tanaka's 623; truth 945), with the truth's own shape further above the fit (+117,
++83 for +58) and the profile's rise at the truth's ratio about the same (10.9, 11.2 for 11.4;
+threshold 4.56). So not the mixing rule: softer boundary cells make the fit smaller still.
 
 For one seed, per mixing rule, on the box graded from 2.5 mm around the truth to 5 mm
 (benchmarks/inclusion3d_mesh.py's row): the chi2 of the truth's shape, the fit from the truth
