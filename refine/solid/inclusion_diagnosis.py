@@ -189,8 +189,8 @@ def inclusion_report(d: InclusionDiagnosis) -> dict:
     standard errors, cover the volume-ratio valley), ``fit_start`` (which start gave the fit: the
     graded refit, the fit, or a profile point lower than it) with all ``starts``, the
     ``coarse_fit`` where the fit was refitted on another mesh (the profile's intervals are the
-    fit mesh's: a bias the mesh left, of the sign of the coarse-to-fine move, they do not hold), the field's
-    regions, the null test, the held-out gain, seconds."""
+    fit mesh's: a bias that mesh leaves they do not hold), the field's regions, the null test,
+    the held-out gain, seconds."""
     obs = d.base.model.obs
     validate = obs.roles == "validate"
     n = max(1, 3 * obs.n_frames * int(validate.sum()))
