@@ -13,6 +13,11 @@ inclusion fitted by exact gradients) and measures:
   better than either);
 - whether the truth's ratio, volume and strength (refine.solid.inclusion_profile.strength) lie in
   the report's profile intervals (chi2 within 4 x the reduced chi2 of its least value);
+- which start gave the reported fit (the graded refit, or a lower point of its ratio profile
+  refitted: refine.solid.inclusion_profile.profiled_fit);
+- after the diagnosis (not timed with it; --no-at-truth: not), the profile's point at the truth's
+  ratio: its chi2 rise over the least value against the threshold and the volume refitted there,
+  and the chi2 of the truth's own shape on the fit mesh (how far the model is from the data there);
 - no finding on sound blocks;
 - seconds of the diagnosis (target < 600 s on 2 shared cores).
 
@@ -60,7 +65,7 @@ def case(seed: int, cause: str, args) -> dict:
         t0 = time.perf_counter()
         root, truth = write_block_bundle(Path(tmp) / "block", cause=cause, seed=seed, setting=setting)
         t_data = time.perf_counter() - t0
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         if args.h_fit:  # the inclusion diagnosis with its fits on a finer mesh (the field on the bundle's)
             from refine.synthetic.block import model_mesh
 
@@ -72,13 +77,15 @@ def case(seed: int, cause: str, args) -> dict:
         else:
             d = diagnose_solid(read_bundle(root), log=lambda m: None)
         seconds = time.perf_counter() - t0
+        cpu = time.process_time() - c0
         rep = report(d)
+        probe = at_truth(d, truth) if truth is not None and rep["findings"] and args.at_truth else {}
     length = setting.block[3] - setting.block[0]
     row = {"seed": seed, "truth_cause": cause, "cause": rep["cause"], "data_seconds": t_data,
            "diagnosis_seconds": seconds, "points": rep["model"]["points"], "cells": rep["model"]["cells"],
            "truth": None if truth is None else {"centre": list(truth.centre), "axes": list(truth.axes),
                                                 "volume": truth.volume, "ratio": truth.ratio},
-           "report": rep, "load": loadavg()}
+           "report": rep, "load": loadavg(), "diagnosis_cpu_seconds": cpu, **probe}
     if truth is not None and rep["findings"]:
         f = rep["findings"][0]
         std = f["std"] or {}
@@ -88,9 +95,44 @@ def case(seed: int, cause: str, args) -> dict:
         s = std.get("relative_elasticity")
         row["ratio_in_2std"] = bool(s is not None and abs(f["relative_elasticity"] - truth.ratio) <= 2 * s)
         row["held_out_gain"] = rep.get("held_out_gain")
+        row["fit_start"] = f.get("fit_start")
         row.update(profile_row(f, truth, setting.nu))
     print(json.dumps({k: v for k, v in row.items() if k != "report"}, default=str), flush=True)
     return row
+
+
+def at_truth(d, truth) -> dict:
+    """The profile's point at the truth's ratio (refine.solid.inclusion_profile.held_point, the
+    shape refitted from the profile's point nearest in log ratio): its chi2 rise over the
+    profile's least value against the threshold (inside: the truth's ratio is in the valley the
+    data allow on the fit mesh), the volume and strength refitted there; and the chi2 of the
+    truth's own shape on the fit mesh (the model's representation of it) over the same least value."""
+    from refine.measures import Residuals
+    from refine.solid.inclusion_profile import held_point, strength
+
+    f, prof = d.chosen, d.profile
+    if prof is None or f.compiled is None:
+        return {}
+    t0 = time.perf_counter()
+    guide = f.model.obs.roles == "guide"
+    lr = float(np.log(truth.ratio))
+    near = min(prof.points, key=lambda q: abs(q.log_ratio - lr))
+    point, n = held_point(f, guide, f.sigma, lr, near.z[1:])
+    # the truth's shape as the fit's parametrisation holds it: its centre, its M = R diag(axes) R^T
+    param = f.compiled.param
+    R = np.asarray(truth.rotation, float) if hasattr(truth, "rotation") else None
+    shape_rise = None
+    if R is not None:
+        M = R @ np.diag(truth.axes) @ R.T
+        dM = (M - param.M0) / param.scale
+        z = np.r_[lr, (np.asarray(truth.centre) - param.centre0) / param.scale,
+                  [dM[i, j] for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))]]
+        at = Residuals.at(f.model.obs.displacements, guide, f.sigma)
+        shape_rise = float(at.chi2(f.compiled.predict(z)) - prof.chi2_min)
+    return {"at_truth": {"ratio_rise": point.chi2 - prof.chi2_min, "threshold": prof.threshold,
+                         "ratio_inside": bool(point.chi2 - prof.chi2_min <= prof.threshold),
+                         "volume": point.volume, "strength": float(strength(point.volume, truth.ratio, param.nu)),
+                         "truth_shape_rise": shape_rise, "evaluations": n, "seconds": time.perf_counter() - t0}}
 
 
 def profile_row(f: dict, truth, nu: float) -> dict:
@@ -174,6 +216,8 @@ def main() -> None:
     p.add_argument("--fine", type=float, default=FOCUS.fine,
                    help="the found inclusion refitted on the box graded from this size (mm) around it; 0: not")
     p.add_argument("--coarse", type=float, default=FOCUS.coarse, help="the graded box's size away from it (mm)")
+    p.add_argument("--no-at-truth", dest="at_truth", action="store_false",
+                   help="skip the profile's point at the truth's ratio (after the diagnosis, not timed with it)")
     p.add_argument("--out", type=Path, default=RESULTS / "inclusion3d.json", help="results JSON (the plot beside it)")
     p.add_argument("--merge", type=Path, nargs="*", default=[],
                    help="run no case: the rows of these results JSONs (one case per process) together")

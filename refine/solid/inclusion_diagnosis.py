@@ -21,7 +21,7 @@ import numpy as np
 import jaxfem as jf
 
 from refine.bundle.io import Bundle
-from refine.diagnosis.fitted import Fitted, baseline, covariance, fit
+from refine.diagnosis.fitted import Fitted, baseline, covariance, fit, fit_compiled
 from refine.diagnosis.noise import estimate_noise
 from refine.diagnosis.uncertainty import drive_covariance
 from refine.exceptions import ObservationError
@@ -30,7 +30,7 @@ from refine.solid.field import Field, modulus_field
 from refine.solid.initial import checked_baseline
 from refine.solid.inclusion import MAX_LOG_RATIO, Inclusion, ellipsoid_errors
 from refine.solid.inclusion_mesh import FocusedMesh, refit_focused
-from refine.solid.inclusion_profile import Profile, profile_ratio, strength
+from refine.solid.inclusion_profile import Profile, profile_ratio, profiled_fit, strength
 
 
 @dataclass(frozen=True)
@@ -47,7 +47,11 @@ class InclusionConfig:
     a 3 mm one 24 %, benchmarks/README.md's inclusion3d); ``focus``: without ``fit_mesh``, the
     inclusion found on the bundle's mesh is refitted and profiled on the body's box graded fine
     around it (:func:`refine.solid.inclusion_mesh.refit_focused`; None: not; a body that is no box
-    keeps its mesh)."""
+    keeps its mesh); where the profile finds a point more than ``restart_tol`` below the fit in
+    chi^2 (the fit stopped short along the valley: softer seed 13's capped refit, 3.9 above its
+    profile's point), the fit is refitted from there (at most ``refit_steps`` evaluations) and
+    profiled again, at most ``restart_profiles`` times
+    (:func:`refine.solid.inclusion_profile.profiled_fit`)."""
 
     alpha: float = 0.01
     max_candidates: int = 2
@@ -59,6 +63,9 @@ class InclusionConfig:
     profile_steps: int = 4
     fit_mesh: jf.Mesh | None = None
     focus: FocusedMesh | None = FocusedMesh()
+    restart_tol: float = 0.5
+    restart_profiles: int = 1
+    refit_steps: int = 10
 
 
 @dataclass
@@ -66,7 +73,8 @@ class InclusionDiagnosis:
     """What a solid body's diagnosis found: the initial model's fit ``base``, the ``null`` test,
     the modulus ``field`` (None where the null test passed), the inclusions fitted
     (``candidates``), the best (``inclusion``) and the chosen fit (``chosen``: it or ``base``),
-    seconds per stage."""
+    seconds per stage, the ``profile`` and the ``starts`` of the fit reported (the last:
+    :func:`refine.solid.inclusion_profile.profiled_fit`)."""
 
     base: Fitted
     null: object
@@ -76,6 +84,7 @@ class InclusionDiagnosis:
     chosen: Fitted
     seconds: dict = field(default_factory=dict)
     profile: Profile | None = None
+    starts: list = field(default_factory=list)
 
     @property
     def found(self) -> bool:
@@ -138,25 +147,35 @@ def diagnose_inclusion(bundle: Bundle, cfg: InclusionConfig = InclusionConfig(),
             if np.isfinite(f.chi2_fit) and (best is None or f.chi2_fit < best.chi2_fit):
                 best = f
         seconds["inclusion"] = time.perf_counter() - t0 - sum(seconds.values())
-    chosen = base
+    chosen, focused = base, False
     if best is not None and best.bic < base.bic and best.chi2_holdout < base.chi2_holdout:
         if cfg.fit_mesh is None and cfg.focus is not None:  # refitted where the coarse model's bias is
             t1 = time.perf_counter()
             fine_base, g = refit_focused(best, guide, validate, sigma, cfg.focus)
             if g is not None and np.isfinite(g.chi2_fit):
-                base, best = fine_base, g
+                base, best, focused = fine_base, g, True
                 log(f"  on a graded mesh ({g.model.mesh.n_cells} cells): {g.describe()}")
             seconds["focus"] = time.perf_counter() - t1
         best = chosen = with_errors(best, guide, sigma)
-    prof = None
+    prof, starts = None, []
     if chosen is not base and cfg.profile:
         t1 = time.perf_counter()
-        prof = profile_ratio(chosen, guide, sigma, cfg.profile_threshold, cfg.profile_steps, log=log)
+
+        def profile(g):
+            return profile_ratio(g, guide, sigma, cfg.profile_threshold, cfg.profile_steps, log=log)
+
+        def refit(g, z):
+            h = fit_compiled(g.hypothesis, g.compiled, guide, validate, sigma, z0=z, max_steps=cfg.refit_steps)
+            return with_errors(h, guide, sigma)
+
+        best, prof, starts = profiled_fit(chosen, profile, refit, cfg.restart_tol, cfg.restart_profiles, log=log)
+        starts[0]["start"] = "graded refit" if focused else "fit"
+        chosen = best
         seconds["profile"] = time.perf_counter() - t1
         log(f"  ratio {prof.ratio[0]:.3g}-{prof.ratio[1]:.3g}, volume {prof.volume[0]:.0f}-{prof.volume[1]:.0f} "
             f"(profile, {prof.evaluations} solves)")
     seconds["total"] = time.perf_counter() - t0
-    return InclusionDiagnosis(base, null, fld, tried, best, chosen, seconds, prof)
+    return InclusionDiagnosis(base, null, fld, tried, best, chosen, seconds, prof, starts)
 
 
 def inclusion_report(d: InclusionDiagnosis) -> dict:
@@ -167,8 +186,11 @@ def inclusion_report(d: InclusionDiagnosis) -> dict:
     linearised there, do not hold), its ``strength`` (what the surface fixes:
     :func:`~refine.solid.inclusion_profile.strength`) and ``profile`` (the intervals of ratio,
     volume and strength where chi^2 rises by at most the threshold: these, not the linearised
-    standard errors, cover the volume-ratio valley), the field's regions, the null test, the
-    held-out gain, seconds."""
+    standard errors, cover the volume-ratio valley), ``fit_start`` (which start gave the fit: the
+    graded refit, the fit, or a profile point lower than it) with all ``starts``, the
+    ``coarse_fit`` where the fit was refitted on another mesh (the profile's intervals are the
+    fit mesh's: a bias that mesh leaves they do not hold), the field's regions, the null test,
+    the held-out gain, seconds."""
     obs = d.base.model.obs
     validate = obs.roles == "validate"
     n = max(1, 3 * obs.n_frames * int(validate.sum()))
@@ -193,6 +215,15 @@ def inclusion_report(d: InclusionDiagnosis) -> dict:
                                 "strength": float(strength(s.volume, s.ratio, d.base.model.experiment.nu))})
         if d.profile is not None:
             out["findings"][0]["profile"] = d.profile.as_dict()
+        coarse = [c for c in d.candidates if c.shapes and c.model is not d.chosen.model and np.isfinite(c.chi2_fit)]
+        if coarse:  # the fit on the bundle's mesh before the graded refit: how far the mesh moved it
+            c = min(coarse, key=lambda g: g.chi2_fit).shapes[0]
+            out["findings"][0]["coarse_fit"] = {
+                "cells": int(coarse[0].model.mesh.n_cells), "centroid": list(c.centre), "volume": c.volume,
+                "relative_elasticity": c.ratio, "strength": float(strength(c.volume, c.ratio, d.base.model.experiment.nu))}
+        if d.starts:  # which start gave the reported fit (the last), and the ones before it
+            out["findings"][0]["fit_start"] = d.starts[-1]["start"]
+            out["findings"][0]["starts"] = d.starts
     return out
 
 
