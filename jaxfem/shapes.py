@@ -83,6 +83,12 @@ class Ellipse(_Affine):
     def area(self) -> float:
         return float(np.pi * self.rx * self.ry)
 
+    @property
+    def min_radius_of_curvature(self) -> float:
+        """The smallest radius of curvature, ``b^2 / a`` at the ends of the major axis (length units)."""
+        a, b = max(self.rx, self.ry), min(self.rx, self.ry)
+        return float(b * b / a)
+
     def _pieces(self, h):
         """One dense closed polyline ``(k, 2)`` and its radius of curvature ``(k,)``."""
         a, b = self.rx, self.ry

@@ -57,8 +57,7 @@ class Local:
         size (``floor_h`` or ``h``); None without a hole or a ratio."""
         if hole is None or self.hole_ratio is None:
             return None
-        a, b = max(hole.rx, hole.ry), min(hole.rx, hole.ry)
-        return min(self.floor_h or self.h, self.hole_ratio * b * b / a)
+        return min(self.floor_h or self.h, self.hole_ratio * hole.min_radius_of_curvature)
 
     def coarser(self, h: float) -> Local:
         """The same recipe at element size ``h`` everywhere, the hole's and the floor's included

@@ -96,8 +96,7 @@ def data_hole_h(hole, h: float) -> float | None:
     benchmarks/README.md, diagnose3d, session 22)."""
     if hole is None:
         return None
-    a, b = max(hole.rx, hole.ry), min(hole.rx, hole.ry)
-    return min(h / 4, 0.2 * b * b / a)
+    return min(h / 4, 0.2 * hole.min_radius_of_curvature)
 
 
 def solve_cup(g: CupGeometry, hole, forces, h: float, points) -> np.ndarray:
