@@ -227,8 +227,14 @@ def merged(new: Profile, old: Profile) -> Profile:
     """One profile of both's points (each a refit with the ratio held: an upper bound of the
     profile at its ratio, whichever fit it was stepped from), on ``new``'s threshold; seconds and
     evaluations added."""
-    prof = interval(list(new.points) + list(old.points), new.threshold, nu=new.nu)
-    prof.seconds, prof.evaluations = new.seconds + old.seconds, new.evaluations + old.evaluations
+    return _joined(list(new.points) + list(old.points), new, new.seconds + old.seconds,
+                   new.evaluations + old.evaluations)
+
+
+def _joined(points, like: Profile, seconds: float, evaluations: int) -> Profile:
+    """The profile of ``points`` on ``like``'s threshold and Poisson ratio, with its cost."""
+    prof = interval(points, like.threshold, nu=like.nu)
+    prof.seconds, prof.evaluations = seconds, evaluations
     return prof
 
 
@@ -272,7 +278,5 @@ def profiled_fit(f, profile, refit, tol: float = 0.5, max_restarts: int = 1, log
             z = np.asarray(f.z, float)
             point = ProfilePoint(float(z[0]), float(f.chi2_fit), float(f.shapes[0].volume) if f.shapes else np.nan,
                                  tuple(z))
-            last = interval(list(prof.points) + [point], prof.threshold, nu=prof.nu)
-            last.seconds, last.evaluations = prof.seconds, prof.evaluations
-            prof = last
+            prof = _joined(list(prof.points) + [point], prof, prof.seconds, prof.evaluations)
     return f, prof, starts
