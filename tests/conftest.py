@@ -17,3 +17,42 @@ def _free_compiled_programs():
     yield
     jax.clear_caches()
     gc.collect()
+
+
+# Checks moved out of the default suite to keep it under 15 minutes on 2 cores (they still run
+# with `-m slow`, as the benchmarks' slower checks do). Session 23 measured the default suite at
+# 1273-1279 s on a 2-core AMD EPYC machine (fresh-clone .ci/run, three runs): over budget. These
+# are its longest single checks (pytest --durations at load ~10, each 100-800 s there, ~25-190 s
+# quiet), each covered in the default suite by a lighter sibling named beside it, or by a benchmark.
+SLOW_IN_CI = {
+    # an end-to-end hidden-hole diagnosis: tests/test_outputs.py diagnoses a hidden region end to end;
+    # benchmarks/diagnose.py's hole cells and tests/test_real_outlines.py the holes
+    "tests/test_diagnose.py::test_finds_the_hidden_effect[hole-12]",
+    # the notebooks' code paths are the tests of test_paper.py, test_tracking*.py, test_diagnose.py
+    "tests/test_notebooks.py::test_notebook_executes[paper_section3.ipynb]",
+    "tests/test_notebooks.py::test_notebook_executes[tracking.ipynb]",
+    "tests/test_notebooks.py::test_notebook_executes[diagnose.ipynb]",
+    # Taylor tests: the other parametrisations (plane strain, tet4; the fibre angle) stay
+    "tests/test_derivatives.py::test_taylor_rate_is_two[plane-stress-E-reverse]",
+    "tests/test_fibre_law.py::test_taylor_rate_is_two_for_the_fibre_angle_and_stiffness[fibre_stiffness-1.0-reverse]",
+    # series: the plane-strain quad4 path stays; the nested derivatives' order 3 was already slow
+    "tests/test_series.py::test_series_matches_forward_solves_along_the_path[plane-stress-tri6-E]",
+    "tests/test_series.py::test_series_agrees_with_nested_implicit_derivatives[2]",
+    # the hand is a slow area (the guide: 3D, hand, real sequences); its fast tests stay
+    "tests/test_hand_tracking.py::test_restart_from_other_starts_when_the_fit_ends_high",
+    "tests/test_hand_tracking.py::test_tracker_jacobian_passes_a_taylor_test",
+    # optimisers and refits: the least-squares and Brent paths of test_paper.py and test_fit.py stay
+    "tests/test_paper.py::test_lbfgsb_agrees_with_least_squares",
+    "tests/test_fit.py::test_tv_field_by_lbfgsb_shows_the_stiff_region",
+    "tests/test_fit.py::test_forces_make_the_background_absolute",
+    "tests/test_refined_model.py::test_the_refined_bundle_reproduces_the_chosen_model[ellipse-1]",
+    # SuperLU's thread-affine freeing: tests/test_linsolve_*.py's other checks stay
+    "tests/test_linsolve_superlu.py::test_factorisations_are_made_and_freed_on_one_thread",
+}
+
+
+@pytest.hookimpl(tryfirst=True)  # before `-m 'not slow'` deselects
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.nodeid in SLOW_IN_CI:
+            item.add_marker(pytest.mark.slow)
