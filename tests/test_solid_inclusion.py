@@ -210,6 +210,27 @@ def test_a_lower_profile_point_becomes_the_fit_and_the_profile_is_taken_about_it
     assert g is stopped and len(starts) == 1
 
 
+def test_total_interval_widens_each_side_by_the_discretisation_error_in_quadrature():
+    from refine.solid.inclusion_total import Discretisation, errors_between, total_interval, total_intervals
+
+    # each side of the profile's interval is 2 statistical errors; 2 discretisation errors join it in quadrature
+    assert total_interval(10.0, (7.0, 11.0), 2.0) == pytest.approx((10 - 5.0, 10 + np.hypot(1.0, 4.0)))
+    assert total_interval(10.0, (7.0, 11.0), 0.0) == pytest.approx((7.0, 11.0))
+    lo, hi = total_interval(2.0, (1.0, 8.0), 0.5, log=True)  # the ratio's, in its log
+    assert np.log(2.0 / lo) == pytest.approx(np.hypot(np.log(2.0), 1.0)) and np.log(hi / 2.0) == pytest.approx(
+        np.hypot(np.log(4.0), 1.0))
+    # Richardson on a mesh sqrt 2 coarser (order 2): the change itself; the ratio's of its log
+    fit, other = {"ratio": 2.0, "volume": 500.0, "strength": 300.0}, {"ratio": 3.0, "volume": 420.0, "strength": 310.0}
+    e = errors_between(fit, other, np.sqrt(2.0), 2.0)
+    assert e == pytest.approx({"log_ratio": np.log(1.5), "volume": 80.0, "strength": 10.0})
+    prof = {"ratio": [1.5, 148.0], "volume": [450.0, 560.0], "strength": [295.0, 302.0], "open": [False, True]}
+    t = total_intervals(fit, prof, Discretisation(np.sqrt(2.0), 2.0, 100, other, e, 5, 1.0))
+    assert t["discretisation"] and t["ratio"][1] == 148.0 and t["ratio"][0] < 1.5  # an open end stays open
+    assert t["volume"] == pytest.approx([500 - np.hypot(50, 160), 500 + np.hypot(60, 160)])
+    assert t["strength"] == pytest.approx([300 - np.hypot(5, 20), 300 + np.hypot(2, 20)])
+    assert total_intervals(fit, prof, None)["volume"] == prof["volume"]  # not estimated: the profile's as they are
+
+
 def test_the_ratio_held_inclusion_predicts_and_differentiates_as_the_full_one(tiny):
     from refine.model.measured import MeasuredModel
     from refine.model.objective import Compiled

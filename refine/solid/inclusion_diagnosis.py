@@ -29,8 +29,9 @@ from refine.model.measured import MeasuredModel
 from refine.solid.field import Field, modulus_field
 from refine.solid.initial import checked_baseline
 from refine.solid.inclusion import MAX_LOG_RATIO, Inclusion, ellipsoid_errors
-from refine.solid.inclusion_mesh import FocusedMesh, refit_focused
+from refine.solid.inclusion_mesh import FocusedMesh, focus_of, refit_focused
 from refine.solid.inclusion_profile import Profile, profile_ratio, profiled_fit, strength
+from refine.solid.inclusion_total import Discretisation, discretisation_refit, total_intervals, values_of
 
 
 @dataclass(frozen=True)
@@ -51,7 +52,10 @@ class InclusionConfig:
     chi^2 (the fit stopped short along the valley: softer seed 13's capped refit, 3.9 above its
     profile's point), the fit is refitted from there (at most ``refit_steps`` evaluations) and
     profiled again, at most ``restart_profiles`` times
-    (:func:`refine.solid.inclusion_profile.profiled_fit`)."""
+    (:func:`refine.solid.inclusion_profile.profiled_fit`); ``discretisation``: the graded fit's
+    discretisation error is estimated by its refit on the box graded over the same region with
+    spacings this factor times larger, and the report's ``total`` intervals hold it
+    (:mod:`refine.solid.inclusion_total`; None: not, the profile's intervals alone)."""
 
     alpha: float = 0.01
     max_candidates: int = 2
@@ -66,6 +70,7 @@ class InclusionConfig:
     restart_tol: float = 0.5
     restart_profiles: int = 1
     refit_steps: int = 10
+    discretisation: float | None = float(np.sqrt(2.0))
 
 
 @dataclass
@@ -74,7 +79,8 @@ class InclusionDiagnosis:
     the modulus ``field`` (None where the null test passed), the inclusions fitted
     (``candidates``), the best (``inclusion``) and the chosen fit (``chosen``: it or ``base``),
     seconds per stage, the ``profile`` and the ``starts`` of the fit reported (the last:
-    :func:`refine.solid.inclusion_profile.profiled_fit`)."""
+    :func:`refine.solid.inclusion_profile.profiled_fit`), the graded fit's ``discretisation``
+    error (None: not estimated)."""
 
     base: Fitted
     null: object
@@ -85,6 +91,7 @@ class InclusionDiagnosis:
     seconds: dict = field(default_factory=dict)
     profile: Profile | None = None
     starts: list = field(default_factory=list)
+    discretisation: Discretisation | None = None
 
     @property
     def found(self) -> bool:
@@ -147,11 +154,12 @@ def diagnose_inclusion(bundle: Bundle, cfg: InclusionConfig = InclusionConfig(),
             if np.isfinite(f.chi2_fit) and (best is None or f.chi2_fit < best.chi2_fit):
                 best = f
         seconds["inclusion"] = time.perf_counter() - t0 - sum(seconds.values())
-    chosen, focused = base, False
+    chosen, focused, region = base, False, None
     if best is not None and best.bic < base.bic and best.chi2_holdout < base.chi2_holdout:
         if cfg.fit_mesh is None and cfg.focus is not None:  # refitted where the coarse model's bias is
             t1 = time.perf_counter()
-            fine_base, g = refit_focused(best, guide, validate, sigma, cfg.focus)
+            region = focus_of(best.shapes[0])
+            fine_base, g = refit_focused(best, guide, validate, sigma, cfg.focus, region=region)
             if g is not None and np.isfinite(g.chi2_fit):
                 base, best, focused = fine_base, g, True
                 log(f"  on a graded mesh ({g.model.mesh.n_cells} cells): {g.describe()}")
@@ -174,8 +182,16 @@ def diagnose_inclusion(bundle: Bundle, cfg: InclusionConfig = InclusionConfig(),
         seconds["profile"] = time.perf_counter() - t1
         log(f"  ratio {prof.ratio[0]:.3g}-{prof.ratio[1]:.3g}, volume {prof.volume[0]:.0f}-{prof.volume[1]:.0f} "
             f"(profile, {prof.evaluations} solves)")
+    disc = None
+    if chosen is not base and focused and cfg.discretisation:  # the graded mesh's bias, by a coarser refit
+        t1 = time.perf_counter()
+        disc = discretisation_refit(chosen, guide, validate, sigma, cfg.focus, region, cfg.discretisation)
+        seconds["discretisation"] = time.perf_counter() - t1
+        log("  discretisation: no estimate (the coarser refit failed)" if disc is None else
+            f"  discretisation ({disc.cells} cells, x{disc.factor:.3g}): errors of log ratio "
+            f"{disc.errors['log_ratio']:.3g}, volume {disc.errors['volume']:.0f}, strength {disc.errors['strength']:.0f}")
     seconds["total"] = time.perf_counter() - t0
-    return InclusionDiagnosis(base, null, fld, tried, best, chosen, seconds, prof, starts)
+    return InclusionDiagnosis(base, null, fld, tried, best, chosen, seconds, prof, starts, disc)
 
 
 def inclusion_report(d: InclusionDiagnosis) -> dict:
@@ -189,8 +205,9 @@ def inclusion_report(d: InclusionDiagnosis) -> dict:
     standard errors, cover the volume-ratio valley), ``fit_start`` (which start gave the fit: the
     graded refit, the fit, or a profile point lower than it) with all ``starts``, the
     ``coarse_fit`` where the fit was refitted on another mesh (the profile's intervals are the
-    fit mesh's: a bias that mesh leaves they do not hold), the field's regions, the null test,
-    the held-out gain, seconds."""
+    fit mesh's: a bias that mesh leaves they do not hold), the ``discretisation`` error of the
+    graded fit and the ``total`` intervals that hold it (:mod:`refine.solid.inclusion_total`), the
+    field's regions, the null test, the held-out gain, seconds."""
     obs = d.base.model.obs
     validate = obs.roles == "validate"
     n = max(1, 3 * obs.n_frames * int(validate.sum()))
@@ -213,8 +230,12 @@ def inclusion_report(d: InclusionDiagnosis) -> dict:
                                 "volume": s.volume, "relative_elasticity": s.ratio, "std": ellipsoid_errors(d.chosen),
                                 "ratio_at_bound": bool(abs(np.log(s.ratio)) > 0.95 * MAX_LOG_RATIO),
                                 "strength": float(strength(s.volume, s.ratio, d.base.model.experiment.nu))})
-        if d.profile is not None:
+        if d.profile is not None:  # the statistical intervals, and with the mesh's bias (the total)
             out["findings"][0]["profile"] = d.profile.as_dict()
+            nu = d.base.model.experiment.nu
+            out["findings"][0]["total"] = total_intervals(values_of(s, nu), out["findings"][0]["profile"], d.discretisation)
+        if d.discretisation is not None:
+            out["findings"][0]["discretisation"] = d.discretisation.as_dict()
         coarse = [c for c in d.candidates if c.shapes and c.model is not d.chosen.model and np.isfinite(c.chi2_fit)]
         if coarse:  # the fit on the bundle's mesh before the graded refit: how far the mesh moved it
             c = min(coarse, key=lambda g: g.chi2_fit).shapes[0]

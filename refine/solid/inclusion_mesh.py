@@ -11,7 +11,7 @@ plus a ``margin`` (along each axis; the body's cross-section is often all of it)
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -77,13 +77,15 @@ def focus_of(shape, pad: float = 1.25) -> SimpleNamespace:
                            rotation=np.asarray(shape.rotation))
 
 
-def refit_focused(f, fit_mask, hold_mask, sigma: float, cfg: FocusedMesh = FocusedMesh()):
+def refit_focused(f, fit_mask, hold_mask, sigma: float, cfg: FocusedMesh = FocusedMesh(), region=None,
+                  with_base: bool = True):
     """A coarse model's inclusion fit ``f`` (a :class:`~refine.diagnosis.fitted.Fitted`) refitted on
-    the body's box graded fine around it (:func:`focused_mesh` of :func:`focus_of` its shape),
-    started from its shape and ratio; returns the initial model's fit on that mesh and the refit
-    (both None where the body is no box)."""
+    the body's box graded fine around ``region`` (default :func:`focus_of` its shape;
+    :func:`focused_mesh`), started from its shape and ratio; returns the initial model's fit on
+    that mesh (None without ``with_base``: one solve saved) and the refit (both None where the
+    body is no box)."""
     coarse = f.model
-    mesh = focused_mesh(coarse.mesh, [focus_of(f.shapes[0])], cfg)
+    mesh = focused_mesh(coarse.mesh, [focus_of(f.shapes[0]) if region is None else region], cfg)
     if mesh is None:
         return None, None
     model = MeasuredModel(coarse.experiment, coarse.obs, mesh=mesh, linear_solver=coarse.linear_solver)
@@ -91,4 +93,11 @@ def refit_focused(f, fit_mask, hold_mask, sigma: float, cfg: FocusedMesh = Focus
     hyp = Inclusion(model, s.centre, s.axes, tuple(map(tuple, np.asarray(s.rotation))), s.ratio)
     compiled, z0 = hyp.build()
     g = fit_compiled(hyp, compiled, fit_mask, hold_mask, sigma, z0=z0, max_steps=cfg.max_steps)
-    return baseline(model, fit_mask, hold_mask, sigma), g
+    return (baseline(model, fit_mask, hold_mask, sigma) if with_base else None), g
+
+
+def coarser(cfg: FocusedMesh, factor: float) -> FocusedMesh:
+    """``cfg`` with its ``fine`` and ``coarse`` spacings ``factor`` times larger (the same grading
+    and region): the mesh a discretisation error is estimated on
+    (:func:`refine.solid.inclusion_total.discretisation_refit`)."""
+    return replace(cfg, fine=factor * cfg.fine, coarse=factor * cfg.coarse)
