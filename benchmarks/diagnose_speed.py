@@ -206,7 +206,7 @@ def baseline_target(rows: list[dict], label: str | None = None) -> dict | None:
     rows): the latest row of each code per case, the cases both have on the same bundle and hidden
     effect; passes with at least 3 such cases when this code's median wall AND median CPU seconds
     are below the baseline's. ``ratio_*``: this code's median over the baseline's;
-    ``target_48s_scaled``: 48 s times the wall ratio, this code's median on the scale of the
+    ``median_wall_on_48s_scale_s``: 48 s times the wall ratio, this code's median on the scale of the
     issue's 48 s (which was the baseline's median there, over 120 cases)."""
     labels = [r["label"] for r in rows if r.get("role") == "baseline"]
     label = label or (labels[-1] if labels else None)
@@ -224,7 +224,7 @@ def baseline_target(rows: list[dict], label: str | None = None) -> dict | None:
             "median_wall_s": med["main"]["wall"], "baseline_median_wall_s": med["baseline"]["wall"],
             "median_cpu_s": med["main"]["cpu"], "baseline_median_cpu_s": med["baseline"]["cpu"],
             "ratio_wall": ratio["wall"], "ratio_cpu": ratio["cpu"],
-            "target_48s_scaled": ratio["wall"] and TARGET_WALL_S * ratio["wall"],
+            "median_wall_on_48s_scale_s": ratio["wall"] and TARGET_WALL_S * ratio["wall"],
             "loads": {role: [code[role][c]["load"] for c in same] for role in code},
             "right_results": {role: [code[role][c]["passed"] for c in same] for role in code},
             "pass": len(same) >= 3 and med["main"]["wall"] < med["baseline"]["wall"]
