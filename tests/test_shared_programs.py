@@ -316,3 +316,62 @@ def test_shared_interpolation_equals_the_models_own_program():
             assert np.array_equal(d, np.concatenate([np.asarray(b) for _, b in own])[:11])
             eager = jax.vmap(m.probe.moved(X, m.positions))(U)
             np.testing.assert_allclose(np.asarray(m.at_points(U, {"X": X})), eager, rtol=0, atol=1e-12)
+
+
+def test_models_with_equal_base_parameters_share_the_parametrisation_program():
+    """Compiled instances of one parametrisation (moduli of random regions) on models whose base
+    parameters are equal arrays (not the same objects) share its compiled program, figures equal
+    to the bit to a program of their own; other base parameters, or another parametrisation,
+    compile their own."""
+    from types import SimpleNamespace
+
+    from refine.model import objective
+    from refine.model.objective import Compiled
+    from refine.model.parametrize import RegionModuli
+
+    rng = np.random.default_rng(29)
+    n = int(rng.integers(20, 40))
+    theta = {"E": rng.uniform(1, 2, n), "nu": np.full(n, 0.3), "X": rng.normal(size=(n, 2))}
+
+    def model(th):
+        return SimpleNamespace(params=lambda: th, frame_tractions=lambda X: None, shares_programs=True)
+
+    param = RegionModuli((rng.uniform(size=(2, n)) < 0.3).astype(float), 1.5)
+    first = Compiled(model(theta), param)
+    copy = {k: v.copy() for k, v in theta.items()}
+    assert Compiled(model(copy), param)._apply is first._apply
+    assert Compiled(model({**copy, "E": 2 * copy["E"]}), param)._apply is not first._apply
+    assert Compiled(model(copy), RegionModuli(param.masks, 1.5))._apply is not first._apply
+    z = rng.normal(size=2)
+    shared = first._apply(z)
+    objective._APPLY.pop(param)
+    own = Compiled(model(copy), param)._apply
+    assert own is not first._apply
+    for a, b in zip(jax.tree.leaves(shared), jax.tree.leaves(own(z))):
+        assert np.array_equal(np.asarray(a), np.asarray(b))
+
+
+@pytest.mark.slow
+def test_a_fit_moved_onto_other_frames_reuses_its_parametrisation_program():
+    """refine.diagnosis.scale.on_frames: the same parametrisation on a model of the same mesh with
+    equal base parameters (other frames) takes the program already compiled, whose figures are
+    those of a program of its own to the bit; other base parameters get their own."""
+    from refine.model import objective
+    from refine.model.objective import Compiled
+
+    rng = np.random.default_rng(31)
+    ex, obs = _sheet_bundle(rng)
+    base = MeasuredModel(ex, obs, h=4.0)
+    model, param = region_model(base, [jf.Ellipse(*rng.uniform([15, 12], [25, 18]), 5.0, 4.0, 0.3)], 2.5)
+    one_frame = Observations(obs.ids, obs.reference, obs.roles, obs.displacements[1:])
+    moved = MeasuredModel(ex, one_frame, mesh=model.mesh, h=model.h)
+    first, second = Compiled(model, param), Compiled(moved, param)
+    assert second._apply is first._apply
+    assert Compiled(moved, param, {**moved.params(), "E": 2.0 * moved.params()["E"]})._apply is not first._apply
+    z = Z + rng.normal(0, 0.01, Z.size)
+    shared = second._apply(z)
+    objective._APPLY.pop(param)  # the program that instance would have compiled alone
+    own = Compiled(moved, param)._apply
+    assert own is not first._apply
+    for a, b in zip(jax.tree.leaves(shared), jax.tree.leaves(own(z))):
+        assert np.array_equal(np.asarray(a), np.asarray(b))
