@@ -10,8 +10,6 @@ point sets. The optimisers that take them are in :mod:`refine.optimize`.
 
 from __future__ import annotations
 
-import threading
-import weakref
 from functools import cached_property
 
 import jax
@@ -152,49 +150,6 @@ class Objective:
         return displacement_error(pred, meas).value
 
 
-def _same_theta(a: dict, b: dict) -> bool:
-    """Whether two parameter sets are the same constants to a compiled program: the same keys,
-    each value of the same type, dtype and shape and equal to the last bit."""
-    if a is b:
-        return True
-    if a.keys() != b.keys():
-        return False
-    for k in a:
-        x, y = a[k], b[k]
-        if type(x) is not type(y) or np.shape(x) != np.shape(y) or np.result_type(x) != np.result_type(y):
-            return False
-        if not np.array_equal(np.asarray(x), np.asarray(y)):
-            return False
-    return True
-
-
-#: each parametrisation's compiled ``theta(z), dtheta/dz``, with the base parameters it closes over:
-#: a model on the same mesh with equal base parameters (e.g. a fit moved onto every frame,
-#: refine.diagnosis.scale.on_frames) reuses the program instead of compiling it again
-_APPLY: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-_APPLY_LOCK = threading.Lock()  # the diagnosis builds models in its threads
-
-
-def _parametrisation(param, theta: dict):
-    """``z -> (theta(z), dtheta/dz)`` compiled, shared by :class:`Compiled` instances of one
-    parametrisation whose base parameters are the same constants (:func:`_same_theta`): the
-    program is the one that instance would compile, so its figures are the same to the bit."""
-    ref = weakref.ref(param)  # the program must not keep its key alive (an entry goes with its parametrisation)
-
-    def apply(z):
-        prm = ref()
-        return prm.apply(theta, z), jax.jacfwd(prm.apply, argnums=1)(theta, z)
-
-    with _APPLY_LOCK:  # (compiled at its first call, outside the lock)
-        held = _APPLY.setdefault(param, [])
-        for base, fn in held:
-            if _same_theta(base, theta):
-                return fn
-        fn = jax.jit(apply)
-        held.append((theta, fn))
-    return fn
-
-
 class Compiled:
     """A model and parametrisation whose prediction and Jacobian are computed together, for all
     points: fits on different point sets (fit, held-out, all guide points) and scoring then
@@ -208,15 +163,19 @@ class Compiled:
     The solves run on the solver's shared programs (:mod:`jaxfem.program`: Newton, then the
     tangents along the k parameter directions), which every model of about the same mesh size,
     element and law reuses: a hypothesis remeshed at its fitted shapes compiles no solve again.
-    What is compiled per parametrisation is small: the parametrisation and its Jacobian
-    (``theta(z)``, ``dtheta/dz``; shared by instances whose base parameters are equal, e.g. a fit
-    moved onto every frame); the points' interpolation and its derivative run on a program
+    What is compiled per instance is small: the parametrisation and its Jacobian
+    (``theta(z)``, ``dtheta/dz``); the points' interpolation and its derivative run on a program
     shared by models of about the same size (:mod:`refine.model.interpolation`)."""
 
     def __init__(self, model: MeasuredModel, param, theta=None):
         self.model, self.param = model, param
         self.theta = model.params() if theta is None else theta
-        self._apply = _parametrisation(param, self.theta)
+
+        def apply(z):
+            th = param.apply(self.theta, z)
+            return th, jax.jacfwd(param.apply, argnums=1)(self.theta, z)
+
+        self._apply = jax.jit(apply)
         self._tractions = None
         if model.frame_tractions(self.theta["X"]) is not None:  # each frame's load follows the geometry
             def tractions(z):
