@@ -153,7 +153,8 @@ def test_follow_finds_a_hidden_stiff_sphere_from_range_clouds(seed):
     sphere (cause, centroid within 10 % of the block's length, one region), the dense motion
     stays within 1 % of the length, and the last two frames are predicted at least twice better
     than by the model never refined. The grip's motion runs to 1.5 times the drawn one in 6 frames
-    (a small sphere's effect passes the null level late). 535 s at load 5-9 on 2 cores
+    (a small sphere's effect passes the null level late). 535 s at load 5-9 on 2 cores; 1297 s wall / 1452 CPU s
+    at load 1-5 in session 23 (main a339e2f)
     (a facet shortlist per point: all 1280 surface triangles per point took over an hour). Seed
     100 is the stiffer-region case of ``benchmarks/correspondence.py --dim 3`` (same data, model
     and settings)."""
