@@ -5,9 +5,10 @@ from __future__ import annotations
 import importlib.util
 import itertools
 from abc import ABC, abstractmethod
+import queue
 import threading
 import weakref
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future
 from typing import Callable, ClassVar
 
 import jax
@@ -151,14 +152,18 @@ class _FactorCache:
         # segfaults on the shared handle
         self._lock = threading.Lock()
         self._slot = [None]  # the solve of the last factorisation (a list: see the finaliser)
-        self._thread = None
+        self._jobs = None
         if one_thread:  # the last factorisation is freed on its own thread too, then the thread ends
-            self._thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="jaxfem-factor")
-            weakref.finalize(self, _retire, self._slot, self._thread).atexit = False
+            self._jobs = queue.SimpleQueue()
+            _LIVE.add(self._jobs)
+            threading.Thread(target=_serve, args=(self._jobs,), name="jaxfem-factor").start()
+            weakref.finalize(self, _retire, self._slot, self._jobs).atexit = False
 
     def __call__(self, vals, rhs):
-        if self._thread is not None:
-            return self._thread.submit(self._call, vals, rhs).result()
+        if self._jobs is not None:
+            done = Future()
+            self._jobs.put((self._call, (vals, rhs), done))
+            return done.result()
         with self._lock:
             return self._call(vals, rhs)
 
@@ -174,10 +179,40 @@ class _FactorCache:
         return self._slot[0](np.asarray(rhs, dtype=np.float64))
 
 
-def _retire(slot: list, thread: ThreadPoolExecutor) -> None:
-    """Free the last factorisation on the thread that made it, then let that thread end."""
-    try:
-        thread.submit(slot.clear)
-        thread.shutdown(wait=False)
-    except RuntimeError:  # the interpreter is shutting down
-        pass
+def _serve(jobs: queue.SimpleQueue) -> None:
+    """A factor cache's own thread: runs its calls in turn until told to end (None)."""
+    while (job := jobs.get()) is not None:
+        call, args, done = job
+        if done is None:
+            call(*args)
+            continue
+        try:
+            done.set_result(call(*args))
+        except BaseException as e:  # noqa: BLE001 - handed to the caller, who raises it
+            done.set_exception(e)
+
+
+def _retire(slot: list, jobs: queue.SimpleQueue) -> None:
+    """Free the last factorisation on the thread that made it, then let that thread end.
+
+    A finaliser runs wherever the garbage collector runs, e.g. inside another thread's start
+    while a ThreadPoolExecutor's submit holds its global lock (an XLA callback starting a cache's
+    thread): it must take no lock. SimpleQueue.put is reentrant and lock-free for this use (CI
+    deadlocked here with a ThreadPoolExecutor: the callback waited on the new thread's start, the
+    new thread's finaliser on the executors' global lock)."""
+    _LIVE.discard(jobs)
+    jobs.put((slot.clear, (), None))
+    jobs.put(None)
+
+
+#: the factor threads' queues not yet retired: told to end when the interpreter exits (before it
+#: joins its threads), as concurrent.futures does for its pools
+_LIVE: set = set()
+
+
+def _end_all() -> None:
+    for jobs in list(_LIVE):
+        jobs.put(None)
+
+
+threading._register_atexit(_end_all)  # noqa: SLF001 - the hook concurrent.futures uses
