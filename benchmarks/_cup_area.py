@@ -34,17 +34,16 @@ from _timing import loadavg  # noqa: E402
 
 
 def cut_fraction(g, ellipse, h: float, hole_h: float | None = None) -> float:
-    """The area a bottom meshed at ``h`` (``hole_h`` along the hole) removes for ``ellipse``, over
-    the ellipse's area: its polygon's share (one layer: the in-plane mesh decides it)."""
-    from jaxfem.cup import cup_bottom
+    """The area of the hole a floor meshed at ``h`` (``hole_h`` along the hole) cuts for ``ellipse``
+    (the polygon through its curve's nodes, shoelace; the same plan as the cup's), over the
+    ellipse's area."""
+    import jaxfem as jf
+    from jaxfem.mesher import domain
+    from jaxfem.shapes import curve_nodes
 
-    def volume(mesh):
-        x = mesh.nodes[mesh.cells[:, :4]]
-        return np.abs(np.linalg.det(x[:, 1:] - x[:, :1])).sum() / 6
-
-    full = volume(cup_bottom(g.r_in, g.r_out, g.bottom, h, layers=1).mesh)
-    cut = volume(cup_bottom(g.r_in, g.r_out, g.bottom, h, ellipse, layers=1, hole_h=hole_h).mesh)
-    return (full - cut) / (g.bottom * np.pi * ellipse.rx * ellipse.ry)
+    m = domain(jf.Ellipse(0.0, 0.0, g.r_in, g.r_in), h, holes=(ellipse,), curve_h=[hole_h])
+    x = m.nodes[curve_nodes(m, ellipse)]
+    return 0.5 * abs(x[:, 0] @ np.roll(x[:, 1], -1) - x[:, 1] @ np.roll(x[:, 0], -1)) / ellipse.area
 
 
 def main() -> None:
@@ -109,7 +108,7 @@ def main() -> None:
                "cut_fraction": frac, "cut_area_error_pct": 100 * (area * frac / (truth.area * data_frac) - 1),
                "true_cut_fraction": cut_fraction(g, true_e, h),
                "centre_error_mm": float(np.hypot(s.centre[0] - true_e.cx, s.centre[1] - true_e.cy)),
-               "axes": list(map(float, s.axes)), "modulus": float(s.E),
+               "axes": list(map(float, s.axes)), "ellipse": fe.params.tolist(), "modulus": float(s.E),
                "chi2_per": float(f.chi2_fit / max(guide.sum() * 3 * whole.obs.n_frames, 1)),
                "seconds": time.perf_counter() - t0, "cpu_seconds": time.process_time() - c0,
                "max_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6, "load": loadavg()}

@@ -95,7 +95,8 @@ class Fitted:
             (after :func:`refit`; :mod:`refine.diagnosis.uncertainty` carries it to the shapes).
         q_disc: discretisation errors of the shapes' quantities ``(shapes, 7)``
             (:func:`~refine.diagnosis.uncertainty.with_discretisation`), None where not estimated;
-            q_disc_parts: its parts by source (``"mesh"``, ``"drive"``), each ``(shapes, 7)``.
+            q_disc_parts: its parts by source (``"mesh"``, ``"drive"``), each ``(shapes, 7)``;
+            q_disc_signed: the mesh's part with its sign ``(shapes, 7)`` (the coarser refit's change).
     """
 
     hypothesis: Hypothesis
@@ -115,6 +116,7 @@ class Fitted:
     z_cov: Float[np.ndarray, "k k"] | None = None
     q_disc: Float[np.ndarray, "shapes 7"] | None = None
     q_disc_parts: dict | None = None
+    q_disc_signed: Float[np.ndarray, "shapes 7"] | None = None
 
     @property
     def cause(self) -> str:

@@ -314,23 +314,26 @@ def with_discretisation(fitted, points: Bool[np.ndarray, "n_points"], hold: Bool
     """``fitted`` (a :class:`~refine.diagnosis.fitted.Fitted` with its shapes' standard errors)
     with ``q_disc``, the discretisation error of every shape's quantities, set: the mesh's
     (:func:`discretisation_bias`) and the drive's (:func:`drive_bias`) in quadrature, two more
-    fits; and ``q_disc_parts`` ``{"mesh": rows, "drive": rows}``. Unchanged where there is none
+    fits; ``q_disc_parts`` ``{"mesh": rows, "drive": rows}``; and ``q_disc_signed``, the mesh's
+    estimate with its sign (the coarser refit's change over ``factor^order - 1``: a hole's area
+    extrapolated from it, :func:`refine.solid.hole_area.extrapolated_area`). Unchanged where there is none
     to give (no shapes, or both refits fail). ``pool``: an executor (e.g. the diagnosis's
     threads) that fits the coarser mesh while this thread fits the sparser drive (their solves
     take the shared program's lock in turn; what overlaps is the rest: meshing, the fits' host
     side; the same figures as one after the other); None: one after the other."""
     from dataclasses import replace
 
-    mesh = pool.submit(discretisation_bias, fitted, points, hold, sigma) if pool is not None else None
+    mesh = pool.submit(discretisation_bias, fitted, points, hold, sigma, signed=True) if pool is not None else None
     drive = drive_bias(fitted, points, hold, sigma)
-    parts = {"mesh": mesh.result() if mesh is not None else discretisation_bias(fitted, points, hold, sigma),
-             "drive": drive}
+    signed = mesh.result() if mesh is not None else discretisation_bias(fitted, points, hold, sigma, signed=True)
+    parts = {"mesh": None if signed is None else np.abs(signed), "drive": drive}
     given = [d for d in parts.values() if d is not None]
     if not given:
         return fitted
     total = np.sqrt(sum(np.nan_to_num(d) ** 2 for d in given))
     total[np.all([np.isnan(d) for d in given], axis=0)] = np.nan
-    return replace(fitted, q_disc=total, q_disc_parts={k: d for k, d in parts.items() if d is not None})
+    return replace(fitted, q_disc=total, q_disc_parts={k: d for k, d in parts.items() if d is not None},
+                   q_disc_signed=signed)
 
 
 def discretisation_errors(fitted) -> list[ShapeErrors] | None:

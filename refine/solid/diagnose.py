@@ -41,6 +41,7 @@ from refine.solid.cup import CupShape, bottom_points, check_closed, cup_shape
 from refine.solid.edge import EdgeEvidence, evidence_near, grid_lattice, NoLattice
 from refine.solid.inclusion_diagnosis import InclusionDiagnosis, diagnose_inclusion, fills_hull, inclusion_report
 from refine.solid.initial import initial_fit, initial_null
+from refine.solid.hole_area import extrapolated_area
 from refine.solid.local import Local, SolidHole, Whole
 from refine.solid.null_level import global_null
 from refine.solid.start import best_start, bracket_starts
@@ -337,14 +338,21 @@ def report(d: SolidDiagnosis) -> dict:
 
 def hole_entry(d: SolidDiagnosis, f: Fitted) -> dict:
     """A fitted hole as report.json lists it: centroid (mesh frame, mid-thickness), axes, angle,
-    area, volume and their standard errors."""
+    area, volume and their standard errors. Where the mesh's discretisation error was estimated
+    with its sign, ``area`` (and ``volume``) is the area cut extrapolated to a fine mesh
+    (:func:`refine.solid.hole_area.extrapolated_area`; its parts in ``area_extrapolation``) and
+    ``area_ellipse`` the fitted ellipse's; the errors are the ellipse's (the discretisation error
+    stays the size of the mesh's effect: what the extrapolation leaves is not estimated)."""
     s = f.shapes[0]
     err = (shape_errors(f) or [None])[0]
     disc = (discretisation_errors(f) or [None])[0]
-    area, _ = s.outline()
+    ellipse, _ = s.outline()
+    fine = extrapolated_area(f) if isinstance(f.hypothesis, SolidHole) else None
+    area = ellipse if fine is None else fine["area"]
     c = np.array([*s.centre, 0.5 * d.shape.bottom]) + d.shape.offset
     return {"kind": "hole", "through": "bottom", "centroid": c.tolist(), "axes": list(map(float, s.axes)),
             "angle": float(s.angle), "area": float(area), "volume": float(area * d.shape.bottom),
+            **({} if fine is None else {"area_ellipse": float(ellipse), "area_extrapolation": fine}),
             **({"E": float(np.mean(f.theta["E"]))} if getattr(f.hypothesis, "free_modulus", False) else {}),
             "std": None if err is None else {**err.to_json(), "volume": None if err.area is None
                                              else round(float(err.area * d.shape.bottom), 4)},

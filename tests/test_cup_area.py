@@ -1,0 +1,84 @@
+"""The hole's area extrapolated on the area the model's mesh cuts (refine.solid.hole_area; the
+cup holder benchmark's area error, benchmarks/README.md, diagnose3d, session 24)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import jaxfem as jf
+from jaxfem.mesher import domain
+from jaxfem.shapes import curve_nodes
+from refine.diagnosis.shapes import Hole
+from refine.solid.hole_area import cut_fraction, extrapolated_area
+
+R_IN = 8.0
+
+
+@dataclass(frozen=True)
+class Recipe:
+    """The part of :class:`refine.solid.local.Local` the polygon needs."""
+
+    h: float
+    floor_h: float | None = None
+    shape = SimpleNamespace(r_in=R_IN)
+
+    def hole_h(self, hole):
+        return None
+
+    def coarser(self, h):
+        return replace(self, h=h)
+
+
+def _hole(seed):
+    rng = np.random.default_rng(seed)
+    a, b = rng.uniform(1.8, 3.2), rng.uniform(1.2, 2.4)
+    r, phi = rng.uniform(0, R_IN - max(a, b) - 1.2), rng.uniform(0, 2 * np.pi)
+    return jf.Ellipse(r * np.cos(phi), r * np.sin(phi), a, b, rng.uniform(0, np.pi))
+
+
+def _shoelace(x):
+    return 0.5 * abs(x[:, 0] @ np.roll(x[:, 1], -1) - x[:, 1] @ np.roll(x[:, 0], -1))
+
+
+@pytest.mark.parametrize("seed", [3])
+def test_the_cut_fraction_is_the_plans_missing_area(seed):
+    """The polygon's share of the ellipse equals what the floor's triangles leave out of the floor's
+    own polygon (a second way to the same area), below 1 and nearer 1 on a finer plan."""
+    e = _hole(seed)
+    coarse, fine = cut_fraction(Recipe(1.2), e), cut_fraction(Recipe(1.2), e, 0.6)
+    plan = domain(jf.Ellipse(0.0, 0.0, R_IN, R_IN), 1.2, holes=(e,), curve_h=[None])
+    x = plan.nodes[plan.cells]
+    u, v = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
+    triangles = 0.5 * np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]).sum()
+    floor = _shoelace(plan.nodes[curve_nodes(plan, jf.Ellipse(0.0, 0.0, R_IN, R_IN))])
+    assert coarse == pytest.approx((floor - triangles) / e.area, rel=1e-9)
+    assert 0.9 < coarse < fine < 1.0, (coarse, fine)
+
+
+@pytest.mark.parametrize("seed", [5])
+def test_the_extrapolation_removes_an_order_two_error_of_the_cut_area(seed):
+    """Fits whose cut areas miss the truth by k h^2 (the fine at h, the coarse at sqrt(2) h, each
+    with the polygon of the ellipse its mesh was built at) extrapolate to the truth."""
+    rng = np.random.default_rng(seed)
+    e, h, k, truth = _hole(seed), rng.uniform(1.0, 1.4), rng.uniform(-0.03, 0.03), rng.uniform(8, 14)
+    local = Recipe(h)
+    f_fine = cut_fraction(local, e, h)  # meshed at e, the fit moved it to e scaled (an affine map)
+    fine = truth * (1 - k * h**2) / f_fine
+    scale = np.sqrt(fine / e.area)
+    fitted_e = jf.Ellipse(e.cx, e.cy, e.rx * scale, e.ry * scale, e.angle)
+    coarse = truth * (1 - 2 * k * h**2) / cut_fraction(local, fitted_e, np.sqrt(2) * h)  # meshed at the fine fit
+    fitted = SimpleNamespace(hypothesis=SimpleNamespace(h=None, local=local, hole=e),
+                             shapes=(Hole((e.cx, e.cy), (e.rx * scale, e.ry * scale), e.angle),),
+                             q_disc_signed=np.array([[0, 0, 0, 0, 0, coarse - fine, 0]], float))
+    out = extrapolated_area(fitted)
+    assert out["fraction_fine"] == pytest.approx(f_fine, rel=1e-9)
+    assert out["area"] == pytest.approx(truth, rel=1e-9)
+    assert extrapolated_area(replace_signed(fitted, None)) is None
+
+
+def replace_signed(fitted, signed):
+    return SimpleNamespace(**{**vars(fitted), "q_disc_signed": signed})
