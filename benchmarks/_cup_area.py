@@ -9,7 +9,8 @@ Per element size ``h`` it writes the fitted ellipse's area error, the area the m
 actually cuts (its polygon through the hole's curve nodes; mid-edge nodes straight) against the
 drawn ellipse, the modulus and the misfit. With the fit at the diagnosis's h (1.2) and at
 sqrt(2) h, the SIGNED Richardson extrapolation (order 2) is ``A_fine + (A_fine - A_coarse)``;
-a third, finer h checks the trend. ``--polygon-only``: only the polygons (no fit; seconds).
+a third, finer h checks the trend. ``--polygon-only``: only the polygons (no fit; seconds);
+``--summary rows.jsonl --out table.json``: the extrapolations per seed from such rows.
 
     python benchmarks/_cup_area.py --seed 2 --bundles /tmp/cup_bundles_s24 \
         --result benchmarks/results/diagnose3d_fine_s23_seed2.json --hs 1.2 1.697
@@ -46,17 +47,58 @@ def cut_fraction(g, ellipse, h: float, hole_h: float | None = None) -> float:
     return 0.5 * abs(x[:, 0] @ np.roll(x[:, 1], -1) - x[:, 1] @ np.roll(x[:, 0], -1)) / ellipse.area
 
 
+def summary(rows: list[dict], h: float = 1.2, factor: float = np.sqrt(2.0)) -> list[dict]:
+    """Per seed (rows of this script at ``h`` and ``factor`` h, the last of each): the area errors
+    (% of the true ellipse) of the fit, of the ellipse's signed Richardson extrapolation
+    (``A_fine + (A_fine - A_coarse)``, order 2) and of the cut area's (the polygon's share times the
+    ellipse, against the data's cut), the modulus extrapolated the same way."""
+    out = []
+    for seed in sorted({r["seed"] for r in rows}):
+        at = {round(r["h"], 3): r for r in rows if r["seed"] == seed and "area_error_pct" in r}
+        f, c = at.get(round(h, 3)), at.get(round(factor * h, 3))
+        if f is None or c is None:
+            continue
+        k = 1.0 / (factor**2 - 1.0)
+        ell = f["area_error_pct"] + k * (f["area_error_pct"] - c["area_error_pct"])
+        cut = f["cut_area_error_pct"] + k * (f["cut_area_error_pct"] - c["cut_area_error_pct"])
+        row = {"seed": seed, "fine_pct": f["area_error_pct"], "coarse_pct": c["area_error_pct"],
+               "signed_change_pct": c["area_error_pct"] - f["area_error_pct"],
+               "reported_pct": f["reported_area_error_pct"], "reported_disc_pct": f["reported_disc_pct"],
+               "ellipse_richardson_pct": ell, "cut_fine_pct": f["cut_area_error_pct"],
+               "cut_coarse_pct": c["cut_area_error_pct"], "cut_richardson_vs_data_cut_pct": cut,
+               "cut_richardson_pct": 100 * ((1 + cut / 100) * f["data_cut_fraction"] - 1),
+               "modulus_fine": f["modulus"], "modulus_coarse": c["modulus"],
+               "modulus_richardson": f["modulus"] + k * (f["modulus"] - c["modulus"])}
+        finer = at.get(round(h / factor, 3))
+        if finer is not None:  # order 2: the finer fit's cut area halfway between the fine one and the limit
+            row.update({"finer_pct": finer["area_error_pct"], "cut_finer_pct": finer["cut_area_error_pct"],
+                        "cut_finer_predicted_pct": 0.5 * (cut + f["cut_area_error_pct"]),
+                        "modulus_finer": finer["modulus"]})
+        out.append(row)
+    return out
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--seed", type=int, required=True)
-    p.add_argument("--bundles", type=Path, required=True)
-    p.add_argument("--result", type=Path, required=True, help="the diagnose3d.py JSON of this seed's diagnosis")
+    p.add_argument("--summary", type=Path, help="only summarise these rows (JSONL) into --out (JSON)")
+    p.add_argument("--seed", type=int)
+    p.add_argument("--bundles", type=Path)
+    p.add_argument("--result", type=Path, help="the diagnose3d.py JSON of this seed's diagnosis")
     p.add_argument("--name", default="hdata0.8_s0.6_n0.005_f1-2-3-4", help="the bundle's name after cup_seed<seed>_")
     p.add_argument("--hs", type=float, nargs="+", default=[1.2, 1.2 * np.sqrt(2)])
     p.add_argument("--model-h", type=float, default=1.2, help="the diagnosis's element size")
     p.add_argument("--polygon-only", action="store_true")
     p.add_argument("--out", type=Path, default=HERE / "results" / "cup_area_s24.jsonl")
     args = p.parse_args()
+    if args.summary:
+        rows = [json.loads(line) for line in args.summary.read_text().splitlines() if line.strip()]
+        table = summary(rows)
+        args.out.write_text(json.dumps(table, indent=1) + "\n")
+        for r in table:
+            print(" ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in r.items()))
+        return
+    if args.seed is None or args.bundles is None or args.result is None:
+        p.error("--seed, --bundles and --result are needed without --summary")
 
     import jaxfem as jf
     from refine.bundle.io import read_bundle

@@ -57,5 +57,5 @@ def extrapolated_area(fitted, factor: float = np.sqrt(2.0), order: float = 2.0) 
     f_fine = cut_fraction(hyp.local, hyp.hole, h)
     f_coarse = cut_fraction(hyp.local, jf.Ellipse(*s.centre, *s.axes, s.angle), factor * h)
     c_fine, c_coarse = f_fine * fine_area, f_coarse * coarse_area
-    return {"area": c_fine + (c_fine - c_coarse) / (factor**order - 1.0), "cut_fine": c_fine,
-            "cut_coarse": c_coarse, "fraction_fine": f_fine, "fraction_coarse": f_coarse}
+    return {"area": float(c_fine + (c_fine - c_coarse) / (factor**order - 1.0)), "cut_fine": float(c_fine),
+            "cut_coarse": float(c_coarse), "fraction_fine": f_fine, "fraction_coarse": f_coarse}
