@@ -69,7 +69,7 @@ def summary(rows: list[dict], h: float = 1.2, factor: float = np.sqrt(2.0)) -> l
                "cut_richardson_pct": 100 * ((1 + cut / 100) * f["data_cut_fraction"] - 1),
                "modulus_fine": f["modulus"], "modulus_coarse": c["modulus"],
                "modulus_richardson": f["modulus"] + k * (f["modulus"] - c["modulus"])}
-        finer = at.get(round(h / factor, 3))
+        finer = next((r for k_, r in at.items() if abs(k_ - h / factor) < 0.01), None)  # 0.85 for 0.8485
         if finer is not None:  # order 2: the finer fit's cut area halfway between the fine one and the limit
             row.update({"finer_pct": finer["area_error_pct"], "cut_finer_pct": finer["cut_area_error_pct"],
                         "cut_finer_predicted_pct": 0.5 * (cut + f["cut_area_error_pct"]),
