@@ -82,3 +82,28 @@ def test_the_extrapolation_removes_an_order_two_error_of_the_cut_area(seed):
 
 def replace_signed(fitted, signed):
     return SimpleNamespace(**{**vars(fitted), "q_disc_signed": signed})
+
+
+def test_the_discretisation_error_keeps_its_sign_beside_its_size(monkeypatch):
+    """with_discretisation keeps the mesh's estimate signed in ``q_disc_signed`` (side by side on a
+    pool too) while ``q_disc`` and its parts stay sizes; no estimate leaves the fit as it was."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    import refine.diagnosis.uncertainty as u
+
+    @dataclass(frozen=True)
+    class Fit:
+        q_disc: object = None
+        q_disc_parts: object = None
+        q_disc_signed: object = None
+
+    row = np.random.default_rng(7).normal(size=(1, 7))
+    monkeypatch.setattr(u, "discretisation_bias", lambda f, p, h, s, signed=False: row if signed else np.abs(row))
+    monkeypatch.setattr(u, "drive_bias", lambda f, p, h, s: None)
+    with ThreadPoolExecutor(1) as pool:
+        for g in (u.with_discretisation(Fit(), None, None, 1.0), u.with_discretisation(Fit(), None, None, 1.0, pool)):
+            np.testing.assert_array_equal(g.q_disc_signed, row)
+            np.testing.assert_array_equal(g.q_disc, np.abs(row))
+            assert set(g.q_disc_parts) == {"mesh"}
+    monkeypatch.setattr(u, "discretisation_bias", lambda f, p, h, s, signed=False: None)
+    assert u.with_discretisation(Fit(), None, None, 1.0) == Fit()
