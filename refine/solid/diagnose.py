@@ -41,7 +41,7 @@ from refine.solid.cup import CupShape, bottom_points, check_closed, cup_shape
 from refine.solid.edge import EdgeEvidence, evidence_near, grid_lattice, NoLattice
 from refine.solid.inclusion_diagnosis import InclusionDiagnosis, diagnose_inclusion, fills_hull, inclusion_report
 from refine.solid.initial import initial_fit, initial_null
-from refine.solid.local import Local, SolidHole, Whole
+from refine.solid.local import HOLE_HEADROOM, Local, SolidHole, Whole
 from refine.solid.null_level import global_null
 from refine.solid.start import best_start, bracket_starts
 
@@ -213,7 +213,7 @@ def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) 
     obs = local.obs
     guide, validate = obs.roles == "guide", obs.roles == "validate"
     sigma = bundle.experiment.noise_std or estimate_noise(obs)
-    model, _ = local.model()
+    model, _ = local.model(headroom=HOLE_HEADROOM)  # the holes' meshes share its programs
     base = initial_fit(model, obs, sigma)
     level = None
     if cfg.null_model == "global":

@@ -82,12 +82,15 @@ class LoadedModel(MeasuredModel):
     fixture holds; None: those within 0.75 point spacings of a boundary point (which leaves nodes
     between rows of points free: the cup holder's rim between its rings of points).
 
+    ``headroom``: the solver's padding holds a mesh this many times larger (:class:`jaxfem.Solver`),
+    so the holed meshes built after it share its compiled programs.
+
     The other arguments are :class:`~refine.model.MeasuredModel`'s; the points are compared with
     the model where :func:`refine.model.boundary.place_surface_points` puts them (on the surface, within
     the placement's tolerance)."""
 
     def __init__(self, experiment, observations, mesh: jf.Mesh, facets, force, h: float | None = None,
-                 linear_solver: str = "auto", driven=None):
+                 linear_solver: str = "auto", driven=None, headroom: float = 1.0):
         force = np.asarray(force, float).reshape(observations.n_frames, 3)
         if not np.isfinite(force).all():
             raise ObservationError("the measured forces must be finite numbers in every frame")
@@ -95,7 +98,7 @@ class LoadedModel(MeasuredModel):
         self.facets = np.asarray(facets, np.int64)
         self.driven = None if driven is None else np.asarray(driven, np.int64)
         super().__init__(experiment, observations, mesh=mesh, h=h, linear_solver=linear_solver,
-                         traction_facets=loaded_facets(self.facets))
+                         traction_facets=loaded_facets(self.facets), headroom=headroom)
 
     def _interpolation(self, points, nodes=None, names=None):
         """:meth:`MeasuredModel._interpolation` onto :attr:`driven` where given."""
