@@ -7,6 +7,8 @@ Appends one row (load average before and after, CPU seconds, centre / area of th
 the bundle's true hole) to ``--out`` (JSON lines), so before / after runs alternate on one bundle.
 
     python benchmarks/_cup_speed.py BUNDLE --label before --out benchmarks/results/diagnose3d_speed_s24.jsonl
+    python benchmarks/_cup_speed.py --out benchmarks/results/diagnose3d_speed_s24.jsonl \
+        --summarise benchmarks/results/diagnose3d_speed_s24.json     # the rows with the targets, and a plot
 """
 
 from __future__ import annotations
@@ -116,14 +118,48 @@ def truth_of(root: Path):
     return random_hole(CupGeometry(), seed)
 
 
+def summarise(rows_path: Path, out: Path) -> None:
+    """``out`` (JSON: the rows without their profiles, the targets judged on each row's seconds,
+    with its load) and a plot beside it, from the JSON lines of the runs."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [json.loads(line) for line in rows_path.read_text().splitlines() if line.strip()]
+    for r in rows:
+        r.pop("profile", None)
+    targets = {r["label"]: {"points": r["points"], "cpu_s": r["cpu_s"], "load": r["load_after"][0],
+                            "local_diagnosis_lt_300s": {"value": r["local_seconds"], "pass": r["local_seconds"] < 300},
+                            "global_prediction_lt_60s": {"value": r["global_seconds"], "pass": r["global_seconds"] < 60}}
+               for r in rows}
+    out.write_text(json.dumps({"rows": rows, "targets": targets}, indent=1, default=str), encoding="utf-8")
+    fig, ax = plt.subplots(figsize=(9, 4))
+    names = [f"{r['label']}\n{r['points']} pts, load {r['load_after'][0]:.1f}" for r in rows]
+    ax.bar(names, [r["cpu_s"] for r in rows], label="CPU s (whole run)")
+    ax.bar(names, [r["local_seconds"] for r in rows], alpha=0.5, label="local diagnosis wall s")
+    ax.bar(names, [r["global_seconds"] for r in rows], alpha=0.8, label="global prediction wall s")
+    ax.axhline(300, color="C1", ls="--")
+    ax.axhline(60, color="C2", ls="--")
+    ax.tick_params(axis="x", labelsize=7)
+    ax.set_ylabel("seconds")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(out.with_suffix(".png"), dpi=100)
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("bundle", type=Path)
+    p.add_argument("bundle", type=Path, nargs="?")
+    p.add_argument("--summarise", type=Path, default=None, help="write this JSON (and its plot) from --out's rows "
+                   "and stop")
     p.add_argument("--label", default="run")
     p.add_argument("--out", type=Path, default=HERE / "results" / "diagnose3d_speed_s24.jsonl")
     p.add_argument("--profile", action="store_true", help="under cProfile (slower); top functions in the row")
     p.add_argument("--model-h", type=float, default=None)
     args = p.parse_args()
+    if args.summarise:
+        return summarise(args.out, args.summarise)
 
     import numpy as np
 
