@@ -81,7 +81,7 @@ def run_case(case: dict) -> dict:
     load0, cpu0, t0 = os.getloadavg()[0], cpu_seconds(), time.perf_counter()
     d = diagnose(bundle, DiagnoseConfig(workers=case["threads"]), log=lambda m: None)
     seconds, cpu = time.perf_counter() - t0, cpu_seconds() - cpu0
-    return {**case, "code": code_version(), "points": int(bundle.observations.n_points), **score(truth, d),
+    return {**case, "code": case.get("code") or code_version(), "points": int(bundle.observations.n_points), **score(truth, d),
             "seconds": round(seconds, 2),
             "cpu_seconds": round(cpu, 2), "load_average": [round(load0, 2), round(os.getloadavg()[0], 2)],
             "cells": int(d.model.mesh.n_cells), "chosen": d.chosen.describe()}
@@ -217,6 +217,9 @@ def main(argv=None) -> None:
     p.add_argument("--merge", action="store_true", help="only summarise the rows file")
     p.add_argument("--rerun", action="store_true",
                    help="run the cells even where the rows file has them (the new row replaces the old in the JSON)")
+    p.add_argument("--code", default=None,
+                   help="the commit measured, stored in the rows (default: this checkout's; give it where "
+                        "PYTHONPATH puts another tree's refine first, e.g. a before/after pair)")
     p.add_argument("--profile", action="store_true",
                    help="profile the cells instead (cProfile, compilations, CPU s per stage; "
                         "results/diagnose_profile_SIZE.json; no row written)")
@@ -235,7 +238,8 @@ def main(argv=None) -> None:
             if (size, cause) in done and not (args.profile or args.rerun):
                 continue
             cases.append({"size": size, "cause": cause, "seed": 700 + k, "frames": frames,
-                          "spacing": round(spacing_for(points), 4), "threads": args.threads})
+                          "spacing": round(spacing_for(points), 4), "threads": args.threads,
+                          **({"code": args.code} if args.code else {})})
         for case in cases:
             if args.profile:
                 from _diagnose_profile import profile_case

@@ -6,6 +6,7 @@ and wall seconds, the load average and the result (cause, centroid, ratio or are
     python benchmarks/diagnose_speed.py --case 5/0.02/stiffer-region/0 --label after
     python benchmarks/diagnose_speed.py --case 5/0.02/hole/0 --cache /tmp/jaxcache --label cache-warm
     python benchmarks/diagnose_speed.py --label s23 --baseline-tree /tmp/base_df5f359 --baseline-code df5f359
+    python benchmarks/diagnose_speed.py --case 5/0.02/hole/0 --profile   # where its CPU seconds go (no row)
 
 Several cases (``--cases``; default: a stiffer region, a softer region and a hole on the 5 mm grid,
 273 points, 4 frames) run one after another, each in a fresh process (as a user's ``nonrigid
@@ -200,7 +201,12 @@ def median_target(rows: list[dict], label: str) -> dict:
             "pass": len(latest) >= 3 and _median(walls) < TARGET_WALL_S}
 
 
-def baseline_target(rows: list[dict], label: str | None = None) -> dict | None:
+ISSUE_CODE = "df5f359"
+"""The issue's code (the commit the 48 s target was set on): ``--baseline-tree`` rows of another
+commit measure a change (before / after), not the issue's verdict."""
+
+
+def baseline_target(rows: list[dict], label: str | None = None, issue: bool | None = None) -> dict | None:
     """"Faster than the issue's code on the same machine", judged on one label's rows of both codes
     (``--baseline-tree``: taken in one run, alternating; default the latest label with baseline
     rows): the latest row of each code per case, the cases both have on the same bundle and hidden
@@ -208,7 +214,8 @@ def baseline_target(rows: list[dict], label: str | None = None) -> dict | None:
     are below the baseline's. ``ratio_*``: this code's median over the baseline's;
     ``median_wall_on_48s_scale_s``: 48 s times the wall ratio, this code's median on the scale of the
     issue's 48 s (which was the baseline's median there, over 120 cases)."""
-    labels = [r["label"] for r in rows if r.get("role") == "baseline"]
+    labels = [r["label"] for r in rows if r.get("role") == "baseline"
+              and (issue is None or (r["code"] == ISSUE_CODE) == issue)]
     label = label or (labels[-1] if labels else None)
     if label is None:
         return None
@@ -245,9 +252,12 @@ def write(rows: list[dict], out: Path, label: str | None = None) -> dict:
                    "target_s": TARGET_WALL_S, "best_wall_s": best and best["wall"], "its_cpu_s": best and best["cpu"],
                    "its_load": best and best["load"],
                    "pass": best is not None and best["wall"] < TARGET_WALL_S}}
-    same_machine = baseline_target(rows)
+    same_machine = baseline_target(rows, issue=True)
     if same_machine is not None:
         targets["~300-point bundles: faster than the issue's code on the same machine (medians, one run)"] = same_machine
+    before = baseline_target(rows, issue=False)  # a change measured against the commit before it
+    if before is not None:
+        targets["~300-point bundles: faster than the code before the latest change (medians, one run)"] = before
     result = {"benchmark": "diagnose speed (issue 22 item 2)", "rows": rows, "targets": targets}
     out.write_text(json.dumps(result, indent=1))
     _plot(rows, out.with_suffix(".png"))
@@ -308,6 +318,9 @@ def main():
     p.add_argument("--baseline-code", default=None, help="the commit of --baseline-tree (stored in its rows)")
     p.add_argument("--judge", default=None, help="the label whose median judges the absolute 48 s target "
                                                  "(default: the latest quiet* label, else this run's)")
+    p.add_argument("--profile", action="store_true",
+                   help="with --case: profile it instead (_diagnose_profile.py: cProfile, compilations by name, Newton "
+                        "solves, CPU s per stage; results/diagnose_profile_CASE.json; no row)")
     p.add_argument("--rows", type=Path, default=OUT / "diagnose_speed_rows.jsonl")
     p.add_argument("--out", type=Path, default=OUT / "diagnose_speed.json")
     # one case in a fresh process (the runs above): where its bundle is, whose code, where its row goes
@@ -320,6 +333,18 @@ def main():
         p.error("--baseline-tree runs --cases (each in a fresh process), not one --case")
     if a.baseline_tree and not (Path(a.baseline_tree) / "refine").is_dir():
         p.error(f"--baseline-tree {a.baseline_tree} holds no refine/ package: give a checkout of the issue's code")
+    if a.profile:
+        if not a.case:
+            p.error("--profile profiles one --case")
+        from _diagnose_oracle import _case_bundle
+        from _diagnose_profile import profile_case
+
+        DiagnoseConfig, _ = _diagnoser()
+        row = profile_case(_case_bundle(_case(a.case))[1], DiagnoseConfig(workers=a.workers),
+                           a.case.replace("/", "_").replace(".", "p"), OUT)
+        print(json.dumps({k: row[k] for k in ("label", "cpu_s", "wall_s", "load", "compiles", "compile_s",
+                                              "newton_solves", "newton_iterations", "chosen")}), flush=True)
+        return
     if a.case:
         row = run(a.case, a.label, a.cache, a.workers, a.linear_solver, a.bundle, a.code, a.role)
         if a.row_to:  # a fresh process of the loop below: the caller keeps the row

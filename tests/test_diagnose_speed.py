@@ -91,3 +91,5 @@ def test_the_same_machine_target_pairs_the_two_codes_rows_on_one_bundle():
     # the absolute 48 s target reads this code's rows only, of the label asked for
     assert ds.median_target(rows, "s")["median_wall_s"] == float(np.median([r["wall"] for r in rows[1::2]]))
     assert ds.baseline_target([r for r in rows if r.get("role") != "baseline"]) is None
+    # the issue's verdict reads the issue's code's rows only; another baseline is a before/after pair
+    assert ds.baseline_target(rows, issue=True) is None and ds.baseline_target(rows, issue=False) == t

@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxfem as jf
+from jaxfem import padding
 from jaxfem.elements import get_element
 from jaxfem.probe import solve_small
 
@@ -46,11 +47,29 @@ def moved_probe(probe: jf.Probe, X, points) -> jf.Probe:
     return jf.Probe(probe.cells, probe.nodes, get_element("tet10").shape(lam))
 
 
+def loaded_facets(facets) -> np.ndarray:
+    """The loaded ``facets`` ``(n, k)`` and copies of the first up to their size's bucket
+    (:func:`jaxfem.padding.bucket`), which :meth:`LoadedModel.tractions` loads with nothing.
+
+    Why: the solve's compiled programs are shared by meshes of one padded size
+    (:mod:`jaxfem.program`), but the traction facets are not padded there, so every new count of
+    loaded facets (each hole cut through the bottom, each remesh) compiled Newton and the
+    tangents again (13 s of compile each for the global model at h 1.65, on 2 cores under load).
+    A copy of a real facet with zero traction adds nothing to the force nor to its derivatives
+    (a degenerate facet would: the area's derivative at zero area is NaN)."""
+    facets = np.asarray(facets, np.int64)
+    if not len(facets):
+        return facets
+    extra = padding.bucket(len(facets)) - len(facets)
+    return np.concatenate([facets, np.repeat(facets[:1], extra, axis=0)])
+
+
 def face_area(X, facets) -> jnp.ndarray:
     """Area of the boundary ``facets`` (their corner triangles) at nodes ``X (n_nodes, 3)``."""
-    X = jnp.asarray(X)
+    xp = jnp if isinstance(X, jax.core.Tracer) else np  # concrete: no small program compiled per mesh
+    X = xp.asarray(X)
     a, b, c = X[facets[:, 0]], X[facets[:, 1]], X[facets[:, 2]]
-    return 0.5 * jnp.linalg.norm(jnp.cross(b - a, c - a), axis=1).sum()
+    return 0.5 * xp.linalg.norm(xp.cross(b - a, c - a), axis=1).sum()
 
 
 class LoadedModel(MeasuredModel):
@@ -63,12 +82,15 @@ class LoadedModel(MeasuredModel):
     fixture holds; None: those within 0.75 point spacings of a boundary point (which leaves nodes
     between rows of points free: the cup holder's rim between its rings of points).
 
+    ``headroom``: the solver's padding holds a mesh this many times larger (:class:`jaxfem.Solver`),
+    so the holed meshes built after it share its compiled programs.
+
     The other arguments are :class:`~refine.model.MeasuredModel`'s; the points are compared with
     the model where :func:`refine.model.boundary.place_surface_points` puts them (on the surface, within
     the placement's tolerance)."""
 
     def __init__(self, experiment, observations, mesh: jf.Mesh, facets, force, h: float | None = None,
-                 linear_solver: str = "auto", driven=None):
+                 linear_solver: str = "auto", driven=None, headroom: float = 1.0):
         force = np.asarray(force, float).reshape(observations.n_frames, 3)
         if not np.isfinite(force).all():
             raise ObservationError("the measured forces must be finite numbers in every frame")
@@ -76,16 +98,20 @@ class LoadedModel(MeasuredModel):
         self.facets = np.asarray(facets, np.int64)
         self.driven = None if driven is None else np.asarray(driven, np.int64)
         super().__init__(experiment, observations, mesh=mesh, h=h, linear_solver=linear_solver,
-                         traction_facets=self.facets)
+                         traction_facets=loaded_facets(self.facets), headroom=headroom)
 
     def _interpolation(self, points, nodes=None, names=None):
         """:meth:`MeasuredModel._interpolation` onto :attr:`driven` where given."""
         return super()._interpolation(points, nodes=self.driven if nodes is None else nodes, names=names)
 
     def tractions(self, X) -> jnp.ndarray:
-        """``(n_frames, n_facets, 3)``: each frame's pressure on the loaded face at geometry ``X``."""
-        per_area = jnp.asarray(self.force) / face_area(X, self.facets)
-        return jnp.broadcast_to(per_area[:, None, :], (len(self.force), len(self.facets), 3))
+        """``(n_frames, n_loaded, 3)``: each frame's pressure on the loaded face at geometry ``X``
+        (numpy where ``X`` is concrete), on the problem's traction facets (:func:`loaded_facets`:
+        zero on the padding's)."""
+        per_area = self.force / face_area(X, self.facets)
+        n, n_p = len(self.facets), len(self.problem.traction_facets)
+        loaded = np.arange(n_p) < n  # the padding's facets carry nothing (see loaded_facets)
+        return per_area[:, None, :] * loaded[None, :, None]
 
     def frame_tractions(self, X) -> jnp.ndarray:
         """:meth:`tractions`: the frame-by-frame solves on :mod:`jaxfem.program`'s shared programs

@@ -32,6 +32,17 @@ from refine.solid.loaded import LoadedModel
 from refine.solid.morph import ExtrudedMorph
 
 
+HOLE_HEADROOM = 1.2
+"""The padding of a model without a hole (the local model's first fit, the global null test's
+models), as for a mesh this many times larger: a hole's meshes at the same element size have up
+to about 12 % more cells (graded along its curve; h 1.65: 2790 cells without, 2856-3114 with), so
+each compiled a bucket of its own (Newton, tangents: 25-35 s of compile on 2 cores under load),
+which they now find made (:meth:`jaxfem.program.Program.sizes_for`); the padding's cells cost the
+hole-free model's few solves a share of the assembly alone. Not enough everywhere: the fine
+benchmark's global meshes at h 1.2 had 30 % more cells with the hole (6282 against 4836) and still
+compile a bucket of their own."""
+
+
 @dataclass(frozen=True, eq=False)
 class Local:
     """How to build the local model: the cup's ``shape``, the bundle's ``experiment``, the bottom
@@ -66,13 +77,14 @@ class Local:
         return replace(self, h=h, hole_ratio=None if self.hole_ratio is None else self.hole_ratio * k,
                        floor_h=None if self.floor_h is None else self.floor_h * k)
 
-    def model(self, hole: jf.Ellipse | None = None) -> tuple[LoadedModel, CupBottom]:
-        """The local model (``tet10``) with ``hole`` cut through it, and its slab mesh."""
+    def model(self, hole: jf.Ellipse | None = None, headroom: float = 1.0) -> tuple[LoadedModel, CupBottom]:
+        """The local model (``tet10``) with ``hole`` cut through it, and its slab mesh;
+        ``headroom``: its solver padded as for a mesh that many times larger (:data:`HOLE_HEADROOM`)."""
         s = self.shape
         slab = cup_bottom(s.r_in, s.r_out, s.bottom, self.h, hole, layers=self.layers, hole_h=self.hole_h(hole),
                           floor_h=self.floor_h)
         model = LoadedModel(self.experiment, self.obs, slab.mesh, slab.facets, self.force, h=self.h,
-                            linear_solver=self.linear_solver)
+                            linear_solver=self.linear_solver, headroom=headroom)
         return model, slab
 
     def hole_from(self, shape) -> jf.Ellipse:
@@ -117,13 +129,13 @@ class Whole(Local):
         whole = replace(local, obs=held) if h is None else replace(local.coarser(h), obs=held)
         return cls(**{f.name: getattr(whole, f.name) for f in fields(Local)}), on
 
-    def model(self, hole: jf.Ellipse | None = None) -> tuple[LoadedModel, jf.CupHolder]:
+    def model(self, hole: jf.Ellipse | None = None, headroom: float = 1.0) -> tuple[LoadedModel, jf.CupHolder]:
         s = self.shape
         cup = jf.cup_holder(s.r_in, s.r_out, s.height, s.bottom, self.h, hole=hole, layers=self.layers,
                             hole_h=self.hole_h(hole), floor_h=self.floor_h)
         driven = fixture_nodes(cup.mesh, self.obs, max(4 * (self.experiment.noise_std or 0.0), 0.05 * self.h))
         model = LoadedModel(self.experiment, self.obs, cup.mesh, cup.bottom_outer_facets, self.force, h=self.h,
-                            linear_solver=self.linear_solver, driven=driven)
+                            linear_solver=self.linear_solver, driven=driven, headroom=headroom)
         return model, cup
 
 

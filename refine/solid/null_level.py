@@ -27,7 +27,7 @@ from jaxtyping import Bool, Float
 from refine.bundle.io import Bundle
 from refine.diagnosis.noise import NullTest, null_test
 from refine.measures import Residuals
-from refine.solid.local import Local, Whole
+from refine.solid.local import HOLE_HEADROOM, Local, Whole
 
 COARSER = float(np.sqrt(2.0))
 """The global model's coarser mesh for its discretisation error: ``h`` times this."""
@@ -41,7 +41,7 @@ def global_prediction(bundle: Bundle, local: Local, h: float | None = None) -> F
     where Newton stopped) where it cannot be solved: a null test on NaN would pass silently."""
     whole, _ = Whole.of(local, bundle.observations, h)
     held = whole.obs
-    model, _ = whole.model()
+    model, _ = whole.model(headroom=HOLE_HEADROOM)  # the hole's global meshes share its programs
     where = {int(i): k for k, i in enumerate(held.ids)}
     pred = np.asarray(model.predict(model.params()))[:, [where[int(i)] for i in local.obs.ids]]
     if not np.isfinite(pred).all():
