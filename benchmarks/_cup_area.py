@@ -87,6 +87,7 @@ def main() -> None:
     p.add_argument("--name", default="hdata0.8_s0.6_n0.005_f1-2-3-4", help="the bundle's name after cup_seed<seed>_")
     p.add_argument("--hs", type=float, nargs="+", default=[1.2, 1.2 * np.sqrt(2)])
     p.add_argument("--model-h", type=float, default=1.2, help="the diagnosis's element size")
+    p.add_argument("--layers", type=int, default=None, help="elements through the bottom (default: bottom / h rounded)")
     p.add_argument("--polygon-only", action="store_true")
     p.add_argument("--out", type=Path, default=HERE / "results" / "cup_area_s24.jsonl")
     args = p.parse_args()
@@ -115,12 +116,15 @@ def main() -> None:
     bundle = read_bundle(args.bundles / f"cup_seed{args.seed}_{args.name}")
     cfg = SolidConfig(h=args.model_h)
     _, local, _ = local_recipe(bundle, cfg)
+    if args.layers is not None:
+        from dataclasses import replace
+        local = replace(local, layers=args.layers)
     c = np.asarray(found["centroid"][:2]) - np.asarray(local.shape.offset[:2])
     e = jf.Ellipse(*c, *found["axes"], found["angle"])
     true_e = jf.Ellipse(truth.cx - local.shape.centre[0], truth.cy - local.shape.centre[1], truth.rx, truth.ry,
                         truth.angle)
     data_frac = cut_fraction(g, true_e, 0.8, data_hole_h(true_e, 0.8))
-    base = {"seed": args.seed, "result": args.result.name, "reported_area_error_pct": row0["area_error_pct"],
+    base = {"seed": args.seed, "bundle": args.name, "result": args.result.name, "reported_area_error_pct": row0["area_error_pct"],
             "reported_disc_pct": row0.get("area_disc_pct"), "reported_E": found.get("E"),
             "data_cut_fraction": data_frac}
     if args.polygon_only:
@@ -144,7 +148,7 @@ def main() -> None:
         area = float(np.pi * s.axes[0] * s.axes[1])
         fe = jf.Ellipse(*s.centre, *s.axes, s.angle)
         frac = cut_fraction(g, fe, h)
-        row = {**base, "h": h, "cells": int(f.model.mesh.n_cells), "nodes": int(f.model.mesh.n_nodes),
+        row = {**base, "h": h, "layers": args.layers, "cells": int(f.model.mesh.n_cells), "nodes": int(f.model.mesh.n_nodes),
                "edge_missing": None if edge is None else int(len(edge.missing)),
                "area": area, "area_error_pct": 100 * (area / truth.area - 1),
                "cut_fraction": frac, "cut_area_error_pct": 100 * (area * frac / (truth.area * data_frac) - 1),

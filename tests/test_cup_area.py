@@ -107,3 +107,70 @@ def test_the_discretisation_error_keeps_its_sign_beside_its_size(monkeypatch):
             assert set(g.q_disc_parts) == {"mesh"}
     monkeypatch.setattr(u, "discretisation_bias", lambda f, p, h, s, signed=False: None)
     assert u.with_discretisation(Fit(), None, None, 1.0) == Fit()
+
+
+@dataclass(frozen=True)
+class LayeredRecipe(Recipe):
+    """A recipe with the floor's elements through its thickness (None: bottom / h rounded)."""
+
+    layers: int | None = None
+    shape = SimpleNamespace(r_in=R_IN, bottom=3.0)
+
+
+@dataclass(frozen=True)
+class FakeHole:
+    """The part of :class:`refine.solid.local.SolidHole` the grid's refits use."""
+
+    local: LayeredRecipe
+    hole: jf.Ellipse
+    h: float | None = None
+
+    def at(self, shapes, element):
+        s = shapes[0]
+        return replace(self, hole=jf.Ellipse(*s.centre, *s.axes, s.angle))
+
+
+@pytest.mark.parametrize("seed", [11])
+def test_the_grid_extrapolates_a_bilinear_error_in_plan_and_layers(seed, monkeypatch):
+    """Refits whose cut areas miss the truth by ``a h^2 + b / L^2 + c h^2 / L^2`` (random a, b, c,
+    h; the layers from the floor's thickness) extrapolate to the truth through with_plan_and_layers'
+    four corners, each refit built at the corner's element size and layers; the plan's Richardson
+    alone keeps the layers' share; a failed refit with more layers falls back to it."""
+    import refine.diagnosis.fitted as fitted_module
+    from refine.solid import hole_area as ha
+
+    rng = np.random.default_rng(seed)
+    e, h, truth = _hole(seed), rng.uniform(1.0, 1.4), rng.uniform(8, 14)
+    a, b, c = rng.uniform(-0.03, 0.03), rng.uniform(-0.1, 0.1), rng.uniform(-0.05, 0.05)
+    local = LayeredRecipe(h)
+    L = ha.layers_of(local, h)
+    error = lambda h_, L_: a * h_**2 + b / L_**2 + c * h_**2 / L_**2  # noqa: E731
+    f_fine = cut_fraction(local, e, h)
+    scale = np.sqrt(truth * (1 + error(h, L)) / f_fine / e.area)
+    fitted_e = jf.Ellipse(e.cx, e.cy, e.rx * scale, e.ry * scale, e.angle)
+    seen = []
+
+    def fake_fit(hyp, points, hold, sigma):
+        h_ = hyp.h or hyp.local.h
+        L_ = ha.layers_of(hyp.local, h_)
+        seen.append((round(h_ / h, 6), L_))
+        area = truth * (1 + error(h_, L_)) / cut_fraction(hyp.local, hyp.hole, h_)  # meshed at the fit's shape
+        k = np.sqrt(area / fitted_e.area)
+        return SimpleNamespace(shapes=(Hole((e.cx, e.cy), (fitted_e.rx * k, fitted_e.ry * k), e.angle),))
+
+    monkeypatch.setattr(fitted_module, "fit", fake_fit)
+    fitted = SimpleNamespace(hypothesis=FakeHole(local, e), shapes=(Hole((e.cx, e.cy), (fitted_e.rx, fitted_e.ry), e.angle),),
+                             q_disc=None, q_disc_parts=None, q_disc_signed=None, q_disc_refits=None)
+    monkeypatch.setattr(ha, "replace", lambda obj, **kw: SimpleNamespace(**{**vars(obj), **kw}) if isinstance(obj, SimpleNamespace)
+                        else replace(obj, **kw))
+    g = ha.with_plan_and_layers(fitted, None, None, 1.0)
+    assert sorted(seen) == sorted([(round(np.sqrt(2), 6), L), (1.0, L + 1), (round(np.sqrt(2), 6), L + 1)])
+    out = extrapolated_area(g)
+    assert out["layers"] == L and out["area"] == pytest.approx(truth, rel=1e-9)
+    assert out["area_plan_only"] == pytest.approx(truth * (1 + b / L**2), rel=1e-9)  # the plan's h^2 terms gone
+    assert set(g.q_disc_parts) == {"plan", "layers"} and np.all(g.q_disc == np.abs(g.q_disc_signed))
+    w = ha.weights(L)
+    assert sum(w.values()) == pytest.approx(1.0) and sum(ha.weights(L, both=False).values()) == pytest.approx(1.0)
+    failed = SimpleNamespace(**{**vars(g), "q_disc_refits": replace(g.q_disc_refits, shapes={**g.q_disc_refits.shapes,
+                                                                                              "both": None})})
+    assert extrapolated_area(failed)["area"] == pytest.approx(out["area_plan_only"], rel=1e-12)

@@ -96,7 +96,9 @@ class Fitted:
         q_disc: discretisation errors of the shapes' quantities ``(shapes, 7)``
             (:func:`~refine.diagnosis.uncertainty.with_discretisation`), None where not estimated;
             q_disc_parts: its parts by source (``"mesh"``, ``"drive"``), each ``(shapes, 7)``;
-            q_disc_signed: the mesh's part with its sign ``(shapes, 7)`` (the coarser refit's change).
+            q_disc_signed: the mesh's part with its sign ``(shapes, 7)`` (the coarser refit's change);
+            q_disc_refits: the refits behind it where a hypothesis keeps them (a solid's hole:
+            :func:`refine.solid.hole_area.with_plan_and_layers`).
     """
 
     hypothesis: Hypothesis
@@ -117,6 +119,7 @@ class Fitted:
     q_disc: Float[np.ndarray, "shapes 7"] | None = None
     q_disc_parts: dict | None = None
     q_disc_signed: Float[np.ndarray, "shapes 7"] | None = None
+    q_disc_refits: object | None = None
 
     @property
     def cause(self) -> str:

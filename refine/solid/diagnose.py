@@ -34,14 +34,14 @@ from refine.diagnosis.candidates import missing_point_regions, strain_regions
 from refine.diagnosis.fitted import Fitted, NotApplicable, fit, refit
 from refine.diagnosis.noise import estimate_noise
 from refine.diagnosis.shapes import Hole
-from refine.diagnosis.uncertainty import discretisation_errors, shape_errors, total_errors, with_discretisation
+from refine.diagnosis.uncertainty import discretisation_errors, shape_errors, total_errors
 from refine.exceptions import ObservationError
 from refine.measures import Residuals
 from refine.solid.cup import CupShape, bottom_points, check_closed, cup_shape
 from refine.solid.edge import EdgeEvidence, evidence_near, grid_lattice, NoLattice
 from refine.solid.inclusion_diagnosis import InclusionDiagnosis, diagnose_inclusion, fills_hull, inclusion_report
 from refine.solid.initial import initial_fit, initial_null
-from refine.solid.hole_area import extrapolated_area
+from refine.solid.hole_area import extrapolated_area, with_plan_and_layers
 from refine.solid.local import HOLE_HEADROOM, Local, SolidHole, Whole
 from refine.solid.null_level import global_null
 from refine.solid.start import best_start, bracket_starts
@@ -62,8 +62,9 @@ class SolidConfig:
     missing crossing within ``edge_slack`` grid steps of the hole (a tracker loses crossings within
     about 0.7 pitch of a hole's edge: :mod:`refine.solid.start`); None: no edge evidence.
     ``discretisation_error``: the global model's mesh's share of the found hole's error, reported
-    beside its standard error (one more fit, on a mesh sqrt(2) coarser:
-    :func:`refine.diagnosis.uncertainty.discretisation_bias`). ``null_model``: which model
+    beside its standard error, and the hole's area extrapolated to a fine mesh (three more fits,
+    the plan sqrt(2) coarser and one more element through the floor, each alone and both:
+    :func:`refine.solid.hole_area.with_plan_and_layers`). ``null_model``: which model
     the null test weighs against the noise: ``"global"``, the whole cup holder without a hole, a
     uniform modulus fitted, its discretisation error in the null level as the 2D diagnosis's
     (:func:`refine.solid.null_level.global_null`; two global solves: the local model, which leaves
@@ -313,7 +314,7 @@ def refit_whole(bundle: Bundle, local: Local, hole: Hole, sigma: float, cfg: Sol
     f = refit(fit(start, guide, validate, sigma), guide, validate, sigma, max_remesh=cfg.max_remesh, element="tet10")
     if cfg.discretisation_error:
         t0 = time.perf_counter()
-        f = with_discretisation(f, guide, validate, sigma)  # the mesh's share (no drive's in 3D)
+        f = with_plan_and_layers(f, guide, validate, sigma)  # the mesh's share: its plan and its layers
         if seconds is not None:
             seconds["discretisation"] = time.perf_counter() - t0
     return f

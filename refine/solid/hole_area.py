@@ -12,9 +12,20 @@ size absorb, does fall as h^2 (the modulus refitted sqrt(2) coarser extrapolates
 the data's on the benchmark's seeds). So the extrapolation is made on the area cut,
 ``C = fraction(h) x ellipse area``, whose limit h -> 0 is the ellipse's:
 ``C_fine + (C_fine - C_coarse) / (factor^order - 1)`` (benchmarks/README.md, diagnose3d, session 24).
+
+The floor's elements through its thickness are a second discretisation: a refit on a coarser plan
+keeps them (2 layers of the 3 mm floor at h 1.2 and at 1.697), so it does not see their error. On
+seed 2's noise-free data (session 25) the cut area at h 0.85 / 1.2 / 1.697 and 2 / 3 / 4 layers
+follows ``C0 + a h^2 + b / L^2 + c h^2 / L^2`` to 0.035 % of the area (seven fits, four unknowns;
+b and c of the size of a: the layers' error and its coupling to the plan's are as large as the
+plan's own). :func:`with_plan_and_layers` therefore refits the fitted hole at the corners of that
+grid, ``(h, L)``, ``(factor h, L)``, ``(h, L + 1)``, ``(factor h, L + 1)``, and
+:func:`extrapolated_area` extrapolates the bilinear form in ``(h^2, 1 / L^2)`` to ``(0, 0)``.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -35,6 +46,96 @@ def cut_fraction(local, hole: jf.Ellipse, h: float | None = None) -> float:
     return float(0.5 * abs(x[:, 0] @ np.roll(x[:, 1], -1) - x[:, 1] @ np.roll(x[:, 0], -1)) / hole.area)
 
 
+def layers_of(local, h: float) -> int:
+    """The elements through the floor a recipe ``local`` has at element size ``h``: its ``layers``,
+    or the bottom's thickness over ``h`` rounded (:func:`jaxfem.cup.cup_holder`'s rule)."""
+    return int(local.layers or max(1, int(round(local.shape.bottom / h))))
+
+
+@dataclass(frozen=True)
+class GridRefits:
+    """A fitted hole refitted at the corners of the discretisation grid: ``shapes`` per corner
+    (``"fine"``: the fit itself at ``(h, layers)``; ``"plan"``: ``(factor h, layers)``;
+    ``"layers"``: ``(h, layers + 1)``; ``"both"``: ``(factor h, layers + 1)``), ``None`` for a
+    refit that failed."""
+
+    h: float
+    layers: int
+    factor: float
+    shapes: dict
+
+
+def weights(layers: int, factor: float = np.sqrt(2.0), order: float = 2.0, both: bool = True) -> dict:
+    """The weights of the corners (:class:`GridRefits`) in the extrapolation to ``(0, 0)`` of a
+    quantity bilinear in ``(h^order, 1 / L^2)``; ``both`` False: the plan's Richardson alone."""
+    wp = 1.0 / (factor**order - 1.0)  # plan: Q = (1 + wp) Q(h) - wp Q(factor h)
+    if not both:
+        return {"fine": 1.0 + wp, "plan": -wp}
+    y0, y1 = 1.0 / layers**2, 1.0 / (layers + 1) ** 2
+    m = y0 / (y0 - y1)  # layers: Q = (1 - m) Q(L) + m Q(L + 1), exact for Q linear in 1 / L^2
+    return {"fine": (1 - m) * (1 + wp), "plan": -(1 - m) * wp, "layers": m * (1 + wp), "both": -m * wp}
+
+
+def refit_grid(fitted, points, hold, sigma: float, factor: float = np.sqrt(2.0)) -> GridRefits | None:
+    """The hole of ``fitted`` (a :class:`~refine.diagnosis.fitted.Fitted` of a
+    :class:`~refine.solid.local.SolidHole`) refitted from its fitted shapes (and modulus) on the
+    three other corners of the grid (:class:`GridRefits`): three more fits, on ``points``, scored on
+    ``hold``. None where it has no shapes."""
+    from refine.diagnosis.fitted import fit
+
+    hyp = fitted.hypothesis
+    if not getattr(fitted, "shapes", ()):
+        return None
+    h = hyp.h or hyp.local.h
+    L = layers_of(hyp.local, h)
+    base = hyp.at(fitted.shapes, "tet10")
+    corners = {"plan": (factor * h, L), "layers": (hyp.h, L + 1), "both": (factor * h, L + 1)}
+    shapes = {"fine": tuple(fitted.shapes)}
+    for name, (h_c, L_c) in corners.items():
+        try:
+            g = fit(replace(base, h=h_c, local=replace(base.local, layers=L_c)), points, hold, sigma)
+            shapes[name] = tuple(g.shapes)
+        except Exception:  # noqa: BLE001 - a mesh that cannot hold the shapes gives no estimate there
+            shapes[name] = None
+    return GridRefits(h, L, factor, shapes)
+
+
+def extrapolate(grid: GridRefits, order: float = 2.0) -> tuple[np.ndarray, np.ndarray] | None:
+    """The shapes' quantities (:data:`refine.diagnosis.uncertainty.QUANTITIES`, ``(shapes, 7)``)
+    extrapolated to ``(0, 0)`` from the grid's corners, and the plan's Richardson alone at the
+    fit's layers; orientations taken within a quarter turn of the fit's. None without the plan's
+    refit; the plan's extrapolation twice where a refit with more layers failed."""
+    from refine.diagnosis.uncertainty import shape_quantities
+
+    if grid.shapes.get("plan") is None:
+        return None
+    q = {k: shape_quantities(v) for k, v in grid.shapes.items() if v is not None}
+    for k in q:  # an orientation is defined modulo pi
+        q[k][:, 4] = q["fine"][:, 4] + np.angle(np.exp(2j * (q[k][:, 4] - q["fine"][:, 4]))) / 2
+    plan = sum(w * q[k] for k, w in weights(grid.layers, grid.factor, order, both=False).items())
+    if "layers" not in q or "both" not in q:
+        return plan, plan
+    return sum(w * q[k] for k, w in weights(grid.layers, grid.factor, order).items()), plan
+
+
+def with_plan_and_layers(fitted, points, hold, sigma: float, factor: float = np.sqrt(2.0)):
+    """``fitted`` with its discretisation error from the grid's refits (:func:`refit_grid`):
+    ``q_disc_signed`` the fit's error with its sign (the fit less the extrapolation to ``(0, 0)``),
+    ``q_disc`` its size, ``q_disc_parts`` ``{"plan": the plan's Richardson alone, "layers": the
+    rest}`` (sizes), ``q_disc_refits`` the grid. Unchanged where the plan's refit failed."""
+    grid = refit_grid(fitted, points, hold, sigma, factor)
+    out = None if grid is None else extrapolate(grid)
+    if out is None:
+        return fitted
+    from refine.diagnosis.uncertainty import shape_quantities
+
+    limit, plan = out
+    fine = shape_quantities(fitted.shapes)
+    signed = fine - limit
+    return replace(fitted, q_disc=np.abs(signed), q_disc_signed=signed, q_disc_refits=grid,
+                   q_disc_parts={"plan": np.abs(fine - plan), "layers": np.abs(plan - limit)})
+
+
 def extrapolated_area(fitted, factor: float = np.sqrt(2.0), order: float = 2.0) -> dict | None:
     """Richardson's extrapolation of the area cut by the hole of ``fitted`` (a
     :class:`~refine.diagnosis.fitted.Fitted` of a :class:`~refine.solid.local.SolidHole`, with the
@@ -46,7 +147,15 @@ def extrapolated_area(fitted, factor: float = np.sqrt(2.0), order: float = 2.0) 
     their polygons' shares of the fitted ellipses; None without the signed change. Each model's
     share is that of the ellipse its mesh was built at (the fit moves the polygon by an affine
     map, which keeps the share): the fine fit's last remesh, and for the coarse refit the fine
-    fit's shape."""
+    fit's shape.
+
+    Where ``fitted`` carries the grid's refits (``q_disc_refits``, :func:`with_plan_and_layers`),
+    the cut areas of its four corners are extrapolated to ``(0, 0)`` (:func:`weights`), and the
+    parts add ``cut_layers``, ``cut_both``, ``layers`` (the fit's) and ``area_plan_only`` (the
+    plan's Richardson alone)."""
+    grid = getattr(fitted, "q_disc_refits", None)
+    if grid is not None and grid.shapes.get("plan") is not None:
+        return _grid_area(fitted, grid, order)
     signed = getattr(fitted, "q_disc_signed", None)
     if signed is None or not np.isfinite(signed[0, 5]):
         return None
@@ -59,3 +168,21 @@ def extrapolated_area(fitted, factor: float = np.sqrt(2.0), order: float = 2.0) 
     c_fine, c_coarse = f_fine * fine_area, f_coarse * coarse_area
     return {"area": float(c_fine + (c_fine - c_coarse) / (factor**order - 1.0)), "cut_fine": float(c_fine),
             "cut_coarse": float(c_coarse), "fraction_fine": f_fine, "fraction_coarse": f_coarse}
+
+
+def _grid_area(fitted, grid: GridRefits, order: float) -> dict:
+    """:func:`extrapolated_area` from the grid's corners (each model's polygon share is that of
+    the ellipse its mesh was built at: the fit's last remesh for the fit, the fit's shape for the
+    refits; the layers do not change the plan)."""
+    hyp, s = fitted.hypothesis, fitted.shapes[0]
+    h, at = grid.h, jf.Ellipse(*s.centre, *s.axes, s.angle)
+    frac = {"fine": cut_fraction(hyp.local, hyp.hole, h), "plan": cut_fraction(hyp.local, at, grid.factor * h)}
+    frac["layers"], frac["both"] = cut_fraction(hyp.local, at, h), frac["plan"]
+    cut = {k: frac[k] * float(np.pi * v[0].axes[0] * v[0].axes[1]) for k, v in grid.shapes.items() if v is not None}
+    plan_only = sum(w * cut[k] for k, w in weights(grid.layers, grid.factor, order, both=False).items())
+    full = "layers" in cut and "both" in cut
+    area = sum(w * cut[k] for k, w in weights(grid.layers, grid.factor, order).items()) if full else plan_only
+    return {"area": float(area), "cut_fine": float(cut["fine"]), "cut_coarse": float(cut["plan"]),
+            "fraction_fine": frac["fine"], "fraction_coarse": frac["plan"], "layers": grid.layers,
+            "cut_layers": float(cut["layers"]) if "layers" in cut else None,
+            "cut_both": float(cut["both"]) if "both" in cut else None, "area_plan_only": float(plan_only)}
