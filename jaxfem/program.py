@@ -2,10 +2,10 @@
 
 A program is made for what the solve's code depends on: the element, the material law under its
 kinematics, the linear solver's kind and the Newton options. The mesh (coordinates through the
-parameters, connectivity, sparsity pattern, constraints) comes as arguments, padded to a few
-bucket sizes (:mod:`jaxfem.padding`), so the models of one diagnosis (its hypotheses, remeshes and
-fits) compile each program once per bucket instead of once per mesh (5-10 CPU s each, whatever
-the mesh size, when the mesh arrays were constants of the program).
+parameters, connectivity, sparsity pattern, constraints, traction-loaded facets) comes as
+arguments, padded to a few bucket sizes (:mod:`jaxfem.padding`), so the models of one diagnosis
+(its hypotheses, remeshes and fits) compile each program once per bucket instead of once per mesh
+(5-10 CPU s each, whatever the mesh size, when the mesh arrays were constants of the program).
 
 Each program's pieces are pure functions of ``(theta, ..., arrays)``:
 
@@ -92,7 +92,7 @@ class Program:
         with self._sizes_lock:
             held = [s for s in self._sizes if padding.fits(own, s) and s.n_cells_p <= reuse * max(own.n_cells, 1)]
             if held:
-                return padding.padded_to(own, min(held, key=lambda s: (s.n_cells_p, s.nnz_p, s.n_nodes_p)))
+                return padding.padded_to(own, min(held, key=lambda s: (s.n_cells_p, s.nnz_p, s.n_nodes_p, s.n_facets_p)))
             self._sizes.append(own)
             return own
 
