@@ -1,8 +1,8 @@
 """Padded sizes, so that one compiled program serves many meshes.
 
 A compiled solve depends on the shapes of its arrays (cells, dofs, matrix entries, prescribed
-dofs, traction-loaded facets), not on their values, once the mesh's index arrays are arguments of the program rather than
-constants in it. Rounding each size up to a *bucket* (a few sizes per doubling) lets every mesh
+dofs, traction-loaded facets), not on their values, once the mesh's index arrays are arguments of
+the program rather than constants in it. Rounding each size up to a *bucket* (a few sizes per doubling) lets every mesh
 of about the same size (the hypotheses, remeshes and models of one diagnosis) reuse one program.
 
 What the padding adds does nothing:
@@ -57,7 +57,8 @@ def bucket(n: int, per_doubling: int = PER_DOUBLING) -> int:
 
 @dataclass(frozen=True)
 class Sizes:
-    """Real and padded sizes of one problem (``*_p``: padded; all counts)."""
+    """Real and padded sizes of one problem (``*_p``: padded; all counts; ``n_facets``: the
+    traction-loaded facets, 0 for a problem without)."""
 
     n_cells: int
     n_nodes: int
