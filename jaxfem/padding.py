@@ -27,7 +27,7 @@ The real entries come first in every padded array, so slicing recovers them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import jax
 import jax.numpy as jnp
@@ -123,6 +123,14 @@ def with_headroom(own: Sizes, headroom: float) -> Sizes:
     up = lambda n: int(np.ceil(headroom * n))  # noqa: E731
     room = sizes(up(own.n_cells), up(own.n_nodes), own.dim, up(own.nnz), up(own.n_fixed), n_facets=up(own.n_facets))
     return padded_to(own, room) if fits(own, room) else own
+
+
+def with_facets_of(into: Sizes, real: Sizes) -> Sizes:
+    """``into``'s padded sizes with ``real``'s padded facet count where ``into``'s facets do not
+    hold ``real``'s (too few, or some where it has none, or none where it has some)."""
+    if into.n_facets_p >= real.n_facets and (into.n_facets_p == 0) == (real.n_facets == 0):
+        return into
+    return replace(into, n_facets_p=real.n_facets_p)
 
 
 def padded_to(real: Sizes, into: Sizes) -> Sizes:

@@ -120,9 +120,12 @@ def test_other_loaded_facet_counts_of_one_bucket_get_one_padded_shape():
     mask = np.asarray(sb.padded_arrays["facet_mask"])
     assert mask.sum() == n2 and mask[:n2].all()
     np.testing.assert_array_equal(sb.padded_arrays["tfacets"][n2:], np.repeat(b.traction_facets[:1], len(mask) - n2, 0))
-    more = _sheet(10, 6, int(sa.sizes.n_facets_p) + 1, rng)
+    # more facets than the bucket holds, on a coarser mesh: the sheets' mesh padding, its own facets'
+    more = _sheet(8, 5, int(sa.sizes.n_facets_p) + 1, rng)
     sm = jf.Solver(more, "superlu")
-    assert not padding.fits(sm.sizes, sa.sizes) and sm.sizes.n_facets_p > sa.sizes.n_facets_p
+    assert not padding.fits(sm.sizes, sa.sizes) and sm.sizes.n_facets_p == padding.bucket(sm.sizes.n_facets)
+    assert (sm.sizes.n_cells_p, sm.sizes.nnz_p, sm.sizes.n_nodes_p) == (sa.sizes.n_cells_p, sa.sizes.nnz_p,
+                                                                        sa.sizes.n_nodes_p)
     none = jf.Solver(jf.Problem(a.mesh, LAW_2D, KIN_2D, fixed=a.fixed), "superlu")
     assert none.sizes.n_facets_p == 0 and none.padded_arrays["tfacets"].shape[0] == 0
     assert not padding.fits(none.sizes, sa.sizes) and not padding.fits(sa.sizes, none.sizes)
