@@ -81,9 +81,17 @@ def loads_at(theta, loads0, s):
 
 
 def external_force(theta, loads, arrays, facet_element, n_dofs):
+    """The external force ``(n_dofs,)``: point forces ``loads["f"]`` and the dead load of the
+    traction facets ``arrays["tfacets"]`` (``loads["traction"]``: one ``(dim,)`` vector for every
+    facet or ``(n_facets, dim)``), times ``arrays["facet_mask"]`` where given (0 on the padding's
+    facets, :mod:`jaxfem.padding`: they carry nothing whatever the traction)."""
     f = loads["f"]
-    if arrays["tfacets"].shape[0]:
-        f = f + facet_forces(theta["X"], arrays["tfacets"], loads["traction"], facet_element, n_dofs)
+    facets = arrays["tfacets"]
+    if facets.shape[0]:
+        t = jnp.broadcast_to(loads["traction"], (facets.shape[0], theta["X"].shape[1]))
+        if "facet_mask" in arrays:
+            t = t * arrays["facet_mask"][:, None]
+        f = f + facet_forces(theta["X"], facets, t, facet_element, n_dofs)
     return f
 
 

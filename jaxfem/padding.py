@@ -1,8 +1,8 @@
 """Padded sizes, so that one compiled program serves many meshes.
 
 A compiled solve depends on the shapes of its arrays (cells, dofs, matrix entries, prescribed
-dofs), not on their values, once the mesh's index arrays are arguments of the program rather than
-constants in it. Rounding each size up to a *bucket* (a few sizes per doubling) lets every mesh
+dofs, traction-loaded facets), not on their values, once the mesh's index arrays are arguments of
+the program rather than constants in it. Rounding each size up to a *bucket* (a few sizes per doubling) lets every mesh
 of about the same size (the hypotheses, remeshes and models of one diagnosis) reuse one program.
 
 What the padding adds does nothing:
@@ -15,20 +15,26 @@ What the padding adds does nothing:
   after its real entries), so their displacement stays zero;
 - padding prescribed dofs are distinct padding dofs held at zero;
 - padding matrix entries are zeros between padding dofs, each at a place of its own (KLU refuses
-  repeated entries), in a block that no real dof touches.
+  repeated entries), in a block that no real dof touches;
+- padding traction facets are copies of the first real facet with a zero ``facet_mask``, which
+  multiplies every facet's load: they add no force and no derivative, whatever the traction
+  (a per-facet one is padded with zeros, a uniform ``(dim,)`` one is masked), and being real
+  facets they have a nonzero area (a degenerate facet's area derivative would be NaN, and
+  0 x NaN is NaN). A problem without traction facets keeps none (the force skips them).
 
 The real entries come first in every padded array, so slicing recovers them.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .assembly import Pattern
+from .exceptions import ProblemError
 
 #: bucket sizes per doubling: the padding wastes at most 2^(1/4) - 1 = 19 % (about 9 % on average)
 PER_DOUBLING = 4
@@ -51,7 +57,8 @@ def bucket(n: int, per_doubling: int = PER_DOUBLING) -> int:
 
 @dataclass(frozen=True)
 class Sizes:
-    """Real and padded sizes of one problem (``*_p``: padded; all counts)."""
+    """Real and padded sizes of one problem (``*_p``: padded; all counts; ``n_facets``: the
+    traction-loaded facets, 0 for a problem without)."""
 
     n_cells: int
     n_nodes: int
@@ -62,6 +69,8 @@ class Sizes:
     n_nodes_p: int
     nnz_p: int
     n_fixed_p: int
+    n_facets: int = 0
+    n_facets_p: int = 0
 
     @property
     def n_dofs(self) -> int:
@@ -72,11 +81,13 @@ class Sizes:
         return self.n_nodes_p * self.dim
 
 
-def sizes(n_cells: int, n_nodes: int, dim: int, nnz: int, n_fixed: int, pad: bool = True) -> Sizes:
+def sizes(n_cells: int, n_nodes: int, dim: int, nnz: int, n_fixed: int, pad: bool = True,
+          n_facets: int = 0) -> Sizes:
     """The padded sizes (``pad=False``: the real ones). Enough padding dofs are kept for the
-    padding prescribed dofs, and at least one."""
+    padding prescribed dofs, and at least one; ``n_facets`` traction facets go to their bucket
+    (none stay none)."""
     if not pad:
-        return Sizes(n_cells, n_nodes, dim, nnz, n_fixed, n_cells, n_nodes, nnz, n_fixed)
+        return Sizes(n_cells, n_nodes, dim, nnz, n_fixed, n_cells, n_nodes, nnz, n_fixed, n_facets, n_facets)
     n_fixed_p = bucket(n_fixed)
     extra_nodes = -(-(n_fixed_p - n_fixed) // dim) + 1
     n_nodes_p = bucket(n_nodes + extra_nodes)
@@ -86,19 +97,22 @@ def sizes(n_cells: int, n_nodes: int, dim: int, nnz: int, n_fixed: int, pad: boo
         if pad * (pad - 1) >= nnz_p - nnz - pad:
             break
         n_nodes_p = bucket(n_nodes_p + 1)
-    return Sizes(n_cells, n_nodes, dim, nnz, n_fixed, bucket(n_cells), n_nodes_p, nnz_p, n_fixed_p)
+    return Sizes(n_cells, n_nodes, dim, nnz, n_fixed, bucket(n_cells), n_nodes_p, nnz_p, n_fixed_p,
+                 n_facets, bucket(n_facets) if n_facets else 0)
 
 
 def fits(real: Sizes, into: Sizes) -> bool:
     """Whether a problem of ``real``'s real sizes can be padded to ``into``'s padded sizes (of
     the same dimension): every padded count at least the real one, padding dofs for the padding
-    prescribed dofs (and at least one), and room among them for the padding matrix entries, each
-    at a place of its own (:func:`padded_arrays`)."""
+    prescribed dofs (and at least one), room among them for the padding matrix entries, each
+    at a place of its own (:func:`padded_arrays`), and traction facets where the problem has some
+    (none where it has none)."""
     pad = (into.n_nodes_p - real.n_nodes) * real.dim
     extra = into.nnz_p - real.nnz - pad
     return (into.dim == real.dim and into.n_cells_p >= real.n_cells and pad >= 1
             and into.n_fixed_p - real.n_fixed <= pad and into.n_fixed_p >= real.n_fixed and extra >= 0
-            and pad * (pad - 1) >= extra)
+            and pad * (pad - 1) >= extra and into.n_facets_p >= real.n_facets
+            and (into.n_facets_p == 0) == (real.n_facets == 0))
 
 
 def with_headroom(own: Sizes, headroom: float) -> Sizes:
@@ -107,25 +121,36 @@ def with_headroom(own: Sizes, headroom: float) -> Sizes:
     if headroom <= 1.0:
         return own
     up = lambda n: int(np.ceil(headroom * n))  # noqa: E731
-    room = sizes(up(own.n_cells), up(own.n_nodes), own.dim, up(own.nnz), up(own.n_fixed))
+    room = sizes(up(own.n_cells), up(own.n_nodes), own.dim, up(own.nnz), up(own.n_fixed), n_facets=up(own.n_facets))
     return padded_to(own, room) if fits(own, room) else own
+
+
+def with_facets_of(into: Sizes, real: Sizes) -> Sizes:
+    """``into``'s padded sizes with ``real``'s padded facet count where ``into``'s facets do not
+    hold ``real``'s (too few, or some where it has none, or none where it has some)."""
+    if into.n_facets_p >= real.n_facets and (into.n_facets_p == 0) == (real.n_facets == 0):
+        return into
+    return replace(into, n_facets_p=real.n_facets_p)
 
 
 def padded_to(real: Sizes, into: Sizes) -> Sizes:
     """``real``'s real sizes with ``into``'s padded ones (:func:`fits` must hold)."""
     return Sizes(real.n_cells, real.n_nodes, real.dim, real.nnz, real.n_fixed, into.n_cells_p, into.n_nodes_p,
-                 into.nnz_p, into.n_fixed_p)
+                 into.nnz_p, into.n_fixed_p, real.n_facets, into.n_facets_p)
 
 
-def padded_arrays(s: Sizes, cells: np.ndarray, pattern: Pattern, fixed: np.ndarray, free: np.ndarray) -> dict:
+def padded_arrays(s: Sizes, cells: np.ndarray, pattern: Pattern, fixed: np.ndarray, free: np.ndarray,
+                  facets: np.ndarray | None = None) -> dict:
     """The solver's index and mask arrays at the padded sizes (host numpy; see the module doc).
 
     Args:
         cells: ``(n_cells, n_per_cell)``; pattern: the real mesh's pattern; fixed: the prescribed
-        dofs ``(n_fixed,)`` (sorted); free: ``(n_dofs,)`` bool.
+        dofs ``(n_fixed,)`` (sorted); free: ``(n_dofs,)`` bool; facets: the traction facets
+        ``(n_facets, k)`` (None: no ``tfacets`` nor ``facet_mask`` in the result).
     Returns:
         a dict like :attr:`Solver.arrays` (``cells``, ``edofs``, ``slots``, ``rows``, ``cols``,
-        ``diag``, ``fixed``, ``free``, ``keep``, ``diag_fixed``) plus ``cell_mask``.
+        ``diag``, ``fixed``, ``free``, ``keep``, ``diag_fixed``, ``tfacets``) plus ``cell_mask``
+        and ``facet_mask`` ``(n_facets_p,)``.
     """
     n, n_p, nnz, nnz_p = s.n_dofs, s.n_dofs_p, s.nnz, s.nnz_p
     pad_dofs = np.arange(n, n_p)
@@ -152,9 +177,26 @@ def padded_arrays(s: Sizes, cells: np.ndarray, pattern: Pattern, fixed: np.ndarr
     fixed_p = np.concatenate([fixed, pad_dofs[: s.n_fixed_p - s.n_fixed]]).astype(np.int32)
     mask = np.zeros(s.n_cells_p)
     mask[: s.n_cells] = 1.0
-    return {"cells": cells_p, "edofs": edofs, "slots": slots, "rows": rows, "cols": cols, "diag": diag,
-            "fixed": fixed_p, "free": free_p.astype(np.float64), "keep": keep, "diag_fixed": diag_fixed,
-            "cell_mask": mask}
+    out = {"cells": cells_p, "edofs": edofs, "slots": slots, "rows": rows, "cols": cols, "diag": diag,
+           "fixed": fixed_p, "free": free_p.astype(np.float64), "keep": keep, "diag_fixed": diag_fixed,
+           "cell_mask": mask}
+    if facets is not None:
+        out.update(padded_facets(s, facets))
+    return out
+
+
+def padded_facets(s: Sizes, facets: np.ndarray) -> dict:
+    """``tfacets (n_facets_p, k)``: the traction ``facets (n_facets, k)`` and copies of the first
+    (a real facet: a nonzero area, so finite derivatives), and ``facet_mask (n_facets_p,)``: 1 for
+    a real facet, 0 for a copy (see the module doc)."""
+    facets = np.asarray(facets)
+    if len(facets) != s.n_facets:
+        raise ProblemError(f"{len(facets)} traction facets, but the padded sizes were made for {s.n_facets}: "
+                           "pass the problem's traction_facets with the sizes made for it")
+    copies = np.repeat(facets[:1], s.n_facets_p - s.n_facets, axis=0)
+    mask = np.zeros(s.n_facets_p)
+    mask[: s.n_facets] = 1.0
+    return {"tfacets": np.concatenate([facets, copies]).astype(np.int32), "facet_mask": mask}
 
 
 def _is_cellwise(key: str, shape: tuple, s: Sizes) -> bool:
@@ -165,8 +207,10 @@ def pad_theta(theta: dict, s: Sizes, tangent: bool = False, axis: int = 0) -> di
     """Parameters (or, with ``tangent``, directions: zeros in the padding) at the padded sizes.
 
     Per-cell values repeat the last cell's (a valid material for the padding cells, which carry no
-    volume); nodal coordinates and loads are padded with zeros. ``axis`` is where the per-entry
-    axis is (1 for a batch of directions with a leading axis). Traceable."""
+    volume); nodal coordinates and loads are padded with zeros, a per-facet ``traction``
+    ``(n_facets, dim)`` too (a uniform ``(dim,)`` one is kept: the facet mask unloads the padding
+    facets). ``axis`` is where the per-entry axis is (1 for a batch of directions with a leading
+    axis). Traceable."""
     def pad(v, n_p, edge):
         xp = jnp if isinstance(v, jax.core.Tracer) else np  # concrete values: no device op to compile
         v = xp.asarray(v, dtype=np.float64)
@@ -183,7 +227,7 @@ def pad_theta(theta: dict, s: Sizes, tangent: bool = False, axis: int = 0) -> di
         elif k == "f":
             out[k] = pad(v, s.n_dofs_p, False)
         elif k == "traction":
-            out[k] = v
+            out[k] = pad(v, s.n_facets_p, False) if np.ndim(v) - axis == 2 else v
         elif _is_cellwise(k, np.shape(v)[axis:], s):
             out[k] = pad(v, s.n_cells_p, True)
         else:
@@ -198,7 +242,7 @@ def unpad_theta(theta: dict, s: Sizes) -> dict:
     for k, v in theta.items():
         v = np.asarray(v)
         if k == "traction":
-            out[k] = v
+            out[k] = v[: s.n_facets] if v.ndim == 2 else v  # per facet, or one uniform (dim,)
         else:
             out[k] = v[: n.get(k, s.n_cells)]
     return out

@@ -2,10 +2,10 @@
 
 A program is made for what the solve's code depends on: the element, the material law under its
 kinematics, the linear solver's kind and the Newton options. The mesh (coordinates through the
-parameters, connectivity, sparsity pattern, constraints) comes as arguments, padded to a few
-bucket sizes (:mod:`jaxfem.padding`), so the models of one diagnosis (its hypotheses, remeshes and
-fits) compile each program once per bucket instead of once per mesh (5-10 CPU s each, whatever
-the mesh size, when the mesh arrays were constants of the program).
+parameters, connectivity, sparsity pattern, constraints, traction-loaded facets) comes as
+arguments, padded to a few bucket sizes (:mod:`jaxfem.padding`), so the models of one diagnosis
+(its hypotheses, remeshes and fits) compile each program once per bucket instead of once per mesh
+(5-10 CPU s each, whatever the mesh size, when the mesh arrays were constants of the program).
 
 Each program's pieces are pure functions of ``(theta, ..., arrays)``:
 
@@ -85,14 +85,21 @@ class Program:
     def sizes_for(self, own: padding.Sizes, reuse: float = REUSE) -> padding.Sizes:
         """The padded sizes a new solver of real sizes ``own`` (padded to its own bucket) is given:
         the smallest padded sizes this program already gave that hold it (:func:`padding.fits`)
-        with at most ``reuse`` times its cells, else its own (then recorded). Which one a mesh is
+        with at most ``reuse`` times its cells, else the smallest such whose mesh padding holds it
+        with the traction facets of its own bucket, else its own (either recorded). Which one a mesh is
         given depends on the solvers of this program made before it in the process; the solve
         does not (padding carries nothing; a diagnosis's figures were the same to every printed
         digit). A solver whose linear solver takes no padding does not ask."""
         with self._sizes_lock:
-            held = [s for s in self._sizes if padding.fits(own, s) and s.n_cells_p <= reuse * max(own.n_cells, 1)]
+            near = [s for s in self._sizes if s.n_cells_p <= reuse * max(own.n_cells, 1)]
+            held = [s for s in near if padding.fits(own, s)]
             if held:
-                return padding.padded_to(own, min(held, key=lambda s: (s.n_cells_p, s.nnz_p, s.n_nodes_p)))
+                return padding.padded_to(own, min(held, key=_smallest))
+            # where only the traction facets do not fit, keep the mesh's padding and give the facets
+            # their own bucket: the solve compiles for the new facet count, the programs sized by the
+            # mesh alone (the points' interpolation) do not
+            mixed = [m for m in (padding.with_facets_of(s, own) for s in near) if padding.fits(own, m)]
+            own = padding.padded_to(own, min(mixed, key=_smallest)) if mixed else own
             self._sizes.append(own)
             return own
 
@@ -177,6 +184,10 @@ class Program:
         """The parameters' cotangent (a pytree like ``theta``) of the cotangent ``g (n_dofs,)`` of
         the converged ``u``: one adjoint solve (the transpose of :meth:`_solve_tangent`)."""
         return jax.vjp(lambda th: self._implicit(th, u, vals, arrays), theta)[1](g)[0]
+
+
+def _smallest(s: padding.Sizes) -> tuple:
+    return s.n_cells_p, s.nnz_p, s.n_nodes_p, s.n_facets_p
 
 
 _PROGRAMS: dict = {}

@@ -110,11 +110,12 @@ class Solver:
                                self._facet_element)
         self.law, self.assembler = self.program.asm.law, self.program.asm
         self.sizes = padding.sizes(mesh.n_cells, mesh.n_nodes, mesh.dim, pat.nnz, len(problem.fixed),
-                                   pad=self._lin.pads)
+                                   pad=self._lin.pads, n_facets=len(problem.traction_facets))
         if self._lin.pads:  # room for larger meshes, or a larger padding the program was given, where one holds this mesh
             self.sizes = self.program.sizes_for(padding.with_headroom(self.sizes, headroom))
-        padded = padding.padded_arrays(self.sizes, mesh.cells, pat, problem.fixed, free)
-        padded["tfacets"] = problem.traction_facets.astype(np.int32)
+        # the traction facets padded too (with a facet mask), so that another count of loaded
+        # facets (a hole cut through a loaded face, a remesh) compiles nothing
+        padded = padding.padded_arrays(self.sizes, mesh.cells, pat, problem.fixed, free, problem.traction_facets)
         if isinstance(self._lin, HostSolver):
             padded["host"] = np.int32(self._lin.host_id)
         self.padded_arrays = jax.device_put(padded)

@@ -96,18 +96,19 @@ def test_padded_solves_equal_the_real_sizes_and_their_tangents_the_jvp():
 def unpadded_solve(solver, theta):
     """The displacements of ``solver``'s problem at ``theta`` solved densely at its real sizes (no
     padding): the reference a padded solve must equal."""
-    ref = jf.Solver(solver.problem, "dense")
-    s = solver.sizes
-    ref.sizes = padding.sizes(s.n_cells, s.n_nodes, s.dim, s.nnz, s.n_fixed, pad=False)
-    ref.padded_arrays = {**ref.padded_arrays, **_unpadded(ref)}
-    return ref.solve(theta).u
+    return real_size_solver(solver.problem).solve(theta).u
 
 
-def _unpadded(solver):
-    """The solver's arrays at its real sizes (no padding cells, dofs or entries)."""
-    p = solver.problem
-    arr = padding.padded_arrays(solver.sizes, p.mesh.cells, solver.pattern, p.fixed, p.free_mask)
-    return {k: jax.numpy.asarray(v) for k, v in arr.items()}
+def real_size_solver(problem):
+    """A dense solver of ``problem`` at its real sizes (no padding cells, dofs, entries nor traction
+    facets)."""
+    ref = jf.Solver(problem, "dense")
+    s = ref.sizes
+    ref.sizes = padding.sizes(s.n_cells, s.n_nodes, s.dim, s.nnz, s.n_fixed, pad=False, n_facets=s.n_facets)
+    arr = padding.padded_arrays(ref.sizes, problem.mesh.cells, ref.pattern, problem.fixed, problem.free_mask,
+                                problem.traction_facets)
+    ref.padded_arrays = {**ref.padded_arrays, **{k: jax.numpy.asarray(v) for k, v in arr.items()}}
+    return ref
 
 
 def test_bucket_sizes():

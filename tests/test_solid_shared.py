@@ -84,27 +84,3 @@ def test_the_drives_pull_back_loads_each_frame(hole_model):
     np.testing.assert_allclose(whole, scan.boundary_jacobian(theta), atol=1e-9 * np.abs(whole).max())
     np.testing.assert_allclose(model.boundary_vjp(theta, C), np.einsum("cfpd,fpdgm->cgm", C, whole),
                                atol=1e-9 * np.abs(whole).max())
-
-
-def test_padded_loaded_facets_add_no_force_and_keep_its_derivatives_finite():
-    # the loaded face's facets are padded to a bucket (one compiled solve for every hole's count):
-    # the copies carry zero traction, so the force, and its derivative along the nodes, are
-    # those of the real facets (a degenerate copy would make the area's derivative NaN)
-    import jax
-
-    from jaxfem.assembly import facet_forces
-    from refine.solid.loaded import loaded_facets
-
-    cup = jf.cup_holder(R_IN, R_OUT, HEIGHT, BOTTOM, 3.0)
-    mesh, real = cup.mesh, cup.bottom_outer_facets[:-3]  # a count off the buckets
-    padded = loaded_facets(real)
-    assert len(padded) > len(real) and (padded[len(real):] == real[0]).all()
-    t = np.tile([[0.1, -0.2, 1.0]], (len(real), 1))
-    t_p = np.r_[t, np.zeros((len(padded) - len(real), 3))]
-    dX = np.random.default_rng(0).normal(size=mesh.nodes.shape)
-    forces = jax.jit(lambda X, facets, t: jax.jvp(lambda Y: facet_forces(Y, facets, t, mesh.el.facet, mesh.n_dofs),
-                                                  (X,), (dX,)))
-    (f, df), (f_p, df_p) = forces(mesh.nodes, real, t), forces(mesh.nodes, padded, t_p)
-    np.testing.assert_allclose(f_p, f, atol=1e-14)
-    assert np.isfinite(df_p).all()
-    np.testing.assert_allclose(df_p, df, atol=1e-12)

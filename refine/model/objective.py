@@ -202,7 +202,8 @@ class Compiled:
         dirs = {key: np.moveaxis(np.asarray(v), -1, 0) for key, v in T.items()}
         dirs["u_D"] = np.zeros((k, len(model.problem.fixed)))  # the drive does not depend on z
         B, start = model.measured_boundary(), model.frame_starts(theta)
-        T, dT = (None, None) if self._tractions is None else self._tractions(np.asarray(z, float))
+        # on the host: each frame's slice of device arrays compiled a small program per facet count
+        T, dT = (None, None) if self._tractions is None else jax.device_get(self._tractions(np.asarray(z, float)))
         U, states, frame_dirs = [], [], []
         for f in range(model.obs.n_frames):
             loads = {"u_D": model.drives[f].matrix @ B[f], **frame_traction(T, f)}

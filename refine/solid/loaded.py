@@ -14,7 +14,6 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxfem as jf
-from jaxfem import padding
 from jaxfem.elements import get_element
 from jaxfem.probe import solve_small
 
@@ -45,23 +44,6 @@ def moved_probe(probe: jf.Probe, X, points) -> jf.Probe:
     T = jnp.swapaxes(Xe[:, 1:] - Xe[:, :1], 1, 2)
     lam = solve_small(T, jnp.asarray(points) - Xe[:, 0])  # closed form: no batched LAPACK (see solve_small)
     return jf.Probe(probe.cells, probe.nodes, get_element("tet10").shape(lam))
-
-
-def loaded_facets(facets) -> np.ndarray:
-    """The loaded ``facets`` ``(n, k)`` and copies of the first up to their size's bucket
-    (:func:`jaxfem.padding.bucket`), which :meth:`LoadedModel.tractions` loads with nothing.
-
-    Why: the solve's compiled programs are shared by meshes of one padded size
-    (:mod:`jaxfem.program`), but the traction facets are not padded there, so every new count of
-    loaded facets (each hole cut through the bottom, each remesh) compiled Newton and the
-    tangents again (13 s of compile each for the global model at h 1.65, on 2 cores under load).
-    A copy of a real facet with zero traction adds nothing to the force nor to its derivatives
-    (a degenerate facet would: the area's derivative at zero area is NaN)."""
-    facets = np.asarray(facets, np.int64)
-    if not len(facets):
-        return facets
-    extra = padding.bucket(len(facets)) - len(facets)
-    return np.concatenate([facets, np.repeat(facets[:1], extra, axis=0)])
 
 
 def face_area(X, facets) -> jnp.ndarray:
@@ -98,7 +80,7 @@ class LoadedModel(MeasuredModel):
         self.facets = np.asarray(facets, np.int64)
         self.driven = None if driven is None else np.asarray(driven, np.int64)
         super().__init__(experiment, observations, mesh=mesh, h=h, linear_solver=linear_solver,
-                         traction_facets=loaded_facets(self.facets), headroom=headroom)
+                         traction_facets=self.facets, headroom=headroom)
 
     def _interpolation(self, points, nodes=None, names=None):
         """:meth:`MeasuredModel._interpolation` onto :attr:`driven` where given."""
@@ -106,12 +88,10 @@ class LoadedModel(MeasuredModel):
 
     def tractions(self, X) -> jnp.ndarray:
         """``(n_frames, n_loaded, 3)``: each frame's pressure on the loaded face at geometry ``X``
-        (numpy where ``X`` is concrete), on the problem's traction facets (:func:`loaded_facets`:
-        zero on the padding's)."""
+        (numpy where ``X`` is concrete), the same on each of its facets (the solver pads the
+        facets to a bucket, so another count of them compiles no solve again: :mod:`jaxfem.padding`)."""
         per_area = self.force / face_area(X, self.facets)
-        n, n_p = len(self.facets), len(self.problem.traction_facets)
-        loaded = np.arange(n_p) < n  # the padding's facets carry nothing (see loaded_facets)
-        return per_area[:, None, :] * loaded[None, :, None]
+        return per_area[:, None, :] * np.ones((1, len(self.facets), 1))
 
     def frame_tractions(self, X) -> jnp.ndarray:
         """:meth:`tractions`: the frame-by-frame solves on :mod:`jaxfem.program`'s shared programs
