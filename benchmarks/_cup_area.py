@@ -87,6 +87,7 @@ def main() -> None:
     p.add_argument("--name", default="hdata0.8_s0.6_n0.005_f1-2-3-4", help="the bundle's name after cup_seed<seed>_")
     p.add_argument("--hs", type=float, nargs="+", default=[1.2, 1.2 * np.sqrt(2)])
     p.add_argument("--model-h", type=float, default=1.2, help="the diagnosis's element size")
+    p.add_argument("--h-data", type=float, default=0.8, help="the data's element size (its polygon's share)")
     p.add_argument("--layers", type=int, default=None, help="elements through the bottom (default: bottom / h rounded)")
     p.add_argument("--polygon-only", action="store_true")
     p.add_argument("--out", type=Path, default=HERE / "results" / "cup_area_s24.jsonl")
@@ -123,7 +124,7 @@ def main() -> None:
     e = jf.Ellipse(*c, *found["axes"], found["angle"])
     true_e = jf.Ellipse(truth.cx - local.shape.centre[0], truth.cy - local.shape.centre[1], truth.rx, truth.ry,
                         truth.angle)
-    data_frac = cut_fraction(g, true_e, 0.8, data_hole_h(true_e, 0.8))
+    data_frac = cut_fraction(g, true_e, args.h_data, data_hole_h(true_e, args.h_data))
     base = {"seed": args.seed, "bundle": args.name, "result": args.result.name, "reported_area_error_pct": row0["area_error_pct"],
             "reported_disc_pct": row0.get("area_disc_pct"), "reported_E": found.get("E"),
             "data_cut_fraction": data_frac}
