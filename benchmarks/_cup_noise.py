@@ -5,77 +5,80 @@ From a seed's noise-free data (``diagnose3d.py --noise 0 --data-only``, the same
 generator draws the points before the noise) this writes bundles beside it: ``clean`` (the
 noise-free displacements, weighted at the noisy bundle's noise), ``orig`` (the noisy bundle's own
 displacements, to check that they are clean + noise) and ``draw<k>`` (clean + new Gaussian noise of
-the same standard deviation, seeds 1000 + k). ``_cup_area.py --name ...`` then refits the
-diagnosis's hole on each at h 1.2 and sqrt(2) x 1.2; ``--summary`` gives per bundle the fitted
-ellipse's and the extrapolated cut area's errors.
+the same standard deviation, seeds 1000 + k). ``_cup_area.py --name ... [--layers L]`` then refits
+the diagnosis's hole on each at h 1.2 and sqrt(2) x 1.2; ``--summary`` gives per bundle the fitted
+ellipse's error and the cut area's extrapolations (the plan's alone, and the grid's with one
+layer more: the diagnosis's, :mod:`refine.solid.hole_area`).
 
     python benchmarks/_cup_noise.py --make --seed 2 --clean B/cup_seed2_hdata0.8_s0.6_n0_f1-2-3-4 \
         --noisy B2/cup_seed2_hdata0.8_s0.6_n0.005_f1-2-3-4 --draws 4
-    python benchmarks/_cup_noise.py --summary benchmarks/results/cup_noise_s25.jsonl
+    python benchmarks/_cup_noise.py --summary benchmarks/results/cup_noise_s25.jsonl benchmarks/results/cup_area_s24.jsonl
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import shutil
+import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-def read_u(root: Path) -> tuple[list[str], np.ndarray]:
-    lines = (root / "displacements.csv").read_text().splitlines()
-    rows = [line.split(",") for line in lines[1:]]
-    return [f"{r[0]},{r[1]}" for r in rows], np.array([[float(v) for v in r[2:]] for r in rows])
+from refine.bundle.io import read_bundle, write_bundle  # noqa: E402
 
 
-def write_like(src_noisy: Path, dst: Path, keys: list[str], U: np.ndarray) -> None:
-    if dst.exists():
-        shutil.rmtree(dst)
-    shutil.copytree(src_noisy, dst)
-    body = "\n".join(f"{k},{float(u[0])!r},{float(u[1])!r},{float(u[2])!r}" for k, u in zip(keys, U))
-    (dst / "displacements.csv").write_text("frame,id,ux,uy,uz\n" + body + "\n")
+def write_like(noisy, dst: Path, U: np.ndarray) -> None:
+    """The bundle ``noisy`` (its experiment: the noise it is weighted with, the mesh) with the
+    displacements ``U`` written to ``dst``."""
+    write_bundle(dst, replace(noisy, observations=replace(noisy.observations, displacements=U)))
 
 
 def make(args) -> None:
-    if (args.clean / "points.csv").read_text() != (args.noisy / "points.csv").read_text():
+    clean, noisy = read_bundle(args.clean), read_bundle(args.noisy)
+    a, b = clean.observations, noisy.observations
+    if not (np.array_equal(a.ids, b.ids) and np.array_equal(a.reference, b.reference)
+            and np.array_equal(a.roles, b.roles)):
         raise SystemExit("the clean and noisy bundles' points differ: not the same seed and grid")
-    keys, clean = read_u(args.clean)
-    keys2, noisy = read_u(args.noisy)
-    assert keys == keys2
-    r = noisy - clean
-    sigma = float(args.sigma)
+    r = b.displacements - a.displacements
     print(json.dumps({"orig_noise_std": float(r.std()), "orig_noise_mean": float(r.mean()),
-                      "max_abs": float(np.abs(r).max()), "sigma": sigma, "n": int(r.size)}))
-    out = args.clean.parent
-    stem = f"cup_seed{args.seed}_"
-    write_like(args.noisy, out / f"{stem}clean", keys, clean)
-    write_like(args.noisy, out / f"{stem}orig", keys, noisy)
+                      "max_abs": float(np.abs(r).max()), "sigma": args.sigma, "n": int(r.size)}))
+    out, stem = args.clean.parent, f"cup_seed{args.seed}_"
+    write_like(noisy, out / f"{stem}clean", a.displacements)
+    write_like(noisy, out / f"{stem}orig", b.displacements)
     for k in range(1, args.draws + 1):
         rng = np.random.default_rng(1000 + k)
-        write_like(args.noisy, out / f"{stem}draw{k}", keys, clean + rng.normal(0.0, sigma, clean.shape))
+        write_like(noisy, out / f"{stem}draw{k}", a.displacements + rng.normal(0.0, args.sigma, a.displacements.shape))
 
 
-def summary(path: Path, out: Path | None) -> None:
-    rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+def summary(paths: list[Path], out: Path | None) -> None:
+    """Per bundle of ``_cup_area.py``'s rows: the cut area's extrapolation from the grid's corners
+    (h 1.2 and 1.697, the rows' layers L and L + 1; :func:`refine.solid.hole_area.weights`, as the
+    diagnosis makes it) and the plan's alone, as errors (%) of the drawn ellipse."""
+    from refine.solid.hole_area import weights
+
+    rows = [json.loads(line) for p in paths for line in p.read_text().splitlines() if line.strip()]
+    name_of = lambda r: (r["seed"], r.get("bundle", "hdata0.8_s0.6_n0.005_f1-2-3-4"))  # noqa: E731 - s24's rows
     table = []
-    for name in dict.fromkeys(r.get("bundle") for r in rows):
-        at = {round(r["h"], 3): r for r in rows if r.get("bundle") == name and "area_error_pct" in r}
-        f, c = at.get(1.2), at.get(1.697)
-        if f is None or c is None:
+    for name in dict.fromkeys(map(name_of, rows)):
+        at = {(round(r["h"], 3), r.get("layers") or 2): r for r in rows
+              if name_of(r) == name and "cut_area_error_pct" in r}
+        L = min((k[1] for k in at), default=2)
+        corner = {"fine": (1.2, L), "plan": (1.697, L), "layers": (1.2, L + 1), "both": (1.697, L + 1)}
+        if any(at.get(c) is None for k, c in corner.items() if k in ("fine", "plan")):
             continue
-        cut = 2 * f["cut_area_error_pct"] - c["cut_area_error_pct"]  # Richardson, order 2, factor sqrt(2)
-        table.append({"bundle": name, "seed": f["seed"], "ellipse_pct": f["area_error_pct"],
-                      "cut_richardson_pct": 100 * ((1 + cut / 100) * f["data_cut_fraction"] - 1),
-                      "modulus_fine": f["modulus"], "modulus_coarse": c["modulus"],
-                      "chi2_per_fine": f["chi2_per"], "cpu_seconds": f["cpu_seconds"] + c["cpu_seconds"]})
+        f = at[corner["fine"]]
+        cut = {k: 1 + at[c]["cut_area_error_pct"] / 100 for k, c in corner.items() if c in at}  # over the data's cut
+        of_ellipse = lambda w: 100 * (sum(v * cut[k] for k, v in w.items()) * f["data_cut_fraction"] - 1)  # noqa: E731
+        row = {"bundle": name[1], "seed": f["seed"], "layers": L, "ellipse_pct": f["area_error_pct"],
+               "plan_only_pct": of_ellipse(weights(L, both=False)), "modulus_fine": f["modulus"]}
+        if "layers" in cut and "both" in cut:
+            row["grid_pct"] = of_ellipse(weights(L))
+        table.append(row)
     for t in table:
         print(" ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in t.items()))
-    draws = [t["cut_richardson_pct"] for t in table if str(t["bundle"]).startswith("draw")]
-    if draws:
-        print(json.dumps({"draws": len(draws), "mean": float(np.mean(draws)),
-                          "std": float(np.std(draws, ddof=1)) if len(draws) > 1 else None}))
     if out:
         out.write_text(json.dumps(table, indent=1) + "\n")
 
@@ -88,7 +91,7 @@ def main() -> None:
     p.add_argument("--noisy", type=Path)
     p.add_argument("--sigma", type=float, default=0.005)
     p.add_argument("--draws", type=int, default=4)
-    p.add_argument("--summary", type=Path)
+    p.add_argument("--summary", type=Path, nargs="+", help="_cup_area.py's rows (JSONL), e.g. session 24's too")
     p.add_argument("--out", type=Path)
     args = p.parse_args()
     if args.make:
