@@ -60,7 +60,7 @@ class GridRefits:
     refit that failed."""
 
     h: float
-    layers: int
+    layers: int | None
     factor: float
     shapes: dict
 
@@ -150,24 +150,23 @@ def extrapolated_area(fitted, factor: float = np.sqrt(2.0), order: float = 2.0) 
     fit's shape.
 
     Where ``fitted`` carries the grid's refits (``q_disc_refits``, :func:`with_plan_and_layers`),
-    the cut areas of its four corners are extrapolated to ``(0, 0)`` (:func:`weights`), and the
-    parts add ``cut_layers``, ``cut_both``, ``layers`` (the fit's) and ``area_plan_only`` (the
-    plan's Richardson alone)."""
+    the cut areas of its four corners are extrapolated to ``(0, 0)`` (:func:`weights`). The parts
+    also hold ``cut_layers``, ``cut_both``, ``layers`` (the fit's; None for a signed change
+    alone) and ``area_plan_only`` (the plan's Richardson alone, the area where no refit with more
+    layers is known)."""
     grid = getattr(fitted, "q_disc_refits", None)
     if grid is not None and grid.shapes.get("plan") is not None:
         return _grid_area(fitted, grid, order)
     signed = getattr(fitted, "q_disc_signed", None)
     if signed is None or not np.isfinite(signed[0, 5]):
         return None
+    # the coarse refit known by its signed change alone: its ellipse, the fit's scaled to its area
     hyp, s = fitted.hypothesis, fitted.shapes[0]
-    h = hyp.h or hyp.local.h
     fine_area = float(np.pi * s.axes[0] * s.axes[1])
-    coarse_area = fine_area + float(signed[0, 5]) * (factor**order - 1.0)  # signed: (coarse - fine) / (r^p - 1)
-    f_fine = cut_fraction(hyp.local, hyp.hole, h)
-    f_coarse = cut_fraction(hyp.local, jf.Ellipse(*s.centre, *s.axes, s.angle), factor * h)
-    c_fine, c_coarse = f_fine * fine_area, f_coarse * coarse_area
-    return {"area": float(c_fine + (c_fine - c_coarse) / (factor**order - 1.0)), "cut_fine": float(c_fine),
-            "cut_coarse": float(c_coarse), "fraction_fine": f_fine, "fraction_coarse": f_coarse}
+    k = np.sqrt((fine_area + float(signed[0, 5]) * (factor**order - 1.0)) / fine_area)  # signed: (coarse - fine) / (r^p - 1)
+    coarse = replace(s, axes=(s.axes[0] * k, s.axes[1] * k))
+    grid = GridRefits(hyp.h or hyp.local.h, None, factor, {"fine": (s,), "plan": (coarse,)})
+    return _grid_area(fitted, grid, order)
 
 
 def _grid_area(fitted, grid: GridRefits, order: float) -> dict:
@@ -177,7 +176,9 @@ def _grid_area(fitted, grid: GridRefits, order: float) -> dict:
     hyp, s = fitted.hypothesis, fitted.shapes[0]
     h, at = grid.h, jf.Ellipse(*s.centre, *s.axes, s.angle)
     frac = {"fine": cut_fraction(hyp.local, hyp.hole, h), "plan": cut_fraction(hyp.local, at, grid.factor * h)}
-    frac["layers"], frac["both"] = cut_fraction(hyp.local, at, h), frac["plan"]
+    if grid.shapes.get("layers") is not None:  # the layers do not change the plan: the fine one, at the fit's shape
+        frac["layers"] = cut_fraction(hyp.local, at, h)
+    frac["both"] = frac["plan"]
     cut = {k: frac[k] * float(np.pi * v[0].axes[0] * v[0].axes[1]) for k, v in grid.shapes.items() if v is not None}
     plan_only = sum(w * cut[k] for k, w in weights(grid.layers, grid.factor, order, both=False).items())
     full = "layers" in cut and "both" in cut
