@@ -122,29 +122,51 @@ def end_to_end(seed: int, args) -> dict:
     from refine.synthetic.cup import CupGeometry, random_hole
     from refine.synthetic.cup_views import CupScene, add_squeeze_forces, cup_camera, write_cup_frames
 
+    from refine.synthetic.solid_render import SurfaceGrid
+
     g = CupGeometry()
     truth = random_hole(g, seed)
-    camera = cup_camera("orthographic", centre_px=(130.2, 120.4))  # the whole bottom in view
-    scene = CupScene(hole=truth, camera=camera, shape=(240, 260), depth_noise=args.depth_noise, nu=g.nu)
+    s, pitch = args.e2e_scale, args.e2e_pitch  # the whole bottom (22 mm) in view, 24 x 26 mm at any scale
+    shape = (round(24.0 / s), round(26.0 / s))
+    camera = cup_camera("orthographic", scale=s, centre_px=(shape[1] / 2 + 0.2, shape[0] / 2 + 0.4))
+    paint = SurfaceGrid(pitch=pitch, line_width=0.22 * pitch / 1.25, edge=0.03 * pitch / 1.25)  # lines 0.176 pitch
+    scene = CupScene(hole=truth, camera=camera, shape=shape, paint=paint, depth_noise=args.depth_noise, nu=g.nu)
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         t0 = time.perf_counter()
-        frames = write_cup_frames(tmp / "frames", scene, forces=(1.0, 2.0, 3.0), h=args.h_data, seed=seed)
+        frames = write_cup_frames(tmp / "frames", scene, forces=tuple(args.forces), h=args.h_data, seed=seed)
         t_data = time.perf_counter() - t0
         model = ModelSkeleton(law=g.law, E=g.E, nu=g.nu, noise_std=args.noise)
-        track(frames.images, tmp / "B", ranges=RangeOptions(frames.ranges, camera, frames.mesh), model=model,
+        tracked = track(frames.images, tmp / "B", ranges=RangeOptions(frames.ranges, camera, frames.mesh), model=model,
               validate_fraction=1 / 3, seed=seed, quiet=True)
         add_squeeze_forces(tmp / "B", frames.forces)
         t_track = time.perf_counter() - t0 - t_data
+        tracking = tracking_errors(tracked.observations, frames.truth, 0.1 * args.e2e_pitch)
         d, rep = diagnose_and_write(tmp / "B", tmp / "out", quiet=True)
     row = {"seed": seed, "e2e": True, "hole": [float(v) for v in truth.params], "data_seconds": t_data,
            "track_seconds": t_track, "local_seconds": sum(rep["seconds"].values()),
            "global_seconds": max(v["seconds"] for k, v in rep["global"].items() if isinstance(v, dict)),
            "points": len(d.local.obs.ids), "cause": rep["cause"], "hole_ratio": d.local.hole_ratio,
-           "max_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6, "report": rep, "load": loadavg()}
+           "max_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6, "tracking": tracking,
+           "report": rep, "load": loadavg()}
     errors_of(row, truth, g)
     print(json.dumps({k: v for k, v in row.items() if k != "report"}), flush=True)
     return row
+
+
+def tracking_errors(obs, truth: np.ndarray, tol: float) -> dict:
+    """The tracked points against the painted crossings' truth (``(n_frames + 1, m, 3)``): how many
+    lie within ``tol`` mm of a true crossing in the reference (the others are crossings nearer the
+    hole or the edge than the truth's margin), and those points' displacement errors per axis (RMS
+    over frames and points, mm) and largest."""
+    from scipy.spatial import cKDTree
+
+    distance, match = cKDTree(truth[0]).query(obs.reference)
+    ok = distance < tol
+    du = obs.displacements[:, ok] - (truth[1:, match[ok]] - truth[0, match[ok]])
+    du = du[np.isfinite(du).all(axis=-1)]
+    return {"points": int(len(ok)), "matched": int(ok.sum()), "reference_rms": float(np.sqrt(np.mean(distance[ok] ** 2))),
+            "displacement_rms": np.sqrt(np.mean(du ** 2, axis=0)).tolist(), "displacement_max": np.abs(du).max(axis=0).tolist()}
 
 
 def forward_timing(d, repeats: int = 3) -> dict:
@@ -210,6 +232,9 @@ def main() -> None:
                    "refine.solid.diagnose.SolidConfig's)")
     p.add_argument("--e2e", type=int, nargs="*", default=[2], help="seeds of the end-to-end rows (images in)")
     p.add_argument("--depth-noise", type=float, default=0.02, help="range noise of the end-to-end rows (mm)")
+    p.add_argument("--e2e-pitch", type=float, default=1.25, help="the painted grid's pitch of the end-to-end rows (mm)")
+    p.add_argument("--e2e-scale", type=float, default=0.1, help="the end-to-end rows' camera: mm per pixel at the "
+                   "bottom (images cover 24 x 26 mm)")
     p.add_argument("--out", type=Path, default=RESULTS / "diagnose3d.json", help="results JSON (the plot beside it)")
     p.add_argument("--bundles", type=Path, default=None, help="keep the bundle cases' data in this folder and "
                    "reuse them when there (default: a temporary folder per case)")

@@ -58,12 +58,13 @@ RESULTS = HERE / "results"
 def case(seed: int, cause: str, args) -> dict:
     from refine.bundle.io import read_bundle
     from refine.solid import diagnose_solid, report
-    from refine.synthetic.block import BlockSetting, write_block_bundle
+    from refine.synthetic.block import BlockSetting, cell_volumes, data_inclusion, write_block_bundle
 
     from refine.solid.inclusion_diagnosis import InclusionConfig, diagnose_inclusion
     from refine.solid.inclusion_mesh import FocusedMesh
 
-    setting = BlockSetting(h_data=args.h_data, h_model=args.h_model, noise=args.noise)
+    setting = BlockSetting(h_data=args.h_data, h_model=args.h_model, noise=args.noise,
+                           h_data_inclusion=args.h_data_inclusion)
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         root, truth = write_block_bundle(Path(tmp) / "block", cause=cause, seed=seed, setting=setting)
@@ -89,6 +90,11 @@ def case(seed: int, cause: str, args) -> dict:
            "truth": None if truth is None else {"centre": list(truth.centre), "axes": list(truth.axes),
                                                 "volume": truth.volume, "ratio": truth.ratio},
            "report": rep, "load": loadavg(), "diagnosis_cpu_seconds": cpu, **probe}
+    if truth is not None:  # the data's staircase inclusion: its cells' volume against the ellipsoid's
+        mesh, inside = data_inclusion(setting, truth)
+        row["data"] = {"cells": int(mesh.n_cells), "h_inclusion": setting.h_data_inclusion,
+                       "inclusion_volume": float(cell_volumes(mesh)[inside].sum())}
+        row["data"]["inclusion_volume_error_pct"] = 100 * (row["data"]["inclusion_volume"] / truth.volume - 1)
     if truth is not None and rep["findings"]:
         f = rep["findings"][0]
         std = f["std"] or {}
@@ -243,6 +249,8 @@ def main() -> None:
     p.add_argument("--softer", type=int, nargs="*", default=[13])
     p.add_argument("--sound", type=int, nargs="*", default=[14])
     p.add_argument("--h-data", type=float, default=2.0)
+    p.add_argument("--h-data-inclusion", type=float, default=None, help="the data's element size over the "
+                   "inclusion (mm; graded to --h-data away from it; default: --h-data everywhere)")
     p.add_argument("--h-model", type=float, default=4.0)
     p.add_argument("--noise", type=float, default=0.01)
     p.add_argument("--h-fit", type=float, default=None,

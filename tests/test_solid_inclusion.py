@@ -69,6 +69,26 @@ def test_random_inclusions_differ_by_seed_and_stay_inside():
         assert 2.0 <= d.ratio <= 5.0 or 0.2 <= d.ratio <= 0.5
 
 
+def test_data_graded_over_the_inclusion_hold_its_volume_closer_than_the_uniform_staircase():
+    from refine.synthetic.block import BlockSetting, cell_volumes, data_inclusion, random_inclusion
+
+    rng = np.random.default_rng(7)
+    s = BlockSetting()
+    errors = []
+    for seed in rng.integers(0, 1000, 3):  # inclusions drawn at random: the graded data must not be shaped for one
+        truth = random_inclusion(np.random.default_rng(seed), s.block, rng.choice(["stiffer-region", "softer-region"]))
+        for h in (None, 1.0):
+            mesh, inside = data_inclusion(BlockSetting(h_data_inclusion=h), truth)
+            v = cell_volumes(mesh)
+            assert np.isclose(v.sum(), 40.0 * 20.0 * 20.0) and mesh.element == "tet10"
+            errors.append(abs(v[inside].sum() / truth.volume - 1))
+            if h is not None:  # 1 mm cells where the inclusion is, the uniform 2 mm ones far from it
+                near = truth.inside(mesh.centroids()) | (v < 0.2)
+                assert v[truth.inside(mesh.centroids())].max() <= 1.0 / 6 + 1e-9 and v[~near].max() > 1.0
+    uniform, graded = np.array(errors[0::2]), np.array(errors[1::2])
+    assert (graded < 0.01).all() and graded.mean() < 0.5 * uniform.mean()
+
+
 def ellipsoid_cells(mesh, centre, axes, R):
     local = (mesh.centroids() - centre) @ R
     return ((local / axes) ** 2).sum(1) <= 1.0
