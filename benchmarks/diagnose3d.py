@@ -20,10 +20,14 @@ diagnose3d.png.
 - end to end (``--e2e SEEDS``): the compressed cup holder rendered as intensity + range images
   (refine.synthetic.cup_views, orthographic camera from below, depth noise ``--depth-noise``),
   ``nonrigid track --range``, the load cell's forces added as forces.csv, then the diagnosis: the
-  same centre, area and seconds.
+  same centre, area and seconds, and the tracked points against the painted crossings
+  (``tracking``); ``--e2e-sound SEEDS``: the same without a hole; ``--e2e-pitch`` / ``--e2e-scale``:
+  the painted grid's pitch and the camera's mm per pixel (default 1.25 mm at 0.1 mm/px).
 
     python benchmarks/diagnose3d.py                  # seeds 1 2 3 with a hole, 4 without, e2e seed 2
     python benchmarks/diagnose3d.py --holes 1 --sound 4 --e2e --h-data 1.2
+    python benchmarks/diagnose3d.py --holes --sound --e2e 3 --e2e-sound 4 --e2e-pitch 0.6 --e2e-scale 0.05 --depth-noise 0.005 \
+        --noise 0.005 --forces 1 2 3 4 --h-data 0.8  # a 0.6 mm grid at 0.05 mm/px, a sound cup too
     python benchmarks/diagnose3d.py --holes 1 --sound --e2e --h-data 0.8 --bundles B --data-only  # the data alone
     python benchmarks/diagnose3d.py --combine A.json B.json --out all.json   # rows run one case per process
 """
@@ -113,19 +117,19 @@ def errors_of(row: dict, truth, g) -> None:
             row["edge_area_range_pct"] = [100 * (a / truth.area - 1) for a in f["edge"]["area_range"]]
 
 
-def end_to_end(seed: int, args) -> dict:
-    """Rendered images -> ``nonrigid track --range`` -> forces.csv -> the 3D diagnosis (see the module)."""
+def end_to_end(seed: int, args, hole: bool = True) -> dict:
+    """Rendered images -> ``nonrigid track --range`` -> forces.csv -> the 3D diagnosis (see the
+    module); ``hole`` False: a sound cup holder (the seed draws the noises only)."""
     from refine.bundle.from_tracks import ModelSkeleton
     from refine.cli.track import track
     from refine.cli.track_range import RangeOptions
     from refine.solid.write import diagnose_and_write
     from refine.synthetic.cup import CupGeometry, random_hole
     from refine.synthetic.cup_views import CupScene, add_squeeze_forces, cup_camera, write_cup_frames
-
     from refine.synthetic.solid_render import SurfaceGrid
 
     g = CupGeometry()
-    truth = random_hole(g, seed)
+    truth = random_hole(g, seed) if hole else None
     s, pitch = args.e2e_scale, args.e2e_pitch  # the whole bottom (22 mm) in view, 24 x 26 mm at any scale
     shape = (round(24.0 / s), round(26.0 / s))
     camera = cup_camera("orthographic", scale=s, centre_px=(shape[1] / 2 + 0.2, shape[0] / 2 + 0.4))
@@ -137,14 +141,14 @@ def end_to_end(seed: int, args) -> dict:
         frames = write_cup_frames(tmp / "frames", scene, forces=tuple(args.forces), h=args.h_data, seed=seed)
         t_data = time.perf_counter() - t0
         model = ModelSkeleton(law=g.law, E=g.E, nu=g.nu, noise_std=args.noise)
-        tracked = track(frames.images, tmp / "B", ranges=RangeOptions(frames.ranges, camera, frames.mesh), model=model,
-              validate_fraction=1 / 3, seed=seed, quiet=True)
+        tracked = track(frames.images, tmp / "B", ranges=RangeOptions(frames.ranges, camera, frames.mesh),
+                        model=model, validate_fraction=1 / 3, seed=seed, quiet=True)
         add_squeeze_forces(tmp / "B", frames.forces)
         t_track = time.perf_counter() - t0 - t_data
         tracking = tracking_errors(tracked.observations, frames.truth, 0.1 * args.e2e_pitch)
         d, rep = diagnose_and_write(tmp / "B", tmp / "out", quiet=True)
-    row = {"seed": seed, "e2e": True, "hole": [float(v) for v in truth.params], "data_seconds": t_data,
-           "track_seconds": t_track, "local_seconds": sum(rep["seconds"].values()),
+    row = {"seed": seed, "e2e": True, "hole": None if truth is None else [float(v) for v in truth.params],
+           "data_seconds": t_data, "track_seconds": t_track, "local_seconds": sum(rep["seconds"].values()),
            "global_seconds": max(v["seconds"] for k, v in rep["global"].items() if isinstance(v, dict)),
            "points": len(d.local.obs.ids), "cause": rep["cause"], "hole_ratio": d.local.hole_ratio,
            "max_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6, "tracking": tracking,
@@ -232,6 +236,7 @@ def main() -> None:
                    "refine.solid.diagnose.SolidConfig's)")
     p.add_argument("--e2e", type=int, nargs="*", default=[2], help="seeds of the end-to-end rows (images in)")
     p.add_argument("--depth-noise", type=float, default=0.02, help="range noise of the end-to-end rows (mm)")
+    p.add_argument("--e2e-sound", type=int, nargs="*", default=[], help="seeds of end-to-end rows without a hole")
     p.add_argument("--e2e-pitch", type=float, default=1.25, help="the painted grid's pitch of the end-to-end rows (mm)")
     p.add_argument("--e2e-scale", type=float, default=0.1, help="the end-to-end rows' camera: mm per pixel at the "
                    "bottom (images cover 24 x 26 mm)")
@@ -247,6 +252,7 @@ def main() -> None:
         return combine(args.combine, args.out)
     rows, last = [], None
     jobs = [(s, lambda s: (end_to_end(s, args), None)) for s in args.e2e]
+    jobs += [(s, lambda s: (end_to_end(s, args, hole=False), None)) for s in args.e2e_sound]
     jobs += [(s, lambda s: case(s, True, args)) for s in args.holes] + [(s, lambda s: case(s, False, args))
                                                                         for s in args.sound]
     for s, run in jobs:
