@@ -26,8 +26,8 @@ diagnose3d.png.
 
     python benchmarks/diagnose3d.py                  # seeds 1 2 3 with a hole, 4 without, e2e seed 2
     python benchmarks/diagnose3d.py --holes 1 --sound 4 --e2e --h-data 1.2
-    python benchmarks/diagnose3d.py --holes --sound --e2e 3 --e2e-sound 4 --e2e-pitch 0.6 --e2e-scale 0.05 --depth-noise 0.005 \
-        --noise 0.005 --forces 1 2 3 4 --h-data 0.8  # a 0.6 mm grid at 0.05 mm/px, a sound cup too
+    python benchmarks/diagnose3d.py --holes --sound --e2e 3 --e2e-sound 4 --e2e-pitch 0.6 --e2e-scale 0.05 \
+        --depth-noise 0.005 --noise 0.005 --forces 1 2 3 4 --h-data 0.8  # a 0.6 mm grid at 0.05 mm/px, a sound cup too
     python benchmarks/diagnose3d.py --holes 1 --sound --e2e --h-data 0.8 --bundles B --data-only  # the data alone
     python benchmarks/diagnose3d.py --combine A.json B.json --out all.json   # rows run one case per process
 """
@@ -169,8 +169,10 @@ def tracking_errors(obs, truth: np.ndarray, tol: float) -> dict:
     ok = distance < tol
     du = obs.displacements[:, ok] - (truth[1:, match[ok]] - truth[0, match[ok]])
     du = du[np.isfinite(du).all(axis=-1)]
-    return {"points": int(len(ok)), "matched": int(ok.sum()), "reference_rms": float(np.sqrt(np.mean(distance[ok] ** 2))),
-            "displacement_rms": np.sqrt(np.mean(du ** 2, axis=0)).tolist(), "displacement_max": np.abs(du).max(axis=0).tolist()}
+    return {"points": int(len(ok)), "matched": int(ok.sum()),
+            "reference_rms": float(np.sqrt(np.mean(distance[ok] ** 2))),
+            "displacement_rms": np.sqrt(np.mean(du ** 2, axis=0)).tolist(),
+            "displacement_max": np.abs(du).max(axis=0).tolist()}
 
 
 def forward_timing(d, repeats: int = 3) -> dict:

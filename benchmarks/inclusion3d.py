@@ -59,7 +59,7 @@ RESULTS = HERE / "results"
 def case(seed: int, cause: str, args) -> dict:
     from refine.bundle.io import read_bundle
     from refine.solid import diagnose_solid, report
-    from refine.synthetic.block import BlockSetting, cell_volumes, data_inclusion, write_block_bundle
+    from refine.synthetic.block import BlockSetting, data_inclusion, write_block_bundle
 
     from refine.solid.inclusion_diagnosis import InclusionConfig, diagnose_inclusion
     from refine.solid.inclusion_mesh import FocusedMesh
@@ -94,7 +94,7 @@ def case(seed: int, cause: str, args) -> dict:
     if truth is not None:  # the data's staircase inclusion: its cells' volume against the ellipsoid's
         mesh, inside = data_inclusion(setting, truth)
         row["data"] = {"cells": int(mesh.n_cells), "h_inclusion": setting.h_data_inclusion,
-                       "inclusion_volume": float(cell_volumes(mesh)[inside].sum())}
+                       "inclusion_volume": float(mesh.volumes()[inside].sum())}
         row["data"]["inclusion_volume_error_pct"] = 100 * (row["data"]["inclusion_volume"] / truth.volume - 1)
     if truth is not None and rep["findings"]:
         f = rep["findings"][0]

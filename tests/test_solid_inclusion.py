@@ -70,7 +70,7 @@ def test_random_inclusions_differ_by_seed_and_stay_inside():
 
 
 def test_data_graded_over_the_inclusion_hold_its_volume_closer_than_the_uniform_staircase():
-    from refine.synthetic.block import BlockSetting, cell_volumes, data_inclusion, random_inclusion
+    from refine.synthetic.block import BlockSetting, data_inclusion, random_inclusion
 
     rng = np.random.default_rng(7)
     s = BlockSetting()
@@ -79,7 +79,7 @@ def test_data_graded_over_the_inclusion_hold_its_volume_closer_than_the_uniform_
         truth = random_inclusion(np.random.default_rng(seed), s.block, rng.choice(["stiffer-region", "softer-region"]))
         for h in (None, 1.0):
             mesh, inside = data_inclusion(BlockSetting(h_data_inclusion=h), truth)
-            v = cell_volumes(mesh)
+            v = mesh.volumes()
             assert np.isclose(v.sum(), 40.0 * 20.0 * 20.0) and mesh.element == "tet10"
             errors.append(abs(v[inside].sum() / truth.volume - 1))
             if h is not None:  # 1 mm cells where the inclusion is, the uniform 2 mm ones far from it
