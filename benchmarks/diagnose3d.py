@@ -141,8 +141,9 @@ def end_to_end(seed: int, args, hole: bool = True) -> dict:
         frames = write_cup_frames(tmp / "frames", scene, forces=tuple(args.forces), h=args.h_data, seed=seed)
         t_data = time.perf_counter() - t0
         model = ModelSkeleton(law=g.law, E=g.E, nu=g.nu, noise_std=args.noise)
-        tracked = track(frames.images, tmp / "B", ranges=RangeOptions(frames.ranges, camera, frames.mesh),
-                        model=model, validate_fraction=1 / 3, seed=seed, quiet=True)
+        ranges = RangeOptions(frames.ranges, camera, frames.mesh, radius=args.range_radius)
+        tracked = track(frames.images, tmp / "B", ranges=ranges, model=model, validate_fraction=1 / 3, seed=seed,
+                        quiet=True)
         add_squeeze_forces(tmp / "B", frames.forces)
         t_track = time.perf_counter() - t0 - t_data
         tracking = tracking_errors(tracked.observations, frames.truth, 0.1 * args.e2e_pitch)
@@ -239,6 +240,8 @@ def main() -> None:
     p.add_argument("--e2e", type=int, nargs="*", default=[2], help="seeds of the end-to-end rows (images in)")
     p.add_argument("--depth-noise", type=float, default=0.02, help="range noise of the end-to-end rows (mm)")
     p.add_argument("--e2e-sound", type=int, nargs="*", default=[], help="seeds of end-to-end rows without a hole")
+    p.add_argument("--range-radius", type=int, default=2, help="the end-to-end rows' depth lookup: half side (px) "
+                   "of the quadratic's window (nonrigid track --range-radius)")
     p.add_argument("--e2e-pitch", type=float, default=1.25, help="the painted grid's pitch of the end-to-end rows (mm)")
     p.add_argument("--e2e-scale", type=float, default=0.1, help="the end-to-end rows' camera: mm per pixel at the "
                    "bottom (images cover 24 x 26 mm)")

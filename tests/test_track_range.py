@@ -97,6 +97,25 @@ def test_rendered_cup_holder_tracked_in_3d_within_the_depth_noise(scene_files, t
         assert moved > 5 * NOISE                                 # the motion is well above the noise
 
 
+def test_a_wider_range_window_averages_more_depth_noise(scene_files, tracked, tmp_path, capsys):
+    root, scene, views, truth, holes, _ = scene_files
+    from scipy.spatial import cKDTree
+
+    def depth_rms(bundle_root):
+        obs = read_bundle(bundle_root).observations
+        _, match = cKDTree(truth[0]).query(obs.reference)
+        pos = np.concatenate([obs.reference[None], obs.reference[None] + obs.displacements])
+        err = [p[np.isfinite(p).all(axis=1), 2] - t[match[np.isfinite(p).all(axis=1)], 2] for p, t in zip(pos, truth)]
+        return np.sqrt(np.mean(np.concatenate(err) ** 2)), obs.n_points
+
+    assert _track(root, tmp_path / "B", "--range-radius", "4") == 0  # 9 x 9 pixels, inside the 12.5 px pitch
+    (rms5, n5), (rms9, n9) = depth_rms(tracked), depth_rms(tmp_path / "B")
+    # a least-squares quadratic's noise at its centre: sqrt(6 / 81) against sqrt(6 / 25) of the noise
+    assert rms9 < 0.7 * rms5 and rms9 < 0.25 * NOISE and n9 >= n5 - 2, (rms5, rms9, n5, n9)
+    assert _track(root, tmp_path / "C", "--range-radius", "0") == 2
+    assert "--range-radius must be a whole number of pixels >= 1, got 0" in capsys.readouterr().err
+
+
 def test_range_holes_give_lost_points_with_their_reason(scene_files, tracked):
     root, scene, views, truth, holes, _ = scene_files
     obs = read_bundle(tracked).observations

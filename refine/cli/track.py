@@ -89,6 +89,9 @@ def add_range_arguments(p: argparse.ArgumentParser) -> None:
     r.add_argument("--range-order", type=int, choices=(1, 2, 3), default=2,
                    help="depth lookup: 1 bilinear from valid pixels, 2 least-squares quadratic on the valid "
                    "pixels of a 5 x 5 window (default: averages the depth noise), 3 bicubic")
+    r.add_argument("--range-radius", type=int, default=2, metavar="PX",
+                   help="half side of --range-order 2's window (default 2: 5 x 5 pixels); larger averages more "
+                   "depth noise where the pattern's pitch spans many pixels")
     r.add_argument("--range-max-step", type=float, metavar="MM",
                    help="depth spread within a point's support above which it is lost (an occluding edge)")
     r.add_argument("--clouds", action="store_true", help="also write clouds.csv from the range images")
@@ -108,7 +111,7 @@ def range_from_arguments(args: argparse.Namespace):
     camera = camera_from_options(args.camera, args.scale, _numbers(args.origin, 2, "--origin X,Y"), args.fx, args.fy,
                                  args.cx, args.cy)
     return RangeOptions(args.ranges, camera, args.mesh, args.range_order, args.range_max_step, args.clouds,
-                        args.clouds_only, args.cloud_spacing, args.mask)
+                        args.clouds_only, args.cloud_spacing, args.mask, args.range_radius)
 
 
 def add_model_arguments(p: argparse.ArgumentParser) -> None:

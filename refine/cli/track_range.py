@@ -50,7 +50,8 @@ class RangeOptions:
         mesh: the body's mesh file (any meshio format, in the camera's world axes), copied into the
             bundle as its domain.
         order: 1 (bilinear on valid pixels), 2 (least-squares quadratic on the valid pixels of a
-            5 x 5 window: averages the depth noise down) or 3 (bicubic, all 4 x 4 pixels valid).
+            (2 ``radius`` + 1)^2 window: averages the depth noise down) or 3 (bicubic, all 4 x 4
+            pixels valid).
         max_step: largest depth spread within a point's interpolation support (length unit); a
             larger one is an occluding edge and the point is lost there (None: no test). Clouds:
             largest depth difference from a cell's median depth (None: half the spacing).
@@ -60,6 +61,9 @@ class RangeOptions:
             reference frame's median depth, :func:`tracking.range_cloud`); None: 3 pixels.
         mask: an image file or ``(rows, cols)`` bool array: the pixels whose range makes the clouds
             (besides the ROI); None: every pixel.
+        radius: half side (px) of ``order`` 2's window: 2 (5 x 5) by default; a larger one averages
+            more depth noise where a pattern's pitch spans many pixels (keep the window inside a
+            pitch: it smooths what is narrower than itself).
     """
 
     ranges: object
@@ -71,6 +75,7 @@ class RangeOptions:
     clouds_only: bool = False
     cloud_spacing: float | None = None
     mask: object = None
+    radius: int = 2
 
 
 def camera_from_options(camera_file=None, scale=None, origin=(0.0, 0.0), fx=None, fy=None, cx=None,
@@ -96,6 +101,8 @@ def track_range(images: Sequence, out: Path, options: RangeOptions, *, pattern: 
                 model: ModelSkeleton, validate_fraction: float, seed: int, overlays, tracker_options: dict,
                 reference: int, quiet: bool) -> Bundle:
     """Track images, look the points up in the range images and write a solid bundle (see the module)."""
+    if not (isinstance(options.radius, (int, np.integer)) and options.radius >= 1):
+        raise RangeCommandError(f"--range-radius must be a whole number of pixels >= 1, got {options.radius!r}")
     camera, mesh = _camera(options.camera), _mesh(options.mesh)
     ranges, names = _ordered(tracking.load_range_images(options.ranges), reference)
     exp = Experiment(name=name, kind="solid", domain=MeshDomain(mesh.name), law=model.law, E=model.E, nu=model.nu,
@@ -121,7 +128,7 @@ def track_range(images: Sequence, out: Path, options: RangeOptions, *, pattern: 
                                 "the range images must be registered with the intensity images, pixel for pixel")
     tracks = tracking.track_images(stack, pattern, roi=roi, **tracker_options)
     xyz, lost, why = tracking.points_3d(tracks, ranges, options.order, explain=True, camera=camera,
-                                        max_step=options.max_step)
+                                        max_step=options.max_step, radius=options.radius)
     kept = ~lost[0]
     if kept.sum() < 3:
         raise RangeCommandError(f"only {int(kept.sum())} tracked points have range data in the reference frame "
