@@ -89,7 +89,7 @@ def refit_grid(fitted, points, hold, sigma: float, factor: float = np.sqrt(2.0))
     h = hyp.h or hyp.local.h
     L = layers_of(hyp.local, h)
     base = hyp.at(fitted.shapes, "tet10")
-    corners = {"plan": (factor * h, L), "layers": (hyp.h, L + 1), "both": (factor * h, L + 1)}
+    corners = {"plan": (factor * h, L), "layers": (h, L + 1), "both": (factor * h, L + 1)}
     shapes = {"fine": tuple(fitted.shapes)}
     for name, (h_c, L_c) in corners.items():
         try:
@@ -112,10 +112,17 @@ def extrapolate(grid: GridRefits, order: float = 2.0) -> tuple[np.ndarray, np.nd
     q = {k: shape_quantities(v) for k, v in grid.shapes.items() if v is not None}
     for k in q:  # an orientation is defined modulo pi
         q[k][:, 4] = q["fine"][:, 4] + np.angle(np.exp(2j * (q[k][:, 4] - q["fine"][:, 4]))) / 2
-    plan = sum(w * q[k] for k, w in weights(grid.layers, grid.factor, order, both=False).items())
-    if "layers" not in q or "both" not in q:
+    return _combined(q, grid, order)
+
+
+def _combined(values: dict, grid: GridRefits, order: float) -> tuple:
+    """``values`` per corner (``"fine"`` and ``"plan"`` at least) extrapolated to ``(0, 0)`` by
+    :func:`weights`, and the plan's Richardson alone; the latter twice where a corner with more
+    layers is missing."""
+    plan = sum(w * values[k] for k, w in weights(grid.layers, grid.factor, order, both=False).items())
+    if "layers" not in values or "both" not in values:
         return plan, plan
-    return sum(w * q[k] for k, w in weights(grid.layers, grid.factor, order).items()), plan
+    return sum(w * values[k] for k, w in weights(grid.layers, grid.factor, order).items()), plan
 
 
 def with_plan_and_layers(fitted, points, hold, sigma: float, factor: float = np.sqrt(2.0)):
@@ -163,7 +170,8 @@ def extrapolated_area(fitted, factor: float = np.sqrt(2.0), order: float = 2.0) 
     # the coarse refit known by its signed change alone: its ellipse, the fit's scaled to its area
     hyp, s = fitted.hypothesis, fitted.shapes[0]
     fine_area = float(np.pi * s.axes[0] * s.axes[1])
-    k = np.sqrt((fine_area + float(signed[0, 5]) * (factor**order - 1.0)) / fine_area)  # signed: (coarse - fine) / (r^p - 1)
+    coarse_area = fine_area + float(signed[0, 5]) * (factor**order - 1.0)  # signed: (coarse - fine) / (r^p - 1)
+    k = np.sqrt(coarse_area / fine_area)
     coarse = replace(s, axes=(s.axes[0] * k, s.axes[1] * k))
     grid = GridRefits(hyp.h or hyp.local.h, None, factor, {"fine": (s,), "plan": (coarse,)})
     return _grid_area(fitted, grid, order)
@@ -180,9 +188,7 @@ def _grid_area(fitted, grid: GridRefits, order: float) -> dict:
         frac["layers"] = cut_fraction(hyp.local, at, h)
     frac["both"] = frac["plan"]
     cut = {k: frac[k] * float(np.pi * v[0].axes[0] * v[0].axes[1]) for k, v in grid.shapes.items() if v is not None}
-    plan_only = sum(w * cut[k] for k, w in weights(grid.layers, grid.factor, order, both=False).items())
-    full = "layers" in cut and "both" in cut
-    area = sum(w * cut[k] for k, w in weights(grid.layers, grid.factor, order).items()) if full else plan_only
+    area, plan_only = _combined(cut, grid, order)
     return {"area": float(area), "cut_fine": float(cut["fine"]), "cut_coarse": float(cut["plan"]),
             "fraction_fine": frac["fine"], "fraction_coarse": frac["plan"], "layers": grid.layers,
             "cut_layers": float(cut["layers"]) if "layers" in cut else None,
