@@ -160,20 +160,19 @@ def end_to_end(seed: int, args, hole: bool = True) -> dict:
 
 
 def tracking_errors(obs, truth: np.ndarray, tol: float) -> dict:
-    """The tracked points against the painted crossings' truth (``(n_frames + 1, m, 3)``): how many
-    lie within ``tol`` mm of a true crossing in the reference (the others are crossings nearer the
-    hole or the edge than the truth's margin), and those points' displacement errors per axis (RMS
-    over frames and points, mm) and largest."""
-    from scipy.spatial import cKDTree
+    """The tracked points against the painted crossings' truth (``(n_frames + 1, m, 3)``,
+    :func:`refine.synthetic.cup_views.crossing_errors`): how many lie within ``tol`` mm of a true
+    crossing in the reference (the others are crossings nearer the hole or the edge than the
+    truth's margin), and those points' displacement errors per axis (RMS over frames and points,
+    mm) and largest."""
+    from refine.synthetic.cup_views import crossing_errors
 
-    distance, match = cKDTree(truth[0]).query(obs.reference)
-    ok = distance < tol
-    du = obs.displacements[:, ok] - (truth[1:, match[ok]] - truth[0, match[ok]])
-    du = du[np.isfinite(du).all(axis=-1)]
-    return {"points": int(len(ok)), "matched": int(ok.sum()),
-            "reference_rms": float(np.sqrt(np.mean(distance[ok] ** 2))),
-            "displacement_rms": np.sqrt(np.mean(du ** 2, axis=0)).tolist(),
-            "displacement_max": np.abs(du).max(axis=0).tolist()}
+    e = crossing_errors(obs.reference, obs.displacements, truth, tol)
+    seen = e["kept"] - np.asarray(e["lost"])  # points compared per deformed frame
+    rms = np.sqrt(np.sum(seen[:, None] * np.square(e["rms_u"]), axis=0) / seen.sum())
+    reference_rms = float(np.hypot(e["rms_xy"][0], e["rms_z"][0]))  # frame 0: the reference positions
+    return {"points": len(obs.reference), "matched": e["kept"], "reference_rms": reference_rms,
+            "displacement_rms": rms.tolist(), "displacement_max": np.max(e["max_u"], axis=0).tolist()}
 
 
 def forward_timing(d, repeats: int = 3) -> dict:

@@ -133,24 +133,31 @@ def write_frames(views, directory) -> tuple[list, list]:
     return images, ranges
 
 
-def crossing_errors(reference: np.ndarray, displacements: np.ndarray, truth: np.ndarray) -> dict:
+def crossing_errors(reference: np.ndarray, displacements: np.ndarray, truth: np.ndarray,
+                    tol: float | None = None) -> dict:
     """How far tracked 3D points lie from the painted crossings they track.
 
     Args:
         reference: ``(n, 3)`` tracked reference positions (points.csv), mm.
         displacements: ``(n_frames, n, 3)`` tracked displacements (NaN where lost), mm.
         truth: ``(n_frames + 1, m, 3)`` :func:`painted_crossings`.
+        tol: points farther than this (mm) from every true crossing in the reference are left out
+            (crossings nearer the hole or the edge than the truth's margin); None: none left out.
 
     Returns:
-        ``{"matched": largest distance to the nearest true crossing in the reference, "rms_xy",
-        "rms_z", "max_z": per frame from 0 (positions), "rms_uz": per deformed frame (displacement
-        along the axis), "lost": per deformed frame}``, mm.
+        ``{"matched": largest distance to the nearest true crossing in the reference, "kept": the
+        points compared, "rms_xy", "rms_z", "max_z": per frame from 0 (positions), "rms_uz",
+        "rms_u", "max_u": per deformed frame (displacement errors along the axis; per axis x, y,
+        z), "lost": per deformed frame}``, mm.
     """
     from scipy.spatial import cKDTree
 
     distance, match = cKDTree(truth[0]).query(reference)
+    kept = np.ones(len(distance), bool) if tol is None else distance < tol
+    reference, displacements, distance, match = reference[kept], displacements[:, kept], distance[kept], match[kept]
     positions = np.concatenate([reference[None], reference[None] + displacements])
-    out = {"matched": float(distance.max()), "rms_xy": [], "rms_z": [], "max_z": [], "rms_uz": [], "lost": []}
+    out = {"matched": float(distance.max()), "kept": int(kept.sum()), "rms_xy": [], "rms_z": [], "max_z": [],
+           "rms_uz": [], "rms_u": [], "max_u": [], "lost": []}
     for f, p in enumerate(positions):
         ok = np.isfinite(p).all(axis=1)
         e = p[ok] - truth[f][match[ok]]
@@ -158,8 +165,10 @@ def crossing_errors(reference: np.ndarray, displacements: np.ndarray, truth: np.
         out["rms_z"].append(float(np.sqrt(np.mean(e[:, 2] ** 2))))
         out["max_z"].append(float(np.abs(e[:, 2]).max()))
         if f:
-            du = displacements[f - 1, ok, 2] - (truth[f][match[ok], 2] - truth[0][match[ok], 2])
-            out["rms_uz"].append(float(np.sqrt(np.mean(du ** 2))))
+            du = displacements[f - 1, ok] - (truth[f][match[ok]] - truth[0][match[ok]])
+            out["rms_uz"].append(float(np.sqrt(np.mean(du[:, 2] ** 2))))
+            out["rms_u"].append(np.sqrt(np.mean(du ** 2, axis=0)).tolist())
+            out["max_u"].append(np.abs(du).max(axis=0).tolist())
             out["lost"].append(int((~ok).sum()))
     return out
 
