@@ -34,6 +34,7 @@ from refine.bundle.experiment import Experiment, MeshDomain
 from refine.bundle.io import Bundle, write_bundle
 from refine.bundle.observations import Observations
 from refine.exceptions import ExperimentError
+from refine.solid.inclusion_mesh import extent
 
 CAUSES = ("stiffer-region", "softer-region", "none")
 """What a synthetic block may hide."""
@@ -163,10 +164,8 @@ def data_mesh(s: BlockSetting, inclusion: Ellipsoid | None) -> jf.Mesh:
     if s.h_data_inclusion is None or inclusion is None:
         n = [max(1, int(round((b - a) / s.h_data))) for a, b in ((x0, x1), (y0, y1), (z0, z1))]
         return jf.box(x0, y0, z0, x1, y1, z1, *n, element="tet10")
-    R, axes = np.asarray(inclusion.rotation), np.asarray(inclusion.axes)
-    half = np.sqrt(((R * axes) ** 2).sum(axis=1)) + s.h_data  # the box's half extent per world axis
-    c = np.asarray(inclusion.centre)
-    return graded_box(tuple(graded_ticks(lo, hi, (c[d] - half[d], c[d] + half[d]), s.h_data_inclusion, s.h_data)
+    a, b = extent(inclusion.centre, inclusion.axes, inclusion.rotation)
+    return graded_box(tuple(graded_ticks(lo, hi, (a[d] - s.h_data, b[d] + s.h_data), s.h_data_inclusion, s.h_data)
                             for d, (lo, hi) in enumerate(((x0, x1), (y0, y1), (z0, z1)))))
 
 
