@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from _diagnose_oracle import GAIN_MIN, RATIO_TOL
+from benchmarks._diagnose_oracle import GAIN_MIN, RATIO_TOL
 
 
 def plot(results, path: Path):

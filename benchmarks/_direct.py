@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from _timing import best_of, loadavg
+from benchmarks._timing import best_of, loadavg
 
 
 def mkl_rt_path() -> str | None:

@@ -15,8 +15,8 @@ import numpy as np
 import jaxfem as jf
 from jaxfem.linsolve import auto_choice, available
 
-import _direct
-from _timing import best_of, loadavg
+from benchmarks import _direct
+from benchmarks._timing import best_of, loadavg
 
 DIRECT_FOR = {"superlu": "superlu_jaxfem", "klu": "klu", "pardiso": "pardiso_jaxfem", "cholmod": "cholmod"}
 

@@ -15,11 +15,11 @@ import numpy as np
 
 import jaxfem as jf
 
-import _peers
-from _forward_measure import Extrapolator, log, measure_size, run_jaxfem
-from _forward_problems import DOC, DOC_N, E_SHEET, NU, SIZES_2D, SIZES_3D, block, sheet, torchfem_cube
-from _forward_report import _json_default, flag_load, plot, targets
-from _timing import best_of, loadavg
+from benchmarks import _peers
+from benchmarks._forward_measure import Extrapolator, log, measure_size, run_jaxfem
+from benchmarks._forward_problems import DOC, DOC_N, E_SHEET, NU, SIZES_2D, SIZES_3D, block, sheet, torchfem_cube
+from benchmarks._forward_report import _json_default, flag_load, plot, targets
+from benchmarks._timing import best_of, loadavg
 
 RESULTS: dict = {}
 REUSE: dict = {}

@@ -18,7 +18,7 @@ import numpy as np
 import jaxfem as jf
 from jaxfem.hand import Scar, run_motion, scar_cells, skin_area, skin_strain_function, standard_motions
 
-from _hand_scars import AREA, STRAIN_LIMIT, changes
+from benchmarks._hand_scars import AREA, STRAIN_LIMIT, changes
 
 OUT = Path(__file__).parent / "results"
 

@@ -19,7 +19,7 @@ import jaxfem as jf
 from jaxfem.hand import (PAPER, Box, HandDimensions, HandModel, Scar, default_body, hand_mesh, reachable, run_motion,
                          scar_cells, skin_area, skin_strain_function, standard_motions, write_motion_series)
 
-import _hand_threshold
+from benchmarks import _hand_threshold
 
 RATIO = 5.1  # the paper's relative elasticity of the "more abnormal" scar areas
 LIMIT = 1.25  # the strain limit, x the normal hand's full-range maximum of the same motion

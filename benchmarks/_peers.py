@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from _timing import best_of, loadavg
+from benchmarks._subprocess import command, environment
+from benchmarks._timing import best_of, loadavg
 
 HERE = Path(__file__).resolve().parent
 
@@ -116,12 +117,12 @@ def skfem_plane_strain(nodes, cells, fixed, u_D, E, nu, n_steps=1, rtol=1e-9, ut
 # ====================================================================== torch-fem (child process)
 def torchfem_run(job: dict, timeout: float, threads: int = 1) -> dict:
     """Run one torch-fem job in a child process (see :func:`_torchfem_child`); returns its JSON."""
-    env = dict(os.environ, OMP_NUM_THREADS=str(threads), MKL_NUM_THREADS=str(threads))
+    env = environment(OMP_NUM_THREADS=str(threads), MKL_NUM_THREADS=str(threads))
     env.pop("PYPARDISO_MKL_RT", None)
     path = HERE / "results" / f".torchfem_job_{os.getpid()}.npz"
     np.savez(path, **{k: v for k, v in job.items() if isinstance(v, np.ndarray)})
     meta = {k: v for k, v in job.items() if not isinstance(v, np.ndarray)}
-    cmd = [sys.executable, str(Path(__file__).resolve()), "torchfem", str(path), json.dumps(meta), str(threads)]
+    cmd = command("_peers", "torchfem", path, json.dumps(meta), threads)
     try:
         out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
     except subprocess.TimeoutExpired:

@@ -28,8 +28,8 @@ import numpy as np
 from jaxfem.hand import PAPER, HandModel, default_body, hand_mesh, run_motion, skin_strain_function, standard_motions
 from refine.exceptions import ObservationError
 
-import _hand_threshold
-from _hand_threshold import RULE, perturbed_skin, threshold_truth
+from benchmarks import _hand_threshold
+from benchmarks._hand_threshold import RULE, perturbed_skin, threshold_truth
 
 #: mesh sizes h (mm) of the paper-size hand, coarse to fine (snap 4.5 mm); 8 mm: ~2 GB of memory
 SIZES = (24.0, 12.0, 8.0)

@@ -343,7 +343,7 @@ def plot(large: dict, path: Path) -> None:
 
 
 def summary(report: dict) -> None:
-    """Print the large-motion rows and every target of ``report`` (tracking.json)."""
+    """Print the large-motion rows and every target of ``report`` (trackers.json)."""
     for name, row in {**report["large_motion"]["grid"], "speckle_jump": report["large_motion"]["speckle_jump"]}.items():
         parts = [f"{m}: {v['rms_px']:.4f} px, {v['slips']} slips, {v['lost']} lost, {v['seconds']:.1f} s"
                  for m, v in row.items() if isinstance(v, dict)]

@@ -30,6 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks._subprocess import command, environment
+from benchmarks._cli import quick
+
 OUT = Path(__file__).parent / "results"
 ROOT = Path(__file__).resolve().parents[1]
 EFFICIENCY_MIN = 0.7  # on 2 workers, against the one-process run
@@ -57,10 +60,9 @@ def one_process(paths: list[Path], out: Path) -> dict:
     """Diagnose ``paths`` one after another in a fresh interpreter with one worker's environment."""
     from refine.batch import worker_env
 
-    path = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
-    env = {**os.environ, **worker_env(1), "PYTHONPATH": path}
+    env = environment(**worker_env(1))
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, __file__, "--one-process", str(out), *map(str, paths)], env=env, check=True)
+    subprocess.run(command("batch", "--one-process", out, *paths), env=env, check=True)
     wall = time.perf_counter() - t0
     rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
     return {"wall_s": wall, "task_s": [r["seconds"] for r in rows]}
@@ -95,14 +97,15 @@ def _report(out: Path, name: str) -> dict:
     return {k: v for k, v in r.items() if k != "seconds"}
 
 
-def main() -> None:
+def main(argv=None) -> int:
+    argv = quick(argv, ["--bundles", "2", "--workers", "1", "--note", "--quick smoke run"])
     ap = argparse.ArgumentParser()
     ap.add_argument("--bundles", type=int, default=4, help="number of small bundles")
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2], help="local worker counts to time")
     ap.add_argument("--work", default="/tmp/nonrigid-batch-benchmark", help="scratch directory")
     ap.add_argument("--note", default="", help="what the reader must know about this run (stored in the JSON)")
     ap.add_argument("--one-process", nargs="+", help=argparse.SUPPRESS)
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     if args.one_process:
         return _one_process_main(Path(args.one_process[0]), args.one_process[1:])
     work = Path(args.work)
@@ -153,6 +156,7 @@ def main() -> None:
     (OUT / "batch.json").write_text(json.dumps(out, indent=2))
     _plot(modes, OUT / "batch.png")
     print(json.dumps({"results": results, "targets": targets}, indent=2))
+    return 0
 
 
 def _plot(modes: dict, path: Path) -> None:
@@ -175,4 +179,4 @@ def _plot(modes: dict, path: Path) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

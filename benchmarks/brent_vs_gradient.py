@@ -47,8 +47,8 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
+from benchmarks._subprocess import command, environment  # noqa: E402
 from refine import optimize  # noqa: E402
 from refine.model import MeasuredModel, ModulusField, Objective, RegionModuli, domain_mesh  # noqa: E402
 from refine.optimize import coordinate_brent_search  # noqa: E402
@@ -303,7 +303,7 @@ def run_case(name: str, seed: int, quick: bool) -> list[dict]:
     return field_case(seed, maxiter=60 if quick else 150, warm=not quick)
 
 
-def main(argv=None) -> None:
+def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--quick", action="store_true", help="shorter field run, no warm re-run of it")
@@ -314,7 +314,7 @@ def main(argv=None) -> None:
         name, seed, out = args.one
         rows = run_case(name, int(seed), args.quick)
         Path(out).write_text(json.dumps([{**r, "seed": int(seed)} for r in rows]))
-        return
+        return 0
     RESULTS.mkdir(parents=True, exist_ok=True)
     out_json, out_png = RESULTS / "brent_vs_gradient.json", RESULTS / "brent_vs_gradient.png"
     wanted = args.cases.split(",")
@@ -330,8 +330,8 @@ def main(argv=None) -> None:
             # code of earlier models piles up in one process (it reached 18 GB and was killed).
             t = time.perf_counter()
             tmp = RESULTS / f"brent_vs_gradient.{name}.{seed}.tmp"
-            cmd = [sys.executable, __file__, "--one", name, str(seed), str(tmp)] + (["--quick"] if args.quick else [])
-            done = subprocess.run(cmd).returncode == 0 and tmp.exists()
+            cmd = command("brent_vs_gradient", "--one", name, seed, tmp) + (["--quick"] if args.quick else [])
+            done = subprocess.run(cmd, env=environment()).returncode == 0 and tmp.exists()
             if not done:
                 print(f"seed {seed} {name}: FAILED (see the output above)", flush=True)
                 continue
@@ -348,7 +348,8 @@ def main(argv=None) -> None:
     for t in result["targets"]:
         print(("PASS " if t["pass"] else "FAIL ") + t["target"], {k: v for k, v in t.items() if k not in ("target", "pass")})
     print(f"wrote {out_json} and {out_png}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

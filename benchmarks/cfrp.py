@@ -25,7 +25,7 @@ far the hole's edge lies from the nearest tracked points, and the noise estimate
 correlation of neighbouring points' noise. The bundle carries the tracker's subset
 (``measurement.subset``), so the diagnosis keeps the hole out of every tracked subset
 (refine.diagnosis.subsets); :func:`subset_hole` measures that fit alone. Writes benchmarks/results/cfrp.json and
-cfrp_strain.png (the measured strain map beside the models', before and after).
+cfrp.png and cfrp_holed.png (the measured strain map beside the models', before and after).
 tests/test_cfrp.py (slow) runs :func:`run` and checks the same targets.
 """
 
@@ -41,15 +41,12 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-# a script here named like a package would shadow the package `track` imports: keep this folder off the path
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-sys.path.insert(0, str(ROOT))
-sys.path.append(str(Path(__file__).resolve().parent))  # last: a script here named like a package must not shadow it
 SAMPLE = ROOT.parent / "shared" / "data" / "dic-challenge-sample12"
 OUT = Path(__file__).parent / "results"
 CENTRE_TOL, AREA_TOL = 0.02, 0.10
 
-from _cfrp_studies import search_setup, shortfall, subset_hole  # noqa: E402
+from benchmarks._cfrp_studies import search_setup, shortfall, subset_hole  # noqa: E402
+from benchmarks._cli import quick  # noqa: E402
 
 
 def image_hole(path: Path) -> tuple[np.ndarray, float, float]:
@@ -221,7 +218,8 @@ def subsets_only(previous: dict, tracked: Path, log=print) -> dict:
     return out
 
 
-def main() -> None:
+def main(argv=None) -> int:
+    argv = quick(argv, ["--whole-only"])
     import argparse
     import tempfile
 
@@ -239,7 +237,7 @@ def main() -> None:
                    "by side deadlock in XLA's CPU pool on a 2-core machine)")
     p.add_argument("--whole-only", action="store_true", help="only the diagnosis without the hole; with --previous "
                    "its later entries are kept, marked \"rerun\": false")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     from refine.diagnosis.config import DiagnoseConfig
     config = DiagnoseConfig(workers=args.workers) if args.workers else None
     load = os.getloadavg()[0]
@@ -267,11 +265,12 @@ def main() -> None:
     result["load_average"] = [round(load, 2), round(os.getloadavg()[0], 2)]
     OUT.mkdir(exist_ok=True)
     (OUT / "cfrp.json").write_text(json.dumps(result, indent=2, default=float))
-    for name, d in zip(("cfrp_strain.png", "cfrp_strain_holed.png"), diagnoses):
+    for name, d in zip(("cfrp.png", "cfrp_holed.png"), diagnoses):
         if d is not None:
             diagnosis_strain_figure(d).savefig(OUT / name, dpi=100, bbox_inches="tight")
     print(json.dumps(result["targets"], indent=2))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -13,14 +13,14 @@ Per case and method: the correspondence error of every model node in every frame
 hidden truth (RMS and max, mm and % of the sheet's length), seconds; for the refined fit the
 refinements, the region found (cause, centroid error) and the prediction errors.
 
-3D (``--dim 3``, results in correspondence_3d.json): a 40 x 20 x 20 mm block clamped at its left
+3D (``--dim 3``, results in correspondence3d.json): a 40 x 20 x 20 mm block clamped at its left
 face, its right face moved by a random 6-DOF rigid motion, optionally hiding a stiff sphere,
 solved on a finer tet10 mesh (refine.synthetic.solid_clouds) and seen by one range camera as the
 points where its rays meet the surface, with depth noise; the model is a coarser tet10 block.
 
     python benchmarks/correspondence.py               # 3 seeds x (none, stiffer-region), 2D
     python benchmarks/correspondence.py --seeds 1     # a look
-    python benchmarks/correspondence.py --dim 3       # the 3D block
+    python -m benchmarks correspondence3d           # the 3D block (the same as --dim 3)
 """
 
 from __future__ import annotations
@@ -35,6 +35,8 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # pyc
     os.environ.setdefault(_v, "1")                                       # each is faster than many fighting
 
 import numpy as np  # noqa: E402
+
+from benchmarks._cli import QUICK, quick  # noqa: E402
 
 from refine.correspond import (CloudModel, FitConfig, FollowConfig, Grips, HausdorffConfig,  # noqa: E402
                                follow_clouds, hausdorff_track)
@@ -264,7 +266,8 @@ def plot(rows, path):
     plt.close(fig)
 
 
-def main():
+def main(argv=None) -> int:
+    argv = quick(argv, ["--seeds", "1", "--causes", "none", "--fit-only", "--out", str(QUICK / "correspondence.json")])
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--causes", default="none,stiffer-region")
@@ -275,9 +278,9 @@ def main():
     ap.add_argument("--baselines-only", action="store_true",
                     help="run only the Hausdorff method and CPD and add their rows to the cases of --out")
     ap.add_argument("--retarget", action="store_true", help="recompute --out's targets and plot from its rows")
-    ap.add_argument("--out", default=None, help="default results/correspondence.json (2D), correspondence_3d.json")
-    args = ap.parse_args()
-    out = args.out or str(RESULTS / ("correspondence.json" if args.dim == 2 else "correspondence_3d.json"))
+    ap.add_argument("--out", default=None, help="default results/correspondence.json (2D), correspondence3d.json")
+    args = ap.parse_args(argv)
+    out = args.out or str(RESULTS / ("correspondence.json" if args.dim == 2 else "correspondence3d.json"))
     if args.retarget or args.baselines_only:
         return _update(out, args)
     model = _model(args.dim)
@@ -290,6 +293,7 @@ def main():
                                  baselines=not args.fit_only))
             _write(out, rows, t0)
     print(json.dumps(targets(rows), indent=1))
+    return 0
 
 
 def _model(dim: int) -> CloudModel:
@@ -329,4 +333,4 @@ def _write(out, rows, t0, extra=None):
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -43,9 +43,10 @@ from pathlib import Path
 
 import numpy as np
 
-from _diagnose_oracle import (AREA_TOL, CENTROID_TOL, GAIN_MIN, RATIO_TOL, _case_bundle, _case_truth, _med,
+from benchmarks._diagnose_oracle import (AREA_TOL, CENTROID_TOL, GAIN_MIN, RATIO_TOL, _case_bundle, _case_truth, _med,
                               against_oracle, oracle_case)
-from _diagnose_plot import plot
+from benchmarks._diagnose_plot import plot
+from benchmarks._cli import QUICK, quick  # noqa: E402
 
 DIAGONAL = float(np.hypot(100.0, 60.0))
 OUT = Path(__file__).parent / "results"
@@ -286,9 +287,10 @@ def _parser() -> argparse.ArgumentParser:
     return ap
 
 
-def main():
+def main(argv=None) -> int:
+    argv = quick(argv, ["--cases", "1", "--spacings", "10", "--noises", "0.05", "--causes", "hole", "--rows", str(QUICK / "diagnose_rows.jsonl"), "--out", str(QUICK / "diagnose.json")])
     ap = _parser()
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     every = {case_key(c) for c in all_cases(argparse.Namespace(**{**vars(args), "only": None}))}
     unknown = sorted(set(args.only or []) - every)
     if unknown:
@@ -310,11 +312,12 @@ def main():
             settings, machine = {**old["settings"], "resummarised": vars(args)}, old["machine"]
         write_results(rows, machine or _machine(args), settings, args.out)
         print(f"{len(rows)} rows summarised")
-        return
+        return 0
     _run(run_case, cases_to_run(args), args.rows, args, error_row, lambda row: (
         f"seed {row['seed']}: found {row['found']} gain {row['gain'] or 0:.2f} {'PASS' if row['passed'] else 'fail'} "
         f"{row['seconds'] or 0:.0f} s load {row['load_average'][0]}" + (f" {row['error']}" if "error" in row else "")))
     write_results(_read_rows([args.rows]), _machine(args), vars(args), args.out)
+    return 0
 
 
 def cases_to_run(args) -> list[dict]:
@@ -366,4 +369,4 @@ def _run(fn, todo, path, args, failed, line):
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

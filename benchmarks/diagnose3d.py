@@ -45,14 +45,13 @@ from dataclasses import replace
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parent))
-sys.path.append(str(HERE))  # after the repository: a script here named like a package must not shadow it
 
 import numpy as np  # noqa: E402
 
-import _direct  # noqa: E402
-from _forward_measure import assembly_times, run_jaxfem  # noqa: E402
-from _timing import loadavg  # noqa: E402
+from benchmarks import _direct  # noqa: E402
+from benchmarks._forward_measure import assembly_times, run_jaxfem  # noqa: E402
+from benchmarks._timing import loadavg  # noqa: E402
+from benchmarks._cli import QUICK, quick  # noqa: E402
 
 RESULTS = HERE / "results"
 
@@ -223,7 +222,8 @@ def null_target(rows, ok) -> dict:
     return {"value": value, "pass": all(ok(t["p_value"]) for _, t in tests) if tests else None}
 
 
-def main() -> None:
+def main(argv=None) -> int:
+    argv = quick(argv, ["--holes", "1", "--sound", "--e2e", "--no-forward", "--out", str(QUICK / "diagnose3d.json")])
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--holes", type=int, nargs="*", default=[1, 2, 3])
     p.add_argument("--sound", type=int, nargs="*", default=[4])
@@ -251,7 +251,7 @@ def main() -> None:
     p.add_argument("--no-forward", action="store_true", help="skip the local model's forward-solve timing")
     p.add_argument("--combine", type=Path, nargs="+", default=None, help="write --out from these results JSONs' rows "
                    "(cases run one per process) with the targets over all of them, and stop")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     if args.combine:
         return combine(args.combine, args.out)
     rows, last = [], None
@@ -273,7 +273,7 @@ def main() -> None:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         (args.out.with_suffix(".partial.jsonl")).open("a").write(json.dumps(row, default=str) + "\n")
     if args.data_only:
-        return
+        return 0
     fwd = forward_timing(last) if last is not None and not args.no_forward else None
     targets = targets_of(rows)
     out = {"rows": rows, "forward": fwd, "targets": targets, "load_at_end": loadavg(), "cpus": os.cpu_count(),
@@ -283,6 +283,7 @@ def main() -> None:
     plot(rows, args.out.with_suffix(".png"))
     args.out.with_suffix(".partial.jsonl").unlink(missing_ok=True)  # the rows so far, for a run cut short
     print(json.dumps(targets, indent=1, default=float))
+    return 0
 
 
 def combine(files, out: Path) -> None:
@@ -332,4 +333,4 @@ def plot(rows, path) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -36,9 +36,9 @@ import sys
 
 import numpy as np
 
+from benchmarks._cli import QUICK, quick
+
 HERE = Path(__file__).resolve().parent
-# this folder last on the path: a script here named like a package would shadow it
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != HERE] + [str(HERE)]
 OUT = HERE / "results"
 ROI = (20.0, 10.0, 120.0, 70.0)
 DIAGONAL = float(np.hypot(100.0, 60.0))
@@ -207,7 +207,8 @@ def plot(rows, path: Path) -> None:
     plt.close(fig)
 
 
-def main(argv=None) -> None:
+def main(argv=None) -> int:
+    argv = quick(argv, ["--sizes", "300x1", "--causes", "hole", "--rows", str(QUICK / "diagnose_scale.jsonl")])
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--sizes", nargs="+", default=list(DEFAULT_SIZES), help="cells POINTSxFRAMES")
     p.add_argument("--causes", nargs="+", default=["softer-region", "hole", "stiffer-region"],
@@ -242,7 +243,7 @@ def main(argv=None) -> None:
                           **({"code": args.code} if args.code else {})})
         for case in cases:
             if args.profile:
-                from _diagnose_profile import profile_case
+                from benchmarks._diagnose_profile import profile_case
                 from refine.diagnosis import DiagnoseConfig
 
                 row = profile_case(case_bundle(case)[1], DiagnoseConfig(workers=case["threads"]), case["size"], OUT)
@@ -256,7 +257,7 @@ def main(argv=None) -> None:
                 fh.write(json.dumps(row) + "\n")
             done[(case["size"], case["cause"])] = row
     if args.profile:
-        return
+        return 0
     rows = sorted(done.values(), key=lambda r: r["points"] * r["frames"])
     out = {"benchmark": "diagnose_scale", "machine": {"cores": os.cpu_count()}, "rows": rows,
            "slope_seconds_on_points_x_frames": slope(rows), "targets": targets(rows, latest_rows(rows_path))}
@@ -264,7 +265,8 @@ def main(argv=None) -> None:
     (OUT / "diagnose_scale.json").write_text(json.dumps(out, indent=2))
     plot(rows, OUT / "diagnose_scale.png")
     print(json.dumps(out["targets"], indent=2))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

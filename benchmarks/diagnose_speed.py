@@ -43,9 +43,10 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks._subprocess import command, environment
+from benchmarks._cli import QUICK, quick  # noqa: E402
+
 HERE = Path(__file__).resolve().parent
-# this folder last on the path: a script here named like a package would shadow it
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != HERE] + [str(HERE)]
 OUT = HERE / "results"
 TARGET_WALL_S = 48.0
 #: the ~300-point cases of the median (benchmarks/diagnose.py's 5 mm grid, 273 points, 4 frames)
@@ -69,7 +70,7 @@ def _commit() -> str:
 
 
 def _case(case_key: str) -> dict:
-    from diagnose import CAUSES
+    from benchmarks.diagnose import CAUSES
 
     spacing, noise, cause, k = case_key.split("/")
     seed = 1000 * int(float(spacing)) + 100 * CAUSES.index(cause) + int(k)
@@ -105,7 +106,7 @@ def bundle_digest(bundle) -> str:
 def write_bundles(case_keys: list[str], folder: Path) -> dict:
     """Generate the cases' bundles with this code and write them under ``folder`` (one directory
     per case); read back, each must give the same digest (the format writes full precision)."""
-    from _diagnose_oracle import _case_bundle
+    from benchmarks._diagnose_oracle import _case_bundle
     from refine.bundle import read_bundle, write_bundle
 
     out = {}
@@ -150,7 +151,7 @@ def run(case_key: str, label: str, cache: str | None, workers: int, linear_solve
         from jaxfem import compilation_cache
 
         compilation_cache(cache)
-    from diagnose import score
+    from benchmarks.diagnose import score
 
     DiagnoseConfig, diagnose = _diagnoser()
     case = _case(case_key)
@@ -159,7 +160,7 @@ def run(case_key: str, label: str, cache: str | None, workers: int, linear_solve
 
         truth, bundle = _truth(case), read_bundle(bundle_dir)
     else:
-        from _diagnose_oracle import _case_bundle
+        from benchmarks._diagnose_oracle import _case_bundle
 
         truth, bundle = _case_bundle(case)
     config = DiagnoseConfig(workers=workers, **({} if linear_solver == "auto" else {"linear_solver": linear_solver}))
@@ -288,21 +289,22 @@ def _plot(rows: list[dict], path: Path) -> None:
 def _fresh(case: str, a, role: str = "main", bundle: str | None = None) -> dict:
     """One case diagnosed in a fresh process (nothing compiled by the one before); ``role``
     "baseline": with ``PYTHONPATH`` on the baseline tree, so ``refine`` is that tree's."""
-    env = dict(os.environ)
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--case", case, "--label", a.label, "--workers",
-           str(a.workers), "--linear-solver", a.linear_solver, "--role", role]
+    cmd = command("diagnose_speed", "--case", case, "--label", a.label, "--workers", a.workers,
+                  "--linear-solver", a.linear_solver, "--role", role)
     cmd += ["--cache", a.cache] if a.cache else []
     cmd += ["--bundle", bundle] if bundle else []
-    if role == "baseline":
-        env["PYTHONPATH"] = os.pathsep.join([str(Path(a.baseline_tree).resolve()), env.get("PYTHONPATH", "")])
+    env, cwd = environment(), None
+    if role == "baseline":  # run from elsewhere, so that the working directory's refine is not the one found first
+        env = environment(first=(str(Path(a.baseline_tree).resolve()),))
         cmd += ["--code", a.baseline_code or Path(a.baseline_tree).name]
     with tempfile.TemporaryDirectory() as tmp:
         cmd += ["--row-to", str(Path(tmp) / "row.json")]
-        subprocess.run(cmd, env=env, check=True)
+        subprocess.run(cmd, env=env, check=True, cwd=tmp if role == "baseline" else cwd)
         return json.loads((Path(tmp) / "row.json").read_text())
 
 
-def main():
+def main(argv=None) -> int:
+    argv = quick(argv, ["--cases", DEFAULT_CASES[0], "--rows", str(QUICK / "diagnose_speed_rows.jsonl"), "--out", str(QUICK / "diagnose_speed.json")])
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--case", default=None, help="one case SPACING/NOISE/CAUSE/K of benchmarks/diagnose.py "
                                                 "(in this process)")
@@ -328,7 +330,7 @@ def main():
     p.add_argument("--code", default=None, help=argparse.SUPPRESS)
     p.add_argument("--role", default="main", choices=("main", "baseline"), help=argparse.SUPPRESS)
     p.add_argument("--row-to", type=Path, default=None, help=argparse.SUPPRESS)
-    a = p.parse_args()
+    a = p.parse_args(argv)
     if a.baseline_tree and a.case:
         p.error("--baseline-tree runs --cases (each in a fresh process), not one --case")
     if a.baseline_tree and not (Path(a.baseline_tree) / "refine").is_dir():
@@ -336,20 +338,20 @@ def main():
     if a.profile:
         if not a.case:
             p.error("--profile profiles one --case")
-        from _diagnose_oracle import _case_bundle
-        from _diagnose_profile import profile_case
+        from benchmarks._diagnose_oracle import _case_bundle
+        from benchmarks._diagnose_profile import profile_case
 
         DiagnoseConfig, _ = _diagnoser()
         row = profile_case(_case_bundle(_case(a.case))[1], DiagnoseConfig(workers=a.workers),
                            a.case.replace("/", "_").replace(".", "p"), OUT)
         print(json.dumps({k: row[k] for k in ("label", "cpu_s", "wall_s", "load", "compiles", "compile_s",
                                               "newton_solves", "newton_iterations", "chosen")}), flush=True)
-        return
+        return 0
     if a.case:
         row = run(a.case, a.label, a.cache, a.workers, a.linear_solver, a.bundle, a.code, a.role)
         if a.row_to:  # a fresh process of the loop below: the caller keeps the row
             a.row_to.write_text(json.dumps(row))
-            return
+            return 0
         print(json.dumps(row), flush=True)
         rows = [row]
     else:
@@ -357,10 +359,10 @@ def main():
     with tempfile.TemporaryDirectory() as folder:
         bundles = {}
         if a.baseline_tree:  # this code's bundles, written once, read by both codes
-            subprocess.run([sys.executable, "-c", "import sys, json; sys.path.append(sys.argv[1]); "
-                            "from diagnose_speed import write_bundles; from pathlib import Path; "
-                            "json.dump(write_bundles(sys.argv[3:], Path(sys.argv[2])), open(Path(sys.argv[2]) / "
-                            "'bundles.json', 'w'))", str(HERE), folder, *a.cases], check=True)
+            subprocess.run([sys.executable, "-c", "import sys, json; "
+                            "from benchmarks.diagnose_speed import write_bundles; from pathlib import Path; "
+                            "json.dump(write_bundles(sys.argv[2:], Path(sys.argv[1])), open(Path(sys.argv[1]) / "
+                            "'bundles.json', 'w'))", folder, *a.cases], check=True, env=environment())
             bundles = json.loads((Path(folder) / "bundles.json").read_text())
         for i, case in enumerate([] if a.case else a.cases):
             roles = ["main", "baseline"][:: 1 if i % 2 == 0 else -1] if a.baseline_tree else ["main"]
@@ -374,7 +376,8 @@ def main():
             fh.write(json.dumps(rows[0]) + "\n")
     result = write([json.loads(line) for line in a.rows.read_text().splitlines() if line.strip()], a.out, a.judge)
     print(json.dumps(result["targets"], indent=1))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -5,8 +5,6 @@
     python benchmarks/error_coverage.py --merge benchmarks/results/error_coverage_rows.jsonl   # summary only
     python benchmarks/error_coverage.py --cases 20 --seed 9000 --spacing 10 --frames 1   # small cases, ~1-2 min each
 
-(Named error_coverage.py, not coverage.py: a benchmarks/coverage.py shadows the ``coverage``
-package for anything run from this folder.)
 
 Each case draws a hidden effect (place, size, ratio) under its own seed from
 :func:`refine.synthetic.random_truth` (kinds: a stiff circle, a soft ellipse, a hole, a
@@ -58,7 +56,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from error_coverage_summary import KINDS, QUANTITIES, _plot, summarise
+from benchmarks._error_coverage_summary import KINDS, QUANTITIES, _plot, summarise
+from benchmarks._cli import QUICK, quick  # noqa: E402
 
 OUT = Path(__file__).parent / "results"
 
@@ -205,7 +204,8 @@ FRACTIONS = {1: (1.0,), 2: (0.5, 1.0)}
 ``frames`` are the two-frame cases of the first runs)."""
 
 
-def main():
+def main(argv=None) -> int:
+    argv = quick(argv, ["--cases", "1", "--spacing", "10", "--frames", "1", "--rows", str(QUICK / "error_coverage_rows.jsonl")])
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--cases", type=int, default=24, help="cases (kinds in turn)")
     p.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS)
@@ -216,7 +216,7 @@ def main():
     p.add_argument("--rows", type=Path, default=OUT / "error_coverage_rows.jsonl", help="rows file (appended, resumable)")
     p.add_argument("--merge", type=Path, nargs="*", help="only summarise these rows files")
     p.add_argument("--minutes", type=float, default=None, help="stop starting new cases after this many minutes")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     paths = args.merge if args.merge is not None else [args.rows]
     if args.merge is None:
         done = {(r["kind"], r["seed"], r["noise"], r["spacing"], r.get("frames", 2)) for r in _read(args.rows)}
@@ -241,6 +241,7 @@ def main():
     (OUT / "error_coverage.json").write_text(json.dumps({**summary, "rows": rows}, indent=1))
     _plot(rows, summary, OUT / "error_coverage.png")
     print(json.dumps(summary["targets"], indent=1))
+    return 0
 
 
 def _read(path: Path) -> list[dict]:
@@ -248,4 +249,4 @@ def _read(path: Path) -> list[dict]:
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

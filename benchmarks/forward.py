@@ -46,19 +46,17 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(HERE))
 
 import jax  # noqa: E402
 
 from jaxfem.linsolve import AUTO_KLU_MAX_DOFS_2D, available  # noqa: E402
 
-import _direct  # noqa: E402
-from _forward_measure import log  # noqa: E402
-from _forward_problems import BLOCK, E_SHEET, NU, SHEET, STRETCH  # noqa: E402
-from _forward_report import _json_default, plot, targets  # noqa: E402
-from _forward_sweeps import RESULTS, REUSE, sweep_block, sweep_documented, sweep_sheet, write_partial  # noqa: E402
-from _timing import loadavg  # noqa: E402
+from benchmarks import _direct  # noqa: E402
+from benchmarks._forward_measure import log  # noqa: E402
+from benchmarks._forward_problems import BLOCK, E_SHEET, NU, SHEET, STRETCH  # noqa: E402
+from benchmarks._forward_report import _json_default, plot, targets  # noqa: E402
+from benchmarks._forward_sweeps import RESULTS, REUSE, sweep_block, sweep_documented, sweep_sheet, write_partial  # noqa: E402
+from benchmarks._timing import loadavg  # noqa: E402
 
 
 def versions():
@@ -100,7 +98,7 @@ def mem_available_gb():
     return 8.0
 
 
-def main():
+def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--full", action="store_true", help="add the large sizes (2D to 406k, 3D to 103k DOFs)")
     ap.add_argument("--quick", action="store_true", help="tiny sizes, one repeat: a smoke test")
@@ -121,7 +119,7 @@ def main():
                     "and measure only the others (e.g. --full after a default run)")
     ap.add_argument("--remeasure", action="store_true", help="with --reuse: measure the sizes within "
                     "--min-dofs .. --max-dofs again, keep the reused rows of the others")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     args.torchfem_threads = tuple(int(t) for t in args.torchfem_threads.split(","))
     args.solvers = args.solvers.split(",") if args.solvers else None
     if args.reuse:
@@ -201,7 +199,8 @@ def main():
     plot(RESULTS, png)
     log(f"wrote {args.out} and {png} in {RESULTS['meta']['wall_seconds']:.0f} s")
     print(json.dumps(RESULTS["targets"], indent=1, default=_json_default))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

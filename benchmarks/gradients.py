@@ -41,7 +41,6 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
@@ -263,12 +262,12 @@ def plot(results: dict, path: Path):
     fig.savefig(path, dpi=120)
 
 
-def main():
+def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="small meshes (smoke test)")
     parser.add_argument("--only", choices=["sheet-2d", "block-3d"], help="run one problem")
     parser.add_argument("--plot", action="store_true", help="only redraw the plot from the saved results")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     _install_counters()
     builds = {"sheet-2d": (sheet, True), "block-3d": (block, args.quick)}
     out = ROOT / "benchmarks" / "results"
@@ -286,7 +285,8 @@ def main():
     print(json.dumps(results["targets"], indent=1), flush=True)
     path.write_text(json.dumps(results, indent=1))
     plot(results, path.with_suffix(".png"))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

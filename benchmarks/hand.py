@@ -68,20 +68,17 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-sys.path.insert(0, str(ROOT))
-sys.path.append(str(Path(__file__).resolve().parent))  # last: a script here named like a package must not shadow it
 OUT = Path(__file__).parent / "results"
 
 from jaxfem.hand import (PAPER, HandDimensions, plot_curves, reachable, run_motion,  # noqa: E402
                          skin_strain_function, standard_motions)
 
-import _hand_marker_noise  # noqa: E402
-import _hand_threshold  # noqa: E402
-import _hand_tracking  # noqa: E402
-import _threshold_mesh  # noqa: E402
-from _hand_found_scar import FOUND_H, found_scar_section, found_target  # noqa: E402
-from _hand_scars import (AREA, LIMIT, OTHER_AREAS, RATIO, SCARS, STRAIN_LIMIT, THRESHOLD_AREAS,  # noqa: E402
+from benchmarks import _hand_marker_noise  # noqa: E402
+from benchmarks import _hand_threshold  # noqa: E402
+from benchmarks import _hand_tracking  # noqa: E402
+from benchmarks import _threshold_mesh  # noqa: E402
+from benchmarks._hand_found_scar import FOUND_H, found_scar_section, found_target  # noqa: E402
+from benchmarks._hand_scars import (AREA, LIMIT, OTHER_AREAS, RATIO, SCARS, STRAIN_LIMIT, THRESHOLD_AREAS,  # noqa: E402
                          analyse, build, fine, load, row)
 
 
@@ -126,7 +123,7 @@ def targets(res) -> dict:
     return t
 
 
-def main(argv=None):
+def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--large-h", type=float, default=16.0)
@@ -159,7 +156,7 @@ def main(argv=None):
         res = json.loads((OUT / "hand.json").read_text())
         res["mesh_dependence"] = fine(args.fine_h) | {"load": load()}
         (OUT / "hand.json").write_text(json.dumps(res, indent=1, default=float))
-        return
+        return 0
     res = {"load_start": load(), "frames": frames, "ratio": RATIO, "strain_limit_factor": LIMIT,
            "scars": {k: {"outline": v.outline.params.tolist(), "depth_mm": v.depth, "ratio": v.ratio}
                      for k, v in SCARS.items()},
@@ -195,6 +192,7 @@ def main(argv=None):
     (OUT / "hand.json").write_text(json.dumps(res, indent=1, default=float))
     plot_curves(results, OUT / "hand.png", labels)
     print(json.dumps(res["targets"], indent=1, default=float))
+    return 0
 
 
 def sections(only, frames, reuse=False, seeds=None, thumb_h=None, profile="steady", kinds=_hand_tracking.KINDS):
@@ -242,4 +240,4 @@ def sections(only, frames, reuse=False, seeds=None, thumb_h=None, profile="stead
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -46,12 +46,11 @@ from pathlib import Path
 from types import SimpleNamespace
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parent))
-sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 
-from _timing import loadavg  # noqa: E402
+from benchmarks._timing import loadavg  # noqa: E402
+from benchmarks._cli import QUICK, quick  # noqa: E402
 
 RESULTS = HERE / "results"
 
@@ -241,7 +240,8 @@ def targets_of(rows) -> dict:
     }
 
 
-def main() -> None:
+def main(argv=None) -> int:
+    argv = quick(argv, ["--stiffer", "11", "--softer", "--sound", "--out", str(QUICK / "inclusion3d.json")])
     from refine.solid.inclusion_mesh import FocusedMesh
 
     FOCUS = FocusedMesh()  # the diagnosis's default, as --fine and --coarse
@@ -264,7 +264,7 @@ def main() -> None:
     p.add_argument("--out", type=Path, default=RESULTS / "inclusion3d.json", help="results JSON (the plot beside it)")
     p.add_argument("--merge", type=Path, nargs="*", default=[],
                    help="run no case: the rows of these results JSONs (one case per process) together")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     if args.merge:
         rows = [reinterval(r) for path in args.merge for r in json.loads(path.read_text(encoding="utf-8"))["rows"]]
     else:
@@ -277,6 +277,7 @@ def main() -> None:
     args.out.write_text(json.dumps(out, indent=1, default=str), encoding="utf-8")
     plot(rows, args.out.with_suffix(".png"))
     print(json.dumps(targets, indent=1, default=float))
+    return 0
 
 
 def plot(rows, path) -> None:
@@ -305,4 +306,4 @@ def plot(rows, path) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -31,12 +31,11 @@ from pathlib import Path
 from types import SimpleNamespace
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parent))
-sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 
-from _timing import loadavg  # noqa: E402
+from benchmarks._timing import loadavg  # noqa: E402
+from benchmarks._cli import QUICK, quick  # noqa: E402
 
 RESULTS = HERE / "results"
 
@@ -87,7 +86,8 @@ def row(bundle, truth, setting, h: float, fine: float | None = None) -> dict:
     return out
 
 
-def main() -> None:
+def main(argv=None) -> int:
+    argv = quick(argv, ["--h-models", "4", "--out", str(QUICK / "inclusion3d_mesh.json")])
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--seed", type=int, default=11)
     p.add_argument("--cause", default="stiffer-region")
@@ -96,7 +96,7 @@ def main() -> None:
     p.add_argument("--graded", type=float, nargs=2, action="append", default=[], metavar=("FINE", "COARSE"),
                    help="a box graded from FINE mm around the truth to COARSE mm (repeatable)")
     p.add_argument("--out", type=Path, default=RESULTS / "inclusion3d_mesh.json")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     from refine.solid.inclusion_profile import strength
     from refine.synthetic.block import BlockSetting, block_bundle
 
@@ -117,6 +117,7 @@ def main() -> None:
     args.out.write_text(json.dumps(out, indent=1), encoding="utf-8")
     plot(out, args.out.with_suffix(".png"))
     print(json.dumps(targets, indent=1))
+    return 0
 
 
 def plot(out, path) -> None:
@@ -144,4 +145,4 @@ def plot(out, path) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -24,7 +24,6 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import jaxfem as jf  # noqa: E402
 from refine.cli.track import track  # noqa: E402
@@ -127,12 +126,12 @@ def plot(rows, path):
     fig.savefig(path, dpi=110)
 
 
-def main():
+def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--seeds", type=int, default=2)
     p.add_argument("--quick", action="store_true", help="noise 0.05 only, both cameras, h = 2.5")
     p.add_argument("--out", default=str(RESULTS / "range_front.json"))
-    args = p.parse_args()
+    args = p.parse_args(argv)
     noises = (0.05,) if args.quick else (0.02, 0.05, 0.1)
     h = 2.5 if args.quick else 2.0
     rows, t0 = [], time.perf_counter()
@@ -145,7 +144,8 @@ def main():
     out.write_text(json.dumps(result, indent=1))
     plot(rows, out.with_suffix(".png"))
     print(f"wrote {out}; targets pass: {sum(t['pass'] for t in result['targets'].values())}/{len(result['targets'])}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -37,6 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks._cli import QUICK, quick  # noqa: E402
+
 OUT = Path(__file__).parent / "results"
 RATIO_TOL, CENTROID_TOL = 0.05, 0.02
 
@@ -228,7 +230,8 @@ def _plot(rows, path: Path):
     fig.savefig(path, dpi=110, bbox_inches="tight")
 
 
-def main():
+def main(argv=None) -> int:
+    argv = quick(argv, ["--seeds", "1", "--rows", str(QUICK / "scar_rows.jsonl")])
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seeds", type=int, default=6, help="cases 0..N-1 (seeds)")
     p.add_argument("--first", type=int, default=0, help="first seed")
@@ -236,7 +239,7 @@ def main():
     p.add_argument("--merge", action="store_true", help="only summarise the rows")
     p.add_argument("--rerun", action="store_true", help="run the seeds again (their old rows are dropped)")
     p.add_argument("--locking", action="store_true", help="also run the locking check")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     seeds = range(args.first, args.first + args.seeds)
     if args.rerun and not args.merge:  # e.g. after a change of the diagnosis: keep only the other seeds' rows
         kept = [r for r in _read(args.rows) if r["seed"] not in seeds]
@@ -260,6 +263,7 @@ def main():
     (OUT / "scar.json").write_text(json.dumps({**summary, "rows": rows}, indent=1))
     _plot(rows, OUT / "scar.png")
     print(json.dumps(summary["targets"], indent=1))
+    return 0
 
 
 def _read(path: Path) -> list[dict]:
@@ -267,4 +271,4 @@ def _read(path: Path) -> list[dict]:
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -45,6 +45,8 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks._cli import quick
+
 OUT = Path(__file__).parent / "results"
 
 
@@ -208,7 +210,7 @@ def extrapolated_summary(rows: list[dict]) -> dict:
     Richardson's extrapolation (ratio less the signed estimate) against the same total error; the
     target: the extrapolated z consistent with standard normal errors, as scar.py's
     ``ratio_within_2_std``."""
-    from scar import coverage
+    from benchmarks.scar import coverage
 
     z = coverage([r["z"] for r in rows])
     zc = coverage([r["z_corrected"] for r in rows])
@@ -238,7 +240,8 @@ def run_noise_free(seeds: list[int], name: str, noisy: bool = False):
     print(json.dumps(summary, indent=1))
 
 
-def main():
+def main(argv=None) -> int:
+    argv = quick(argv, ["--draws", "2", "--part-draws", "2", "--out", "quick/scar_error_budget"])
     from refine.synthetic.skin import SKIN, random_scar, skin_bundle
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -251,7 +254,7 @@ def main():
                         "(results/scar_noise_free.json)")
     p.add_argument("--noisy", action="store_true", help="with --noise-free: on the noisy bundles, the z with and "
                    "without Richardson's extrapolation (results/scar_extrapolated.json)")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     if args.noise_free:
         return run_noise_free(args.noise_free, "scar_extrapolated" if args.noisy else "scar_noise_free", args.noisy)
     t0 = time.perf_counter()
@@ -286,6 +289,7 @@ def main():
     (OUT / f"{args.out}.json").write_text(json.dumps(result, indent=1, default=_plain))
     _plot(result, OUT / f"{args.out}.png")
     print(json.dumps(result["targets"], indent=1, default=_plain))
+    return 0
 
 
 def std_interval(sd: float, n: int) -> list[float]:
@@ -330,4 +334,4 @@ def _plot(res: dict, path: Path):
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -45,9 +45,9 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks._cli import quick  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-sys.path.insert(0, str(ROOT))
 OUT = Path(__file__).parent / "results"
 AREA_TOL, CENTRE_TOL = 0.10, 0.02
 ROI = (20.0, 10.0, 120.0, 70.0)
@@ -233,14 +233,15 @@ def _plot(rows: list[dict], path: Path, title: str):
     fig.savefig(path, dpi=110)
 
 
-def main():
+def main(argv=None) -> int:
+    argv = quick(argv, ["--cases", "1"])
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--cases", type=int, default=3)
     p.add_argument("--seed", type=int, default=2200, help="first case's seed")
     p.add_argument("--spacing", type=float, default=5.0, help="grid spacing of the tracked points, mm")
     p.add_argument("--noise", type=float, default=0.02, help="noise std, mm")
     p.add_argument("--images", action="store_true", help="track rendered speckle images instead (see above)")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     rows = []
     for k in range(args.cases):
         if args.images:
@@ -257,7 +258,8 @@ def main():
     (OUT / f"{name}.json").write_text(json.dumps({**summary, "rows": rows}, indent=1))
     _plot(rows, OUT / f"{name}.png", "tracked from speckle images" if args.images else "ring of failed subsets removed")
     print(json.dumps(summary["targets"], indent=1))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -7,13 +7,13 @@ OpenCV's pyramidal Lucas-Kanade and scikit-image's upsampled phase correlation o
 images and points, measures points per second, and runs the DIC Challenge Sample 3 images when
 ../shared/ holds them. The large-motion rows (motion of several pitches per frame, a 20 % pair,
 holes, edges, glare, a speckle jump; against OpenCV's pyramidal LK and ECC) and Sample 12 against
-DICe are in ``_tracking_large``. Writes benchmarks/results/tracking.json (with ``targets``:
-pass/fail per target), tracking.png and tracking_large_motion.png.
+DICe are in ``_tracking_large``. Writes benchmarks/results/trackers.json (with ``targets``:
+pass/fail per target), trackers.png and trackers_large_motion.png.
 
     python benchmarks/trackers.py            # a few minutes on 2 cores
     python benchmarks/trackers.py --quick    # fewer sweep points, for a smoke test
     python benchmarks/trackers.py --only large   # the large-motion rows and Sample 12, kept with
-                                                 # the other rows of an existing tracking.json
+                                                 # the other rows of an existing trackers.json
 
 The competitors get an oracle start (each point's true motion rounded to whole pixels) and track
 the true reference points, so their numbers measure sub-pixel estimation alone; ours include
@@ -33,18 +33,14 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-# keep this folder off the path so "tracking" is the package (a script here named like a package would shadow it)
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-sys.path.insert(0, str(ROOT))
 
 from scipy.spatial import cKDTree  # noqa: E402
 
 from tracking import (GridTracker, SpeckleTracker, creased_displacement, deformed_points, grid_truth,  # noqa: E402
                       load_images, render_grid, render_speckle, scaled, smooth_displacement)
 
-sys.path.append(str(Path(__file__).resolve().parent))   # now that "tracking" is the package
-import _tracking_large as large  # noqa: E402
-from _tracker_competitors import lucas_kanade, phase_correlation  # noqa: E402
+from benchmarks import _tracking_large as large  # noqa: E402
+from benchmarks._tracker_competitors import lucas_kanade, phase_correlation  # noqa: E402
 
 SHAPE = (256, 256)
 ROI = (16, 16, 240, 240)
@@ -219,7 +215,7 @@ def dic_challenge(folder: Path):
     return out
 
 
-def main(argv=None):
+def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer sweep points")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results")
@@ -254,15 +250,16 @@ def main(argv=None):
     report["load_average_1_5_15min"] = os.getloadavg()
     report["targets"] = {**targets(report), **large.targets(report["large_motion"])}
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "tracking.json").write_text(json.dumps(report, indent=1))
-    _plot(report, args.out / "tracking.png")
-    large.plot(report["large_motion"], args.out / "tracking_large_motion.png")
+    (args.out / "trackers.json").write_text(json.dumps(report, indent=1))
+    _plot(report, args.out / "trackers.png")
+    large.plot(report["large_motion"], args.out / "trackers_large_motion.png")
     _summary(report)
+    return 0
 
 
 def _large_only(args, shared):
-    """Run the large-motion rows alone; the other rows of an existing tracking.json are kept."""
-    path = args.out / "tracking.json"
+    """Run the large-motion rows alone; the other rows of an existing trackers.json are kept."""
+    path = args.out / "trackers.json"
     report = json.loads(path.read_text()) if path.exists() else {}
     t_start = time.perf_counter()
     report["large_motion"] = large.run(args.quick, shared, lambda m: print(m, flush=True))
@@ -274,7 +271,7 @@ def _large_only(args, shared):
     report["targets"] = {**report.get("targets", {}), **old_rows, **large.targets(report["large_motion"])}
     args.out.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(report, indent=1))
-    large.plot(report["large_motion"], args.out / "tracking_large_motion.png")
+    large.plot(report["large_motion"], args.out / "trackers_large_motion.png")
     large.summary(report)
 
 
@@ -361,4 +358,4 @@ def _summary(report):
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())
