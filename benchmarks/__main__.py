@@ -37,9 +37,8 @@ def benchmarks() -> dict[str, str]:
 
 
 def _first_sentence(doc: str) -> str:
-    para = " ".join(doc.strip().split("\n\n")[0].split())
-    end = para.find(". ")
-    return para if end < 0 else para[: end + 1]
+    """The docstring's summary line (its first line, a trailing colon left off)."""
+    return doc.strip().split("\n")[0].rstrip(":")
 
 
 def _passed(entry) -> bool | None:
@@ -79,9 +78,9 @@ def _commit(name: str, result: dict) -> str:
 
 
 def table() -> str:
-    """The markdown table of every benchmark: what it measures, its targets passed, each target's
-    verdict and figure, and the commit of its results (read from ``results/NAME.json``)."""
-    lines = ["| benchmark | what it measures | targets passed | targets (figure) | results from |",
+    """The markdown table of every benchmark: what it measures, its targets passed, the failing
+    ones with their figures, and the commit of its results (read from ``results/NAME.json``)."""
+    lines = ["| benchmark | what it measures | targets passed | failing (figure) | results from |",
              "| --- | --- | --- | --- | --- |"]
     for name, what in benchmarks().items():
         path = RESULTS / f"{name}.json"
@@ -91,14 +90,12 @@ def table() -> str:
         result = json.loads(path.read_text())
         targets = result.get("targets") or {}
         verdicts = {t: _passed(e) for t, e in targets.items()}
-        cells = []
-        for t, entry in targets.items():
-            mark = {True: "pass", False: "FAIL", None: "n/a"}[verdicts[t]]
-            figure = _figure(entry)
-            cells.append(f"{t}: {mark}" + (f" ({figure})" if figure else ""))
+        failing = [t[:60] + (f" ({_figure(targets[t])})" if _figure(targets[t]) else "")
+                   for t, v in verdicts.items() if v is False]
+        shown = "; ".join(failing[:3]) + (f"; and {len(failing) - 3} more" if len(failing) > 3 else "")
         judged = [v for v in verdicts.values() if v is not None]
         lines.append(f"| [`{name}`](results/{name}.json) | {what} | {sum(judged)}/{len(judged)} | "
-                     f"{'; '.join(cells) or 'none'} | {_commit(name, result)} |")
+                     f"{shown or '-'} | {_commit(name, result)} |")
     return "\n".join(lines) + "\n"
 
 

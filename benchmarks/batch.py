@@ -1,4 +1,6 @@
-"""Batch diagnosis scaling: throughput (bundles per minute) of ``refine.batch.diagnose_many`` on 1 and
+"""Batch diagnosis scaling: bundles per minute of refine.batch.diagnose_many on 1 and 2 workers.
+
+Batch diagnosis scaling: throughput (bundles per minute) of ``refine.batch.diagnose_many`` on 1 and
 2 local workers against one process diagnosing the same bundles one after another, the overhead per
 bundle and the parallel efficiency.
 

@@ -1,4 +1,6 @@
-"""The DIC Challenge's open-hole CFRP coupon (Sample 12, ../shared/data/dic-challenge-sample12)
+"""The DIC Challenge's open-hole CFRP coupon (Sample 12) end to end: the forgotten hole found.
+
+The DIC Challenge's open-hole CFRP coupon (Sample 12, ../shared/data/dic-challenge-sample12)
 end to end: track the speckle images, diagnose with an initial model that forgot the hole (the
 domain left whole, ``--keep-holes``), then with the found hole in the model.
 

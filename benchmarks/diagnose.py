@@ -1,4 +1,6 @@
-"""Diagnosis benchmark: rates of right causes and false alarms, localisation and ratio errors,
+"""Diagnosis over random hidden cases per cause: right causes, false alarms, errors, gain, seconds.
+
+Diagnosis benchmark: rates of right causes and false alarms, localisation and ratio errors,
 gain and seconds, over random hidden cases per cause, at two grid densities and two noise levels.
 
     python benchmarks/diagnose.py                          # 20 cases per cell, one worker per core

@@ -1,4 +1,6 @@
-"""3D diagnosis benchmark: the paper's Sec. 4 cup holder with a hidden hole in its bottom.
+"""3D diagnosis: the paper's Sec. 4 cup holder with a hidden hole in its bottom, end to end.
+
+3D diagnosis benchmark: the paper's Sec. 4 cup holder with a hidden hole in its bottom.
 
 For several seeds it draws a hole (refine.synthetic.cup.random_hole), solves the squeezed cup holder
 on a finer tet10 mesh (h_data) with noise, runs the 3D diagnosis (refine.solid: the local model of

@@ -1,4 +1,6 @@
-"""How the diagnosis's cost grows with the data: seconds and accuracy over a sweep of bundle
+"""How the diagnosis's cost grows with the bundle: points 300 -> 5,000, frames 1 -> 20.
+
+How the diagnosis's cost grows with the data: seconds and accuracy over a sweep of bundle
 sizes (tracked points 300 -> 5,000, frames 1 -> 20), on synthetic bundles with a hidden effect.
 
     python benchmarks/diagnose_scale.py                       # the default sweep (hours on a shared 2 cores)

@@ -1,4 +1,6 @@
-"""Where a diagnosis's seconds go: one benchmarks/diagnose.py case diagnosed in this process, with
+"""Where one diagnosis's seconds go: XLA compilations, CPU and wall seconds per case.
+
+Where a diagnosis's seconds go: one benchmarks/diagnose.py case diagnosed in this process, with
 the number of XLA compilations and their CPU-side seconds (``jax.monitoring``), the process's CPU
 and wall seconds, the load average and the result (cause, centroid, ratio or area errors).
 

@@ -1,4 +1,6 @@
-"""The articulated hand of the paper's Sec. 5 (jaxfem.hand): model size, seconds per frame, and the
+"""The articulated hand of the paper's Sec. 5: model size, seconds per frame, scar strain.
+
+The articulated hand of the paper's Sec. 5 (jaxfem.hand): model size, seconds per frame, and the
 maximum skin strain of its three motions with and without a scar on the wrist.
 
     python benchmarks/hand.py                 # paper-size hand, 3 motions x (no, small, large scar); larger hand timed

@@ -1,4 +1,6 @@
-"""What a hidden inclusion's small fitted volume is: the model mesh, or the surface data's own
+"""A hidden inclusion's fitted volume against the model mesh's size.
+
+What a hidden inclusion's small fitted volume is: the model mesh, or the surface data's own
 ambiguity (issue 23; benchmarks/inclusion3d.py fits came out 40-60 % small).
 
 For one seed it draws the block of benchmarks/inclusion3d.py (data tet10 at --h-data with noise,

@@ -1,4 +1,6 @@
-"""The range-image front end's accuracy: a cup holder compressed by jaxfem (fine tet10 mesh, a hidden
+"""The range-image front end: tracked 3D points and clouds of a compressed cup holder.
+
+The range-image front end's accuracy: a cup holder compressed by jaxfem (fine tet10 mesh, a hidden
 hole in its bottom at a random place and size under each seed) rendered from below as intensity +
 range images (refine.synthetic.cup_views), tracked by ``nonrigid track --range``; the tracked 3D
 points against the painted crossings' true positions, and the clouds against the true surface, for

@@ -1,4 +1,6 @@
-"""Skin with a burn scar (issue 25 item 1; the paper's Secs. 3.2 and 5.1), diagnosed over seeds.
+"""Skin with a burn scar (the paper's Secs. 3.2 and 5.1), diagnosed over seeds.
+
+Skin with a burn scar (issue 25 item 1; the paper's Secs. 3.2 and 5.1), diagnosed over seeds.
 
     python benchmarks/scar.py --seeds 6             # cases 0..5 (resumable rows)
     python benchmarks/scar.py --merge               # summary and plot from the rows only

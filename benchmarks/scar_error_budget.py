@@ -1,4 +1,6 @@
-"""The error budget of a scar's relative elasticity (issue 25; benchmarks/scar.py's seed 1 was
+"""The error budget of a scar's relative elasticity, split into its sources.
+
+The error budget of a scar's relative elasticity (issue 25; benchmarks/scar.py's seed 1 was
 2.69 reported std off): what the diagnosis's final fit errs by, split into its sources.
 
     python benchmarks/scar_error_budget.py --seed 1 --draws 12      # ~10 min at load ~11
