@@ -33,7 +33,7 @@ def targets(res):
             "auto_as_shipped": r["auto_resolves_to"], "auto_seconds": auto,
             "pass": bool(r.get("fastest_jaxfem_warm_s", 1e9) < 15.0), "pass_with_auto_as_shipped": bool((auto or 1e9) < 15.0)}
     else:
-        out["sheet_200k_under_15s"] = {"pass": None, "note": "not measured in this run (python benchmarks/forward.py --full)"}
+        out["sheet_200k_under_15s"] = {"pass": None, "note": "not measured in this run (python -m benchmarks forward --full)"}
     per = []
     for kind in ("sheet_plane_stress", "block"):
         for r in res.get(kind, []):

@@ -3,7 +3,7 @@
 - :func:`skfem_plane_strain`: scikit-fem's Newton for a compressible neo-Hookean solid, written
   with its ``BilinearForm`` / ``LinearForm`` as in its hyperelasticity example (docs/examples/ex43),
   in 2D: a 2x2 F with F33 = 1 is plane strain.
-- torch-fem runs in a child process (``python benchmarks/_peers.py torchfem ...``): torch ships its
+- torch-fem runs in a child process (``python -m benchmarks _peers torchfem ...``): torch ships its
   own MKL and OpenMP runtime, which should not share a process with JAX's and pypardiso's; the
   child also gets its own thread count and a time limit. torch-fem imports pyvista for plotting
   only: the child stubs it out (pyvista pulls in VTK, a few hundred MB).
@@ -240,4 +240,4 @@ if __name__ == "__main__":
         res = _torchfem_child(sys.argv[2], json.loads(sys.argv[3]), int(sys.argv[4]))
         print("RESULT " + json.dumps(res))
     else:
-        sys.exit("usage: python benchmarks/_peers.py torchfem JOB.npz META_JSON THREADS (used by forward.py)")
+        sys.exit("usage: python -m benchmarks _peers torchfem JOB.npz META_JSON THREADS (used by forward.py)")

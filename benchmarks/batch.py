@@ -4,8 +4,8 @@ Batch diagnosis scaling: throughput (bundles per minute) of ``refine.batch.diagn
 2 local workers against one process diagnosing the same bundles one after another, the overhead per
 bundle and the parallel efficiency.
 
-    python benchmarks/batch.py                     # 4 small bundles, 1 and 2 workers
-    python benchmarks/batch.py --bundles 8 --workers 1 2 4 --note "idle 16-core machine"
+    python -m benchmarks batch                     # 4 small bundles, 1 and 2 workers
+    python -m benchmarks batch --bundles 8 --workers 1 2 4 --note "idle 16-core machine"
 
 The bundles are synthetic sheets with nothing hidden (cause "none"), tracked on a 10 mm grid over
 a 40 x 30 mm region, one frame: small, so that the fixed costs (worker start, JAX import) weigh as

@@ -28,8 +28,8 @@ of the method's own converged value, in every modulus. Each method minimises its
 noise the two minimisers differ. Brent's count comes from a run to a tight tolerance, from the
 same start, because at the paper's 0.01 it may stop short of 0.1 %.
 
-    python benchmarks/brent_vs_gradient.py              # 5 seeds; about an hour on 2 quiet cores
-    python benchmarks/brent_vs_gradient.py --seeds 1 --quick
+    python -m benchmarks brent_vs_gradient              # 5 seeds; about an hour on 2 quiet cores
+    python -m benchmarks brent_vs_gradient --seeds 1 --quick
 
 Writes benchmarks/results/brent_vs_gradient.json (rewritten after every seed) and .png.
 """

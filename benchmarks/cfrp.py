@@ -4,12 +4,12 @@ The DIC Challenge's open-hole CFRP coupon (Sample 12, ../shared/data/dic-challen
 end to end: track the speckle images, diagnose with an initial model that forgot the hole (the
 domain left whole, ``--keep-holes``), then with the found hole in the model.
 
-    python benchmarks/cfrp.py             # ~70-80 minutes on 2 cores at load ~12 (the whole domain's diagnosis ~35)
-    python benchmarks/cfrp.py --tracked B --workers 1
+    python -m benchmarks cfrp             # ~70-80 minutes on 2 cores at load ~12 (the whole domain's diagnosis ~35)
+    python -m benchmarks cfrp --tracked B --workers 1
                                           # a bundle tracked before (B), the diagnoses' fits one at a time
-    python benchmarks/cfrp.py --tracked B --previous results/cfrp.json [--shortfall-only]
+    python -m benchmarks cfrp --tracked B --previous results/cfrp.json [--shortfall-only]
                                           # keep a previous run's diagnoses, redo the later stages
-    python benchmarks/cfrp.py --tracked B --previous results/cfrp.json --subsets-only
+    python -m benchmarks cfrp --tracked B --previous results/cfrp.json --subsets-only
                                           # only the hole seen through the DIC subsets (subset_hole in cfrp.json)
 
 Targets (issue 22, item 6): the hole is named, its centre within 2 % of the specimen's width and

@@ -18,8 +18,8 @@ face, its right face moved by a random 6-DOF rigid motion, optionally hiding a s
 solved on a finer tet10 mesh (refine.synthetic.solid_clouds) and seen by one range camera as the
 points where its rays meet the surface, with depth noise; the model is a coarser tet10 block.
 
-    python benchmarks/correspondence.py               # 3 seeds x (none, stiffer-region), 2D
-    python benchmarks/correspondence.py --seeds 1     # a look
+    python -m benchmarks correspondence               # 3 seeds x (none, stiffer-region), 2D
+    python -m benchmarks correspondence --seeds 1     # a look
     python -m benchmarks correspondence3d           # the 3D block (the same as --dim 3)
 """
 

@@ -3,12 +3,12 @@
 Diagnosis benchmark: rates of right causes and false alarms, localisation and ratio errors,
 gain and seconds, over random hidden cases per cause, at two grid densities and two noise levels.
 
-    python benchmarks/diagnose.py                          # 20 cases per cell, one worker per core
-    python benchmarks/diagnose.py --cases 1 --workers 1 --threads 2   # a quick look
-    python benchmarks/diagnose.py --cases-per-cell 20 --workers 16    # the 480 cases on 16 cores
-    python benchmarks/diagnose.py --scheduler tcp://HOST:8786         # on a Dask cluster
-    python benchmarks/diagnose.py --summarise benchmarks/results/diagnose.json  # summary from stored rows
-    python benchmarks/diagnose.py --oracle --summarise benchmarks/results/diagnose.json
+    python -m benchmarks diagnose                          # 20 cases per cell, one worker per core
+    python -m benchmarks diagnose --cases 1 --workers 1 --threads 2   # a quick look
+    python -m benchmarks diagnose --cases-per-cell 20 --workers 16    # the 480 cases on 16 cores
+    python -m benchmarks diagnose --scheduler tcp://HOST:8786         # on a Dask cluster
+    python -m benchmarks diagnose --summarise benchmarks/results/diagnose.json  # summary from stored rows
+    python -m benchmarks diagnose --oracle --summarise benchmarks/results/diagnose.json
                                                            # what the data allow, per case
 
 Each case draws its hidden effect (location, size, ratio) under its own seed; data come from a

@@ -26,12 +26,12 @@ diagnose3d.png.
   (``tracking``); ``--e2e-sound SEEDS``: the same without a hole; ``--e2e-pitch`` / ``--e2e-scale``:
   the painted grid's pitch and the camera's mm per pixel (default 1.25 mm at 0.1 mm/px).
 
-    python benchmarks/diagnose3d.py                  # seeds 1 2 3 with a hole, 4 without, e2e seed 2
-    python benchmarks/diagnose3d.py --holes 1 --sound 4 --e2e --h-data 1.2
-    python benchmarks/diagnose3d.py --holes --sound --e2e 3 --e2e-sound 4 --e2e-pitch 0.6 --e2e-scale 0.05 \
+    python -m benchmarks diagnose3d                  # seeds 1 2 3 with a hole, 4 without, e2e seed 2
+    python -m benchmarks diagnose3d --holes 1 --sound 4 --e2e --h-data 1.2
+    python -m benchmarks diagnose3d --holes --sound --e2e 3 --e2e-sound 4 --e2e-pitch 0.6 --e2e-scale 0.05 \
         --depth-noise 0.005 --noise 0.005 --forces 1 2 3 4 --h-data 0.8  # a 0.6 mm grid at 0.05 mm/px, a sound cup too
-    python benchmarks/diagnose3d.py --holes 1 --sound --e2e --h-data 0.8 --bundles B --data-only  # the data alone
-    python benchmarks/diagnose3d.py --combine A.json B.json --out all.json   # rows run one case per process
+    python -m benchmarks diagnose3d --holes 1 --sound --e2e --h-data 0.8 --bundles B --data-only  # the data alone
+    python -m benchmarks diagnose3d --combine A.json B.json --out all.json   # rows run one case per process
 """
 
 from __future__ import annotations

@@ -3,10 +3,10 @@
 How the diagnosis's cost grows with the data: seconds and accuracy over a sweep of bundle
 sizes (tracked points 300 -> 5,000, frames 1 -> 20), on synthetic bundles with a hidden effect.
 
-    python benchmarks/diagnose_scale.py                       # the default sweep (hours on a shared 2 cores)
-    python benchmarks/diagnose_scale.py --sizes 300x2 3000x11 # chosen cells (POINTSxFRAMES)
-    python benchmarks/diagnose_scale.py --merge               # summary and plot from the rows file
-    python benchmarks/diagnose_scale.py --sizes 3000x11 --profile   # where its CPU seconds go (_diagnose_profile.py)
+    python -m benchmarks diagnose_scale                       # the default sweep (hours on a shared 2 cores)
+    python -m benchmarks diagnose_scale --sizes 300x2 3000x11 # chosen cells (POINTSxFRAMES)
+    python -m benchmarks diagnose_scale --merge               # summary and plot from the rows file
+    python -m benchmarks diagnose_scale --sizes 3000x11 --profile   # where its CPU seconds go (_diagnose_profile.py)
 
 Each cell draws its hidden effect (place, size, ratio) under its own seed from ``--causes``; the
 data come from refine.synthetic (a finer quadratic mesh of a larger sheet, solved

@@ -4,11 +4,11 @@ Where a diagnosis's seconds go: one benchmarks/diagnose.py case diagnosed in thi
 the number of XLA compilations and their CPU-side seconds (``jax.monitoring``), the process's CPU
 and wall seconds, the load average and the result (cause, centroid, ratio or area errors).
 
-    python benchmarks/diagnose_speed.py --label quiet      # the median over the default ~300-point cases
-    python benchmarks/diagnose_speed.py --case 5/0.02/stiffer-region/0 --label after
-    python benchmarks/diagnose_speed.py --case 5/0.02/hole/0 --cache /tmp/jaxcache --label cache-warm
-    python benchmarks/diagnose_speed.py --label s23 --baseline-tree /tmp/base_df5f359 --baseline-code df5f359
-    python benchmarks/diagnose_speed.py --case 5/0.02/hole/0 --profile   # where its CPU seconds go (no row)
+    python -m benchmarks diagnose_speed --label quiet      # the median over the default ~300-point cases
+    python -m benchmarks diagnose_speed --case 5/0.02/stiffer-region/0 --label after
+    python -m benchmarks diagnose_speed --case 5/0.02/hole/0 --cache /tmp/jaxcache --label cache-warm
+    python -m benchmarks diagnose_speed --label s23 --baseline-tree /tmp/base_df5f359 --baseline-code df5f359
+    python -m benchmarks diagnose_speed --case 5/0.02/hole/0 --profile   # where its CPU seconds go (no row)
 
 Several cases (``--cases``; default: a stiffer region, a softer region and a hole on the 5 mm grid,
 273 points, 4 frames) run one after another, each in a fresh process (as a user's ``nonrigid

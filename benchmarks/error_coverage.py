@@ -1,9 +1,9 @@
 """Coverage of the diagnosis' standard errors, and accuracy on noise-free data.
 
-    python benchmarks/error_coverage.py --cases 24                 # noisy cases, as many as 24 (resumable)
-    python benchmarks/error_coverage.py --cases 4 --noise 0 --kinds rectangle --rows R0.jsonl
-    python benchmarks/error_coverage.py --merge benchmarks/results/error_coverage_rows.jsonl   # summary only
-    python benchmarks/error_coverage.py --cases 20 --seed 9000 --spacing 10 --frames 1   # small cases, ~1-2 min each
+    python -m benchmarks error_coverage --cases 24                 # noisy cases, as many as 24 (resumable)
+    python -m benchmarks error_coverage --cases 4 --noise 0 --kinds rectangle --rows R0.jsonl
+    python -m benchmarks error_coverage --merge benchmarks/results/error_coverage_rows.jsonl   # summary only
+    python -m benchmarks error_coverage --cases 20 --seed 9000 --spacing 10 --frames 1   # small cases, ~1-2 min each
 
 
 Each case draws a hidden effect (place, size, ratio) under its own seed from
@@ -18,12 +18,10 @@ what is measured is whether the reported standard errors (:mod:`refine.diagnosis
 cover the truth: ``|estimate - truth| <= 2 std`` for every quantity (centre x and y, axes or
 half sides, angle where the truth is not a circle, area, ratio), which should hold for about 95 %
 of them. Noise-free cases (``--noise 0``) measure the accuracy where data allow it: the ratio
-within 1 % of the truth (their rows: ``results/error_coverage_rows_noise_free.jsonl``, merged
-into the summary with the noisy rows, ``--merge NOISY.jsonl results/error_coverage_rows_noise_free.jsonl``).
-``error_coverage_spread.py`` refits one case over fresh noise draws: its estimates' scatter
-against its reported errors.
+within 1 % of the truth (their rows in a rows file of their own, merged into the summary with the
+noisy rows: ``--merge NOISY.jsonl NOISE_FREE.jsonl``).
 
-The errors scored per quantity (:data:`error_coverage_summary.VARIANTS`): ``gauss_newton``, the fit's points
+The errors scored per quantity (:data:`benchmarks._error_coverage_summary.VARIANTS`): ``gauss_newton``, the fit's points
 alone (the errors before the drive's noise was counted), ``standard_error``, that plus the noise
 of the boundary points driving the model (:func:`refine.diagnosis.uncertainty.drive_covariance`;
 report.json's ``std``), and ``reported``, that plus the discretisation error (the change on a

@@ -18,9 +18,9 @@ For a sweep of mesh sizes it measures, on this machine and in one run:
 
 It writes benchmarks/results/forward.json (all numbers, the targets with pass/fail) and forward.png.
 
-    python benchmarks/forward.py           # ~25 min on a loaded 2-core machine: 2D to 51k, 3D to 10k DOFs
-    python benchmarks/forward.py --full    # adds 2D 102k-406k and 3D 29k-103k DOFs (an hour or more)
-    python benchmarks/forward.py --quick   # smoke test, tiny sizes
+    python -m benchmarks forward           # ~25 min on a loaded 2-core machine: 2D to 51k, 3D to 10k DOFs
+    python -m benchmarks forward --full    # adds 2D 102k-406k and 3D 29k-103k DOFs (an hour or more)
+    python -m benchmarks forward --quick   # smoke test, tiny sizes
 
 A combination predicted to take more than --budget seconds (60) for one solve is skipped and
 recorded as skipped. The machine may be shared: every timing is a best-of-N and carries the load

@@ -23,10 +23,10 @@ reported separately. Besides wall seconds it records the process's CPU seconds (
 which other jobs on a shared machine disturb far less. Writes benchmarks/results/gradients.json
 (one entry per problem, and ``targets`` with pass/fail) and gradients.png.
 
-    python benchmarks/gradients.py                    # ~15 CPU minutes (55 wall minutes at load 10)
-    python benchmarks/gradients.py --only block-3d    # one problem; updates its entry in the json
-    python benchmarks/gradients.py --quick            # small meshes, a smoke test
-    python benchmarks/gradients.py --plot             # redraw gradients.png from the json
+    python -m benchmarks gradients                    # ~15 CPU minutes (55 wall minutes at load 10)
+    python -m benchmarks gradients --only block-3d    # one problem; updates its entry in the json
+    python -m benchmarks gradients --quick            # small meshes, a smoke test
+    python -m benchmarks gradients --plot             # redraw gradients.png from the json
 """
 
 from __future__ import annotations

@@ -3,12 +3,12 @@
 The articulated hand of the paper's Sec. 5 (jaxfem.hand): model size, seconds per frame, and the
 maximum skin strain of its three motions with and without a scar on the wrist.
 
-    python benchmarks/hand.py                 # paper-size hand, 3 motions x (no, small, large scar); larger hand timed
-    python benchmarks/hand.py --quick         # 3 frames per motion, no larger hand
-    python benchmarks/hand.py --paper-only    # the paper-size hand's motions only; the larger hand's and the
+    python -m benchmarks hand                 # paper-size hand, 3 motions x (no, small, large scar); larger hand timed
+    python -m benchmarks hand --quick         # 3 frames per motion, no larger hand
+    python -m benchmarks hand --paper-only    # the paper-size hand's motions only; the larger hand's and the
                                               # finer mesh's entries are carried from the last hand.json (marked)
-    python benchmarks/hand.py --fine-only     # only the finer mesh's wrist motions, into the last hand.json
-    python benchmarks/hand.py --series out/hand   # also the ParaView series of every run
+    python -m benchmarks hand --fine-only     # only the finer mesh's wrist motions, into the last hand.json
+    python -m benchmarks hand --series out/hand   # also the ParaView series of every run
 
 Sizes: the paper-size hand (jaxfem.hand.PAPER at h = 24 mm: one finger block, thumb of two
 phalanges; the paper's model had 1,947 elements and 1,596 nodes) and a larger one (four fingers
@@ -48,12 +48,12 @@ in skin data (the committed benchmarks/results/scar.json: its shape and relative
 placed on the wrist of a hand meshed fine enough to hold it, with a strain limit from the
 literature (STRAIN_LIMIT; ``_hand_found_scar.py``).
 
-    python benchmarks/hand.py --only tracking threshold found-scar   # these sections into the last hand.json
-    python benchmarks/hand.py --only threshold-refined               # the longer up-down motion's estimate on
+    python -m benchmarks hand --only tracking threshold found-scar   # these sections into the last hand.json
+    python -m benchmarks hand --only threshold-refined               # the longer up-down motion's estimate on
                                                                      # the model refined at the wrist (_threshold_mesh)
-    python benchmarks/hand.py --only marker-noise --thumb-h 6 --seeds 2   # the markers-alone noise limit
+    python -m benchmarks hand --only marker-noise --thumb-h 6 --seeds 2   # the markers-alone noise limit
                                                                      # (_hand_marker_noise: linearised draws)
-    python benchmarks/hand.py --only threshold --reuse-curves        # the threshold analysed again from
+    python -m benchmarks hand --only threshold --reuse-curves        # the threshold analysed again from
                                                                      # results/hand_threshold.npz or hand.json
 
 Writes benchmarks/results/hand.json (with ``targets``) and hand.png (the curves).

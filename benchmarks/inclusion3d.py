@@ -28,9 +28,9 @@ inclusion fitted by exact gradients) and measures:
 It writes benchmarks/results/inclusion3d.json (rows, targets with pass/fail, the load average) and
 inclusion3d.png.
 
-    python benchmarks/inclusion3d.py                          # seeds 11 12 stiffer, 13 softer, 14 sound
-    python benchmarks/inclusion3d.py --stiffer 11 --softer --sound --out /tmp/s11.json   # one case
-    python benchmarks/inclusion3d.py --merge /tmp/s11.json /tmp/s13.json                  # their rows together
+    python -m benchmarks inclusion3d                          # seeds 11 12 stiffer, 13 softer, 14 sound
+    python -m benchmarks inclusion3d --stiffer 11 --softer --sound --out /tmp/s11.json   # one case
+    python -m benchmarks inclusion3d --merge /tmp/s11.json /tmp/s13.json                  # their rows together
 """
 
 from __future__ import annotations

@@ -16,8 +16,8 @@ profile interval the report gives; the volume refitted there says whether the su
 volume at a given ratio. It writes benchmarks/results/inclusion3d_mesh.json (rows, targets) and
 inclusion3d_mesh.png.
 
-    python benchmarks/inclusion3d_mesh.py --seed 11 --h-models 4 3
-    python benchmarks/inclusion3d_mesh.py --seed 13 --cause softer-region --h-data 2 --h-models --graded 2.5 5
+    python -m benchmarks inclusion3d_mesh --seed 11 --h-models 4 3
+    python -m benchmarks inclusion3d_mesh --seed 13 --cause softer-region --h-data 2 --h-models --graded 2.5 5
 
 ``--graded FINE COARSE`` adds a box graded from FINE mm around the truth's extent to COARSE mm
 (refine.solid.inclusion_mesh.focused_mesh, as the diagnosis grades around its coarse fit).

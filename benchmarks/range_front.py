@@ -7,8 +7,8 @@ points against the painted crossings' true positions, and the clouds against the
 both cameras, the bilinear and the quadratic lookup, and range noise 0.02 / 0.05 / 0.1 mm. Clouds
 are judged by the exact distance of each point to the deformed surface's triangles.
 
-    python benchmarks/range_front.py                 # 2 seeds (~5 min on 2 cores)
-    python benchmarks/range_front.py --seeds 1 --quick
+    python -m benchmarks range_front                 # 2 seeds (~5 min on 2 cores)
+    python -m benchmarks range_front --seeds 1 --quick
 
 Writes benchmarks/results/range_front.json (with ``targets``) and range_front.png.
 """

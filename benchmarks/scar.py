@@ -2,9 +2,9 @@
 
 Skin with a burn scar (issue 25 item 1; the paper's Secs. 3.2 and 5.1), diagnosed over seeds.
 
-    python benchmarks/scar.py --seeds 6             # cases 0..5 (resumable rows)
-    python benchmarks/scar.py --merge               # summary and plot from the rows only
-    python benchmarks/scar.py --locking             # also the plane-stress locking check
+    python -m benchmarks scar --seeds 6             # cases 0..5 (resumable rows)
+    python -m benchmarks scar --merge               # summary and plot from the rows only
+    python -m benchmarks scar --locking             # also the plane-stress locking check
 
 Each case draws a scar under its own seed (:func:`refine.synthetic.skin.random_scar`: normal
 skin of modulus 10-100 kPa, nu 0.49, 1-2 mm thick; an ellipse at any angle or a rectangle of

@@ -3,9 +3,9 @@
 The error budget of a scar's relative elasticity (issue 25; benchmarks/scar.py's seed 1 was
 2.69 reported std off): what the diagnosis's final fit errs by, split into its sources.
 
-    python benchmarks/scar_error_budget.py --seed 1 --draws 12      # ~10 min at load ~11
-    python benchmarks/scar_error_budget.py --seed 3 --out scar_error_budget_seed3
-    python benchmarks/scar_error_budget.py --noise-free 2 3 4 5 6 7   # noise-free errors only
+    python -m benchmarks scar_error_budget --seed 1 --draws 12      # ~10 min at load ~11
+    python -m benchmarks scar_error_budget --seed 3 --out scar_error_budget_seed3
+    python -m benchmarks scar_error_budget --noise-free 2 3 4 5 6 7   # noise-free errors only
 
 For one seed of :func:`refine.synthetic.skin.random_scar` the chosen hypothesis (the true kind,
 started at the truth: the search is not measured here) is fitted as the diagnosis's final refit

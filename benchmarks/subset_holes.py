@@ -1,6 +1,6 @@
 """Holes seen through DIC subsets: generated sheets whose tracked ring around the hole is missing.
 
-    python benchmarks/subset_holes.py --cases 3        # ~1-3 minutes a case on a free core
+    python -m benchmarks subset_holes --cases 3        # ~1-3 minutes a case on a free core
 
 A DIC code places no point whose subset (a square of side ``subset`` around it) meets the hole,
 so the points nearest a hole lie half a subset or more from its edge, and a hole fitted to the
@@ -22,7 +22,7 @@ Writes benchmarks/results/subset_holes.json (rows, a ``targets`` section: the ar
 and the centre within 2 % of the ROI's width for every case with the subset) and
 subset_holes.png. Seconds are wall seconds with the load average.
 
-    python benchmarks/subset_holes.py --images --cases 4   # ~3-6 minutes a case on a free core
+    python -m benchmarks subset_holes --images --cases 4   # ~3-6 minutes a case on a free core
 
 ``--images``: the same from speckle images instead of sampled points, so that the subsets are the
 tracker's own: the sheet's motion (a circular hole at random place and radius, solved on the finer

@@ -10,9 +10,9 @@ holes, edges, glare, a speckle jump; against OpenCV's pyramidal LK and ECC) and 
 DICe are in ``_tracking_large``. Writes benchmarks/results/trackers.json (with ``targets``:
 pass/fail per target), trackers.png and trackers_large_motion.png.
 
-    python benchmarks/trackers.py            # a few minutes on 2 cores
-    python benchmarks/trackers.py --quick    # fewer sweep points, for a smoke test
-    python benchmarks/trackers.py --only large   # the large-motion rows and Sample 12, kept with
+    python -m benchmarks trackers            # a few minutes on 2 cores
+    python -m benchmarks trackers --quick    # fewer sweep points, for a smoke test
+    python -m benchmarks trackers --only large   # the large-motion rows and Sample 12, kept with
                                                  # the other rows of an existing trackers.json
 
 The competitors get an oracle start (each point's true motion rounded to whole pixels) and track
