@@ -4,6 +4,7 @@
     python -m benchmarks NAME [--quick]   # run one (its own options after the name: NAME --help)
     python -m benchmarks --table          # the results table, from benchmarks/results/*.json
     python -m benchmarks --table --write  # ... written into benchmarks/README.md between its markers
+    python -m benchmarks --check          # the benchmarks' own tests (benchmarks/tests: their scoring)
 
 A benchmark is every ``benchmarks/NAME.py`` without a leading underscore that defines ``main``
 (found by reading the files, nothing imported until one is run); its canonical results are
@@ -124,6 +125,8 @@ def main(argv=None) -> int:
         else:
             print(table(), end="")
         return 0
+    if argv[0] == "--check":  # their scoring on made-up rows: not the library's suite (tests/)
+        return subprocess.run([sys.executable, "-m", "pytest", "-q", str(HERE / "tests"), *argv[1:]]).returncode
     name, rest = argv[0], argv[1:]
     if name not in benchmarks():
         print(f"no benchmark named {name!r}: `python -m benchmarks` lists them", file=sys.stderr)

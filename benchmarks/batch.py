@@ -26,7 +26,6 @@ import os
 import platform
 import shutil
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -36,7 +35,6 @@ from benchmarks._subprocess import command, environment
 from benchmarks._cli import quick
 
 OUT = Path(__file__).parent / "results"
-ROOT = Path(__file__).resolve().parents[1]
 EFFICIENCY_MIN = 0.7  # on 2 workers, against the one-process run
 OVERHEAD_MAX = 0.10  # batch on 1 worker: extra wall time per bundle, as a share of the one-process time
 

@@ -40,7 +40,6 @@ import argparse
 import json
 import os
 import resource
-import sys
 import tempfile
 import time
 from dataclasses import replace

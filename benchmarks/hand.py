@@ -63,13 +63,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
 OUT = Path(__file__).parent / "results"
 
 from jaxfem.hand import (PAPER, HandDimensions, plot_curves, reachable, run_motion,  # noqa: E402

@@ -136,3 +136,20 @@ def test_an_unbounded_error_is_strict_json_with_its_flag():
     back = json.loads(text)["findings"][0]
     assert back["relative_elasticity_std"] is None and back["relative_elasticity_bounded_below_only"] is True
     assert back["std"] == {"relative_elasticity": None, "axes": [0.1, None]}
+
+
+def test_a_signed_richardson_estimate_extrapolates_an_order_2_error_to_the_truth():
+    from refine.diagnosis.shapes import RegionShape
+    from refine.diagnosis.uncertainty import _richardson
+
+    def at(h):  # a fit whose ratio errs by 0.01 h^2 (h: the element size)
+        return (RegionShape((20.0, 15.0), (6.0, 4.0), 0.3, "ellipse", 3.0 + 0.01 * h**2),)
+
+    fine, coarse = at(1.0), at(np.sqrt(2.0))
+    signed = _richardson(fine, coarse, np.sqrt(2.0), 2.0, signed=True)[0, 6]
+    assert signed == pytest.approx(0.01)  # the fine fit's own error, with its sign
+    assert fine[0].ratio - signed == pytest.approx(3.0)  # Richardson's extrapolation
+    assert _richardson(fine, coarse, np.sqrt(2.0), 2.0)[0, 6] == pytest.approx(0.01)  # unsigned as before
+    low = (RegionShape((20.0, 15.0), (6.0, 4.0), 0.3, "ellipse", 2.99),)
+    assert _richardson(low, (RegionShape((20.0, 15.0), (6.0, 4.0), 0.3, "ellipse", 2.98),), np.sqrt(2.0), 2.0,
+                       signed=True)[0, 6] == pytest.approx(-0.01)

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.ipynb"))
-SLOW = {"real_cfrp.ipynb",  # real data in ../shared and two diagnoses of 2,800 points: minutes (tests/test_cfrp.py)
+SLOW = {"real_cfrp.ipynb",  # real data in ../shared and two diagnoses of 2,800 points: minutes (benchmarks/cfrp.py)
         "hand.ipynb",  # two scarred wrist motions and a tracked range sequence (a finer solve, two compiles): minutes
         "cup_holder.ipynb"}  # a 3D data solve and the 3D diagnosis (local and global fits): minutes
 # nbclient's limit is per cell. The fast notebooks keep 600 s; a slow notebook's longest cell is longer:

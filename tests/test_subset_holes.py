@@ -188,30 +188,6 @@ def test_a_hole_keeps_half_a_subset_from_every_tracked_point():
     assert plain.rx * plain.ry > start.rx * start.ry  # today's start fills the ring
 
 
-@pytest.mark.slow  # one to three hole fits, about a minute at load 10 on the shared 2 cores (benchmarks/subset_holes.py)
-def test_a_hole_fitted_with_its_failed_subsets_keeps_its_area():
-    """A random hole (seed 2201's, as benchmarks/subset_holes.py draws it) on data from a finer
-    quadratic solve with noise, every point whose square subset meets it removed: fitted with the
-    bundle's subset, its area lies within 10 % and it covers no tracked subset (the fit to the
-    points alone is compared in benchmarks/subset_holes.py: +5.3 % here, +5 to +10 % over 4 seeds)."""
-    import importlib.util
-
-    from refine.diagnosis.holes import fit_hole
-    from refine.model.measured import MeasuredModel
-
-    spec = importlib.util.spec_from_file_location("subset_holes", Path(__file__).resolve().parents[1]
-                                                  / "benchmarks" / "subset_holes.py")
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
-    bundle, truth, subset = bench.case_bundle(2201, 5.0, 0.02)
-    obs = bundle.observations
-    start = bench.gap_start(bundle, 5.0)
-    guide, hold = obs.mask("guide"), obs.mask("validate")
-    hole = fit_hole(MeasuredModel(bundle.experiment, obs), start, guide, hold, 0.02).shapes[0]
-    assert hole.axes[0] * hole.axes[1] / (truth.rx * truth.ry) == pytest.approx(1.0, abs=0.10)
-    assert subset_distance(obs.reference, hole.params, subset).min() > 0  # no tracked subset covered
-
-
 def test_a_hole_fitted_with_a_law_starts_where_the_subsets_put_it(monkeypatch):
     """``fit_hole_with_law`` (a hole and a material law fitted together) starts, like ``fit_hole``,
     from the subsets' ellipse: from a candidate off the hole's centre it starts on the hole, clear of every

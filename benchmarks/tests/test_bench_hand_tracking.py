@@ -6,13 +6,13 @@ noise-limited way of tracking (the markers alone) judged by its reported uncerta
 import numpy as np
 import pytest
 
-from tests._bench import benchmark_modules
 
 
 @pytest.fixture(scope="module")
 def ht():
-    with benchmark_modules("_hand_tracking") as (mod,):
-        yield mod
+    from benchmarks import _hand_tracking
+
+    return _hand_tracking
 
 
 def _way(rng, err, p=None):
@@ -62,20 +62,21 @@ def test_the_noise_limit_fits_the_linearised_frames_and_its_rows_are_information
     velocity: no second difference for the prior to pull) the smoothed fit is the same, where the
     change jumps between frames the prior pulls the smoothed fit off it; hand.json's rows carry no
     pass."""
-    with benchmark_modules("_hand_marker_noise") as (mn,):
-        rng = np.random.default_rng(9)
-        K, m, n = 5, 39, 11
-        J = rng.normal(size=(K, m, n))
-        Q = rng.normal(size=n) * 0.1 + np.arange(K)[:, None] * rng.normal(size=n) * 0.05  # a steady motion
-        steady = rng.normal(size=n) * 0.01 + np.arange(K)[:, None] * rng.normal(size=n) * 0.002
-        per, smoothed = mn._fit(J, np.zeros((K, m)), Q, np.einsum("kri,ki->kr", J, steady), mn.MotionModel())
-        assert np.allclose(per, np.degrees(steady[:, 6:]), atol=1e-9) and np.allclose(smoothed, per, atol=1e-6)
-        jumps = steady + rng.normal(size=(K, n)) * 0.02
-        per, smoothed = mn._fit(J, np.zeros((K, m)), Q, np.einsum("kri,ki->kr", J, jumps), mn.MotionModel())
-        assert np.allclose(per, np.degrees(jumps[:, 6:]), atol=1e-9) and np.abs(smoothed - per).max() > 0.05
-        run = {k: 0.1 for k in ("p_some_error_over_1_deg", "p_some_error_over_1_deg_per_frame", "largest_error_quantiles_deg",
-                                "spread_over_reported", "p_every_error_within_2_std", "p_chi2_p_below_0.01",
-                                "committed_chi2")} | {"seed": 2}
-        rows = mn.targets({"marker_noise_thumb": {"runs": [run]}})
-        assert list(rows) == ["markers_alone_noise_limit_thumb_model"]
-        assert "pass" not in rows["markers_alone_noise_limit_thumb_model"] and mn.targets({}) == {}
+    from benchmarks import _hand_marker_noise as mn
+
+    rng = np.random.default_rng(9)
+    K, m, n = 5, 39, 11
+    J = rng.normal(size=(K, m, n))
+    Q = rng.normal(size=n) * 0.1 + np.arange(K)[:, None] * rng.normal(size=n) * 0.05  # a steady motion
+    steady = rng.normal(size=n) * 0.01 + np.arange(K)[:, None] * rng.normal(size=n) * 0.002
+    per, smoothed = mn._fit(J, np.zeros((K, m)), Q, np.einsum("kri,ki->kr", J, steady), mn.MotionModel())
+    assert np.allclose(per, np.degrees(steady[:, 6:]), atol=1e-9) and np.allclose(smoothed, per, atol=1e-6)
+    jumps = steady + rng.normal(size=(K, n)) * 0.02
+    per, smoothed = mn._fit(J, np.zeros((K, m)), Q, np.einsum("kri,ki->kr", J, jumps), mn.MotionModel())
+    assert np.allclose(per, np.degrees(jumps[:, 6:]), atol=1e-9) and np.abs(smoothed - per).max() > 0.05
+    run = {k: 0.1 for k in ("p_some_error_over_1_deg", "p_some_error_over_1_deg_per_frame", "largest_error_quantiles_deg",
+                            "spread_over_reported", "p_every_error_within_2_std", "p_chi2_p_below_0.01",
+                            "committed_chi2")} | {"seed": 2}
+    rows = mn.targets({"marker_noise_thumb": {"runs": [run]}})
+    assert list(rows) == ["markers_alone_noise_limit_thumb_model"]
+    assert "pass" not in rows["markers_alone_noise_limit_thumb_model"] and mn.targets({}) == {}

@@ -2,21 +2,19 @@
 small generated curves: the scoring with one rule for truth and estimate, the analysis rerun from
 its own JSON, and the Richardson step of the mesh study."""
 
-import importlib
 import json
-import sys
 
 import numpy as np
 import pytest
-from tests._bench import benchmark_modules
 
 
 
 @pytest.fixture(scope="module")
 def bench():
-    """(``_hand_threshold``, ``_threshold_mesh``) imported from benchmarks/."""
-    with benchmark_modules("_hand_threshold", "_threshold_mesh") as found:
-        yield found
+    """(``_hand_threshold``, ``_threshold_mesh``)."""
+    from benchmarks import _hand_threshold, _threshold_mesh
+
+    return _hand_threshold, _threshold_mesh
 
 
 def _detection(fraction, rise, p=1e-6, half=0.03):
@@ -165,12 +163,7 @@ def test_the_scar_targets_read_as_the_issue_states_them(bench):
     """benchmarks/hand.py's targets: a scar raises the maximum of SOME wrist motions (the issue's
     words); the large scar's reachable share at a relative limit is informational (no pass), the
     stated literature limit's row is the target; every measured figure kept."""
-    saved = list(sys.path)  # hand.py arranges sys.path for itself when imported
-    try:
-        hand = importlib.import_module("hand")
-    finally:
-        sys.path[:] = saved
-        sys.modules.pop("hand", None)
+    from benchmarks import hand
     rng = np.random.default_rng(2)
     x = np.linspace(0.0, 100.0, 11)
     curve = {"fraction": (x / 100).tolist(), "displacement_mm": x.tolist(), "area_max_strain": (0.002 * x).tolist()}

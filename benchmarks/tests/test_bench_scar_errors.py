@@ -9,14 +9,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.stats import norm
-from tests._bench import benchmark_modules
 
 
 
 @pytest.fixture(scope="module")
 def modules():
-    with benchmark_modules("scar", "scar_error_budget") as found:
-        yield found
+    from benchmarks import scar, scar_error_budget
+
+    return scar, scar_error_budget
 
 
 def test_coverage_passes_right_errors_and_fails_too_small_or_too_large_ones(modules):
@@ -131,23 +131,6 @@ def test_coverage_sees_a_bias_in_the_mean_z(modules):
     assert scar.coverage(z)["p_mean_z"] == pytest.approx(2 * norm.sf(abs(np.mean(z)) * 10))  # n = 100
     biased = scar.coverage(z + 0.5)  # every error half a reported error high
     assert biased["mean_z"] == pytest.approx(np.mean(z) + 0.5) and biased["p_mean_z"] < 0.05
-
-
-def test_a_signed_richardson_estimate_extrapolates_an_order_2_error_to_the_truth():
-    from refine.diagnosis.shapes import RegionShape
-    from refine.diagnosis.uncertainty import _richardson
-
-    def at(h):  # a fit whose ratio errs by 0.01 h^2 (h: the element size)
-        return (RegionShape((20.0, 15.0), (6.0, 4.0), 0.3, "ellipse", 3.0 + 0.01 * h**2),)
-
-    fine, coarse = at(1.0), at(np.sqrt(2.0))
-    signed = _richardson(fine, coarse, np.sqrt(2.0), 2.0, signed=True)[0, 6]
-    assert signed == pytest.approx(0.01)  # the fine fit's own error, with its sign
-    assert fine[0].ratio - signed == pytest.approx(3.0)  # Richardson's extrapolation
-    assert _richardson(fine, coarse, np.sqrt(2.0), 2.0)[0, 6] == pytest.approx(0.01)  # unsigned as before
-    low = (RegionShape((20.0, 15.0), (6.0, 4.0), 0.3, "ellipse", 2.99),)
-    assert _richardson(low, (RegionShape((20.0, 15.0), (6.0, 4.0), 0.3, "ellipse", 2.98),), np.sqrt(2.0), 2.0,
-                       signed=True)[0, 6] == pytest.approx(-0.01)
 
 
 def test_extrapolated_summary_compares_the_z_before_and_after_removing_a_one_sided_bias(modules):
