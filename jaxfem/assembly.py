@@ -115,9 +115,9 @@ def _per_qp_state(fn, F, p, state):
 
 def _materialized(a):
     """The arrays ``a``, computed once into memory: every element-matrix term reads them, and XLA
-    would otherwise fuse their whole computation into each read (measured: the tri3 pass took twice
-    as long). On CPU an optimisation barrier does not stop that fusion; a conditional does (its
-    predicate is never true for finite data, and either branch returns the same values)."""
+    would otherwise fuse their whole computation into each read, recomputing it per term. On CPU an
+    optimisation barrier does not stop that fusion; a conditional does (its predicate is never true
+    for finite data, and either branch returns the same values)."""
     flag = jnp.isnan(jax.tree.leaves(a)[0].reshape(-1)[0])
     return jax.lax.cond(flag, lambda x: jax.tree.map(lambda y: y + 0.0, x), lambda x: x, a)
 
@@ -132,7 +132,7 @@ def element_matrices(dNdX, A, w):
     With few terms (n_qp x dim^2 <= 16: tri3, tri6, quad4, tet4) the sum is written term by term
     with the cells on the minor axis, which XLA turns into one vectorised loop over the cells
     (several times faster than ``einsum`` there); ``einsum`` (batched small matrix products) stays
-    for more terms (hex8: 72), where the term-by-term form was slower. Timings: benchmarks/README.md.
+    for more terms (hex8: 72), where the term-by-term form is slower (benchmarks/measurements.md).
     """
     nq, dim = dNdX.shape[1], dNdX.shape[3]
     if nq * dim * dim > 16:

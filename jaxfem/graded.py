@@ -46,8 +46,8 @@ def graded_ticks(lo: float, hi: float, focus: tuple[float, float], fine: float, 
     if b - a < fine:  # a focus thinner than a cell: one cell about its middle, inside [lo, hi]
         m = float(np.clip(0.5 * (a + b), lo + 0.5 * min(fine, hi - lo), hi - 0.5 * min(fine, hi - lo)))
         a, b = m - 0.5 * min(fine, hi - lo), m + 0.5 * min(fine, hi - lo)
-    # a focus within half a fine cell of an end reaches it: no sliver cell between (seed 32 of
-    # benchmarks/inclusion3d.py: a 0.005 mm layer, on which surface points could not be located)
+    # a focus within half a fine cell of an end reaches it: no sliver cell between (a layer so
+    # thin that surface points could not be located on it)
     a, b = (lo if a - lo < 0.5 * fine else a), (hi if hi - b < 0.5 * fine else b)
     inner = np.linspace(a, b, max(1, int(np.ceil((b - a) / fine - 1e-9))) + 1)
     left = a - np.cumsum(_outward(a - lo, fine, coarse, growth))

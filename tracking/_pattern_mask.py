@@ -6,9 +6,8 @@ scale, so the mask is where that texture's local amplitude reaches half its typi
 material (for a step in amplitude smoothed by a symmetric window, half level is where the step
 is, so the mask's edge sits on the material's edge). The texture is the image less its local
 median (over 5 px for a speckle, a pitch for a grid): a median keeps an edge's step where it is,
-where a blur would leave a band of false texture on both sides of it (the mask then reached 4.7-5.3
-px past a speckled specimen's edge into the background or a hole; now 1.6-3.2 px, see
-benchmarks/README.md):
+where a blur would leave a band of false texture on both sides of it (the mask then reaches
+pixels past a specimen's edge into the background or a hole):
 
 - grid: the amplitude of that texture demodulated at each line family's wave vector, smoothed
   over half a pitch (the minimum over the two families; a wider window pulls a hole's outline

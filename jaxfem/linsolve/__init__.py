@@ -13,7 +13,7 @@ in :data:`SOLVERS`:
 - ``"klu"``: KLU via klujax, an XLA custom call (no callback); good for small 2D systems.
 - ``"cg"``: Jacobi-preconditioned conjugate gradients in pure JAX (runs on a GPU; iterative).
 - ``"dense"``: LAPACK on the dense matrix, for toy sizes and tests only.
-- ``"auto"``: the measured fastest (``benchmarks/forward.py``; the figures in its README): PARDISO
+- ``"auto"``: the fastest by ``benchmarks/forward.py`` (benchmarks/measurements.md): PARDISO
   where installed; without it KLU for small 2D systems (< ``AUTO_KLU_MAX_DOFS_2D`` unknowns) and
   SuperLU otherwise (KLU's fill grows badly in 3D).
 

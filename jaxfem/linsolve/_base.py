@@ -139,7 +139,7 @@ class _FactorCache:
     With ``one_thread`` every call runs on a host thread of the cache's own. SciPy's SuperLU
     (1.17) leaks a factorisation that is freed on another thread than the one that made it (it
     tracks its allocations per thread), and XLA runs callbacks on whichever of its threads is
-    free: a diagnosis leaked ~2.7 MB per factorisation until the kernel killed it at 24 GB. On one
+    free: a diagnosis's memory then grows with every factorisation until it is killed. On one
     thread the memory stays flat (tests/test_linsolve_superlu.py); the hand-over costs some
     microseconds. A thread per cache (per solver), not one for all: two models solved side by
     side (the diagnosis fits hypotheses in parallel) factorise side by side."""

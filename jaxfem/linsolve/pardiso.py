@@ -16,7 +16,7 @@ def _mkl_pardiso():
     """MKL's ``pardiso`` entry point (ctypes), loaded once per process.
 
     The library is the MKL runtime that pypardiso depends on; constructing a ``PyPardisoSolver``
-    searches the environment for it (0.6 s with a large site-packages), so it is done only once.
+    searches the environment for it (slow with a large site-packages), so it is done only once.
     """
     global _PARDISO_FN
     if _PARDISO_FN is None:

@@ -38,10 +38,8 @@ class DiagnoseConfig:
             above what noise, its propagation and model error explain, and the tracked points
             resolve a rectangle's corners (the ellipse's smaller semi-axis is at least
             ``rectangle_spacings`` grid spacings). Fitted as ellipses, rectangles come out
-            larger and too soft (the paper's rectangle, noise-free: ratio 5.4 % low as an
-            ellipse, 1.2 % high as the rectangle chosen at chi2 1 against the ellipse's 196); on
-            coarse grids rectangles out-score true ellipses that already explain the data, which
-            the misfit gate leaves as ellipses (and spares their cost, tens of seconds).
+            larger and too soft; on coarse grids rectangles out-score true ellipses that already
+            explain the data, which the misfit gate leaves as ellipses (and spares their cost).
         rectangle_spacings: the gate of ``try_rectangles=None``, in grid spacings (1.5: a side
             spans at least three grid intervals).
         workers: hypotheses (and the set-up's independent models) fitted side by side in this

@@ -200,8 +200,7 @@ def _settled(f: Fitted, points: Mask, sigma: float, coarse: float) -> float:
     """How little a remesh must move ``f``'s shapes (length unit) for the fit to count as
     settled: ``coarse`` (a fifth of the first mesh's element size), or the largest standard error
     of a centre or axis where the data fix the shapes better. A fit on a morphed mesh can stop
-    short where the morph would squash cells (noise-free, a rectangle's ratio stopped 1.3 % low,
-    chi2 35 times its value at the true shape); a fresh mesh lets it go on."""
+    short where the morph would squash cells; a fresh mesh lets it go on."""
     errors = shape_errors(replace(f, z_cov=covariance(f, points, sigma))) or ()
     lengths = [v for e in errors for v in (*e.centroid, *e.axes) if np.isfinite(v)]
     return min(coarse, max(lengths)) if lengths else coarse

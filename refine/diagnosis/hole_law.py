@@ -78,10 +78,9 @@ def fit_hole_with_law(base: MeasuredModel, shape, law: str, fit_mask, hold_mask,
     value) where given, else the better (lower misfit) of two joint fits: from the law fitted
     with the hole held at its start (:func:`law_at_hole`), and from the law's defaults (its
     angle from the best of a few starts, :func:`~refine.diagnosis.laws.best_angle_start`). A hole
-    at the subsets' walls stalls from the defaults (the CFRP coupon: chi2 1.95e6 against 1.13e6);
-    a hole started well inside its true outline, free to grow, can do better from them, the
-    law held at the small hole having made up for its size (a generated laminate: chi2 1354
-    from the held law). With the bundle's subset known, the hole starts where the subsets put it
+    at the subsets' walls stalls from the defaults; a hole started well inside its true outline,
+    free to grow, can do better from them, the law held at the small hole having made up for its
+    size. With the bundle's subset known, the hole starts where the subsets put it
     (:func:`~refine.diagnosis.holes.subset_start`) and keeps out of every tracked subset, as
     :func:`~refine.diagnosis.holes.fit_hole`'s second fit does."""
     shape = subset_start(base, shape)

@@ -4,23 +4,14 @@ seen by few tracked points has local minima, and a fit started off the centre se
 While a fit moves a region's centre to where the data put it, the morph that carries the
 outline along shears it, and the outline, the size and the ratio trade against each other
 (a larger, weaker region moves the points much as a smaller, stronger one): the fit stops in
-the first minimum of that trade it meets. On the small cases of ``benchmarks/error_coverage.py``
-(a 10 mm grid, 36 fitted points, a region about two grid spacings across) the fits of a stiff
-circle (seed 9108: an ellipse 10.3 x 7.0 of ratio 16.6 for a circle of radius 9.6 and ratio
-9.1, chi2 90) and of two soft ellipses (9113, 9133) stopped at chi2 9-32 above the fit
-started at the truth; along the straight path from 9108's fit to the truth the misfit rose by 7
-before it fell. The centre is what the data fix best (a tenth of a millimetre there), so each
-restart keeps the fitted centres and ratios and starts the outline afresh (:data:`RESTARTS`);
-the fit with the lowest misfit on the fitting points is kept. On 30 new cases the restarts
-lowered the misfit of 12 of 21 region fits (one soft ellipse from chi2 156 to 72); 9133 is
-mended (chi2 81 to 60), 9108 is not (both restarts stop higher than its first fit): restarts
-make a lower minimum likelier, never certain. A hole's fit restarts the same way where asked
-(:func:`~refine.diagnosis.holes.fit_hole`'s ``restarts``): on 11 hole fits of seeds 9400-9444
-the restarts lowered 6 misfits (one from chi2 74 to 65). A stiff region also restarts along the
-size-ratio valley (:mod:`refine.diagnosis.valley`): a circle wider or narrower by
-:data:`VALLEY_STEP` at the ratio of the same strength, since 9108's first fit sat on the small,
-stiff side of the valley's bend (circles at its centre: radius 8.6 needs ratio 156, chi2 104;
-radius 9.5 ratio 9.8, chi2 81; the truth 9.6 and 9.1).
+the first minimum of that trade it meets. The centre is what the data fix best, so each restart
+keeps the fitted centres and ratios and starts the outline afresh (:data:`RESTARTS`); the fit
+with the lowest misfit on the fitting points is kept. Restarts make a lower minimum likelier,
+never certain (``benchmarks/error_coverage.py`` measures them). A hole's fit restarts the same
+way where asked (:func:`~refine.diagnosis.holes.fit_hole`'s ``restarts``). A stiff region also
+restarts along the size-ratio valley (:mod:`refine.diagnosis.valley`): a circle wider or
+narrower by :data:`VALLEY_STEP` at the ratio of the same strength, the other side of the
+valley's bend from a fit stopped on its small, stiff side.
 """
 
 from __future__ import annotations
@@ -43,9 +34,7 @@ CHOSEN_RESTARTS = ("round", "larger", "smaller")
 """The restarts of the region a diagnosis chose (its search fits each hypothesis once)."""
 
 VALLEY_STEP = 1.15
-"""How much wider (or narrower) a restart along the size-ratio valley starts, as a radius factor:
-on seed 9108 a circle 1.15 times the fitted one's radius at half its ratio reached chi2 60 (the
-fit 75, the truth 63)."""
+"""How much wider (or narrower) a restart along the size-ratio valley starts, as a radius factor."""
 
 
 def restart_shapes(kind: str, start, fitted) -> tuple | None:

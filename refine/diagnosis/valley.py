@@ -5,18 +5,12 @@ much as a larger, less stiff one, and what the data fix is the region's strength
 A region's effect on the field about it is, to leading order, that of a dipole whose strength is
 its area times a contrast that saturates: an ever stiffer region of a given size moves the points
 less and less more (``(r - 1) / (r + 1) -> 1``, a rigid region), an ever softer one tends to a
-hole (``-> -1``). Measured along the valley of the stiff circles of ``benchmarks/error_coverage.py``
-(``error_coverage_valley.py``: circles at the fitted centre, radius scaled 0.8-1.3, the ratio alone
-refitted; linear triangles, 10 mm grid; ``results/error_coverage_valley.json``), the strength
-stayed within 4 % (seed 9412: 171-178 mm^2 for ratios 2.5-32), 12 % (9444, growing with the
-radius) and 5 % (9108) while the ratio changed tenfold, and the truth's strength lay on the
-valley (174, 129 and 231 mm^2 against the valley's 171-178, 130 and 230 at the truth's radius): the
-valley is straight in (area, strength) and bends sharply in (area, log ratio), the fit's own
-unknowns. So a Gaussian about the fit in its own unknowns, the Gauss-Newton covariance, follows
-the valley's tangent and misses its bend: the ratio of a stiff region comes out with an error
-far too small on the stiff side (9412: fitted 5.5 +- 0.8 for 8.7; the truth's circle with its
-ratio refitted misfits 3.8 more than the best circle at the fitted centre), and a fit started on
-one side of the bend can stop there (9108: ratio 16.6 for 9.1).
+hole (``-> -1``). Along the valley the strength stays nearly constant while the ratio changes
+manyfold: the valley is straight in (area, strength) and bends sharply in (area, log ratio), the
+fit's own unknowns. So a Gaussian about the fit in its own unknowns, the Gauss-Newton
+covariance, follows the valley's tangent and misses its bend: the ratio of a stiff region comes
+out with an error far too small on the stiff side, and a fit started on one side of the bend can
+stop there (``benchmarks/error_coverage.py`` measures both).
 :func:`ratio_draws` gives the ratio's draws with the strength drawn instead of the log ratio
 (the same covariance to first order); :func:`ratio_along_valley` restarts a fit along it.
 """

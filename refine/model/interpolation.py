@@ -3,10 +3,10 @@ one compiled program shared by every model of about the same size.
 
 A model's interpolation (:meth:`refine.model.MeasuredModel.at_points` on a mesh whose reference
 nodes a geometry morph moves: each point's cell found again among its neighbours, its weights
-recomputed) used to be compiled once per model, its probe arrays (the points' candidate cells,
-their nodes, the points' positions) constants in the program: 2-4 CPU s a model, four to six
-models a diagnosis (settle, the refit on every frame, the discretisation error's coarse mesh and
-sparser drive, the hypotheses). Here those arrays are arguments, padded so that models of about
+recomputed) compiled once per model, with its probe arrays (the points' candidate cells, their
+nodes, the points' positions) as constants in the program, would compile four to six times a
+diagnosis (settle, the refit on every frame, the discretisation error's coarse mesh and sparser
+drive, the hypotheses). Here those arrays are arguments, padded so that models of about
 the same size share one program (:func:`points_and_derivatives`):
 
 - nodes to the model's solver's padded node count (:mod:`jaxfem.padding`: the models that share

@@ -45,19 +45,17 @@ class ShapeGeometry:
       ``M = R(angle) diag(a, b) R(angle)^T`` that maps the unit circle onto the ellipse, entries
       ``(M11, M22, M12)`` (5 unknowns per shape). Axes and orientation are then fitted together
       and smoothly, also through a circle where an angle alone is undefined. With the orientation
-      fixed at a wrong start, a fit makes up for it with a larger, rounder ellipse (a hole's area
-      came out 20 % too large on noise-free data). A shape whose entry in ``kinds`` is
-      ``"rectangle"`` has instead the changes of its two half sides and of its angle (the last
-      times ``scale / sqrt(a0 b0)`` radians, so that one unit turns its corners about one
-      ``scale``): a symmetric map would shear a rectangle into a parallelogram.
+      fixed at a wrong start, a fit makes up for it with a larger, rounder ellipse. A shape whose
+      entry in ``kinds`` is ``"rectangle"`` has instead the changes of its two half sides and of
+      its angle (the last times ``scale / sqrt(a0 b0)`` radians, so that one unit turns its corners
+      about one ``scale``): a symmetric map would shear a rectangle into a parallelogram.
 
     The mesh is never remeshed inside an optimisation. :meth:`infeasibility` turns a step down before
     any solve when a semi-axis would fall below ``min_axis`` (length units; a region thinner than
     the tracked points resolve is not identifiable, and its morph squashes cells), with ``mesh``
     when the morph would squash a cell below ``min_quality`` of its area, and with ``outside``
     when a shape (a hole) would cover a tracked point: material was seen there. Without these checks such steps cost a failed nonlinear solve
-    each (a hole fit of a softer region spent 10-30 s on each of a dozen, 600 s in all, and
-    ended with tracked points inside the hole).
+    each, and a hole fit could end with tracked points inside the hole.
     """
 
     morph: object

@@ -108,8 +108,8 @@ def constrained_step(constraints: Callable[[Vector], np.ndarray], z: Vector, dz:
     """The step's quadratic model ``g.d + d.A.d / 2`` minimised where ``constraints(z + d) >= 0``
     (SLSQP from ``d = 0``; a parametrisation's cheap checks without a solve, e.g. a hole kept off
     every tracked point): a step that runs into a constraint slides along it instead of being
-    rejected whole and retried ever more damped (a hole fit so stalled against one tracked point,
-    its modulus left at the start: benchmarks/README.md, diagnose3d). ``dz`` where SLSQP fails."""
+    rejected whole and retried ever more damped (a hole fit can stall so against one tracked point,
+    its modulus left at the start). ``dz`` where SLSQP fails."""
     from scipy import optimize
 
     r = optimize.minimize(lambda d: g @ d + 0.5 * d @ A @ d, np.zeros_like(dz), jac=lambda d: g + A @ d,

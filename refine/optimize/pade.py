@@ -10,8 +10,8 @@ any order cannot step to a region ten times stiffer. A vector Pade approximant, 
 denominator, ``r(t) ~ N(t) / Q(t)``, continues it past that radius (it reproduces the pole
 instead of fighting it); its minimiser of ``|r(t)|^2`` is the step.
 
-Measured on the paper's case (benchmarks/brent_vs_gradient.py): one Pade step of order 16 from
-the uniform model lands within 0.1 % of the least-squares minimiser. Each iterate costs one
+On the paper's case one Pade step of order 16 from the uniform model lands near the
+least-squares minimiser (benchmarks/brent_vs_gradient.py measures it). Each iterate costs one
 forward solve and one series (counted as one derivative evaluation, as the tensor method's
 derivative tensors are).
 """

@@ -53,10 +53,10 @@ class SolidConfig:
     None: :func:`model_h`), ``alpha`` the null test's level, ``max_candidates`` holes tried,
     ``max_remesh`` remeshes of the global model's moving hole, ``linear_solver``;
     ``global_modulus``: the global refit fits a uniform modulus beside the hole (it absorbs the
-    model's discretisation stiffness, which a known modulus turns into a hole too large: noise-free
-    seed 11, area +18 % with the modulus known, -1 % fitted); ``local_remesh``: remeshes of the
-    local model's hole (0: its fit on the first mesh's morph decides, and the global refit, which
-    remeshes anyway, sizes it; each remesh is a compile of half a minute); ``edge_slack``: with the
+    model's discretisation stiffness, which a known modulus turns into a hole too large);
+    ``local_remesh``: remeshes of the local model's hole (0: its fit on the first mesh's morph
+    decides, and the global refit, which remeshes anyway, sizes it; each remesh is a compilation);
+    ``edge_slack``: with the
     bottom's points on a painted grid's lattice, the missing crossings of a hole's gap bracket its
     edge (:mod:`refine.solid.edge`): both fits start from the ellipse between them and keep every
     missing crossing within ``edge_slack`` grid steps of the hole (a tracker loses crossings within
@@ -169,13 +169,10 @@ def local_recipe(bundle: Bundle, cfg: SolidConfig) -> tuple[CupShape, Local, np.
 
 def model_h(spacing: float, bottom: float) -> float:
     """The models' element size (length unit) by default: 1.5 point ``spacing``s, but not below
-    0.4 of the ``bottom``'s thickness (1.2 mm for the benchmark's 3 mm). Finer meshes cost about
-    h^-3 in the global model (0.9 mm, 1.5 spacings of a 0.6 mm grid: 66k unknowns). At 1.2 mm the
-    fine benchmark's holes (data solved at 0.8 mm) came out -1.4 .. -1.8 % in area (seeds 1-3, 5;
-    seed 6 -4.4 %) (-1.3 .. -3.0 %
-    at 1.8 mm against data at 1.2 mm); the report gives the mesh's discretisation error (a refit
-    sqrt(2) coarser: 0.3-2.1 % of the area there, seeds 1-3, 5) beside the standard error, to judge whether a
-    finer ``h`` is needed."""
+    0.4 of the ``bottom``'s thickness (1.2 mm for a 3 mm bottom). Finer meshes cost about h^-3 in
+    the global model (0.9 mm, 1.5 spacings of a 0.6 mm grid: 66k unknowns); the report gives the
+    mesh's discretisation error (a refit sqrt(2) coarser) beside the standard error, to judge
+    whether a finer ``h`` is needed."""
     return max(1.5 * spacing, 0.4 * bottom)
 
 
@@ -200,7 +197,7 @@ def point_gaps(local: Local) -> list:
     ring = np.linspace(0, 2 * np.pi, 97)[:-1]
     floor = PolygonDomain(tuple(map(tuple, local.shape.r_in * np.c_[np.cos(ring), np.sin(ring)])))
     # a square grid leaves at most 0.71 pitch; at 0.9 the patch of a hole of 1.9 x 1.5 mm in a 1.2 mm
-    # grid was under the disc of one pitch that a candidate needs (benchmark seed 3: not found)
+    # grid is under the disc of one pitch that a candidate needs
     return missing_point_regions(xy, floor, gap=0.8)
 
 
@@ -228,8 +225,8 @@ def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) 
         f"misfit {null.ratio:.2f} x the null level's (p = {null.p_value:.2g}; discretisation {null.sigma_model:.3g})")
     tried, best = [], None
     # a gap in the points inside the floor is evidence of its own (material not seen): the global
-    # null test's modulus absorbs much of a small hole at coarse noise (the rendered seed 2: 0.91 x,
-    # p 0.93), so the hole is tried there too; the choice rests on the fit and the held-out points
+    # null test's modulus absorbs much of a small hole at coarse noise, so the hole is tried there
+    # too; the choice rests on the fit and the held-out points
     gaps = len(point_gaps(local))
     if null.p_value < cfg.alpha or gaps:
         for start in hole_candidates(local, base, sigma, cfg.max_candidates):
@@ -238,7 +235,7 @@ def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) 
                 start = Hole(tuple(edge.ellipse[:2]), tuple(edge.ellipse[2:4]), float(edge.ellipse[4]))
             if any(same_start(start, t) for t in tried):
                 # two candidates (a gap and its strain patch) snapped to one gap's edge ellipse:
-                # the same fit again (the fine benchmark's seed 2: 66 CPU s for an identical chi2)
+                # the same fit again
                 log(f"  candidate at ({start.centre[0]:.1f}, {start.centre[1]:.1f}): the start of one tried already")
                 continue
             try:

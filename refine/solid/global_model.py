@@ -96,10 +96,9 @@ def fixture_nodes(mesh: jf.Mesh, obs: Observations, tol: float) -> np.ndarray | 
     frame). None where the boundary points do not share one such plane (then the model drives
     the nodes near them).
 
-    Why: driven only near its points, the rim's mid-edge nodes between the fixture's three rings
-    of points were free (148 of 420 at h 1.2): the global model's wall was softer than the clamped
-    rim of the data, and a hole fitted in it came out 8-13 % too large (noise-free data, the data's
-    own mesh and the true hole: guide misfit 0.71 x the noise's, 0 with the whole rim held)."""
+    Why: driven only near its points, the rim's nodes between the fixture's rings of points are
+    free, so the global model's wall is softer than the clamped rim of the data and a hole fitted
+    in it comes out too large."""
     z = obs.reference[obs.roles == "boundary", 2]
     if not len(z) or np.abs(z - np.median(z)).max() > tol:
         return None

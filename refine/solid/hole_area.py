@@ -4,21 +4,18 @@ model's mesh actually cuts, not of the fitted ellipse's.
 A ``tet10`` model cuts a hole as the polygon through the nodes on its curve (the mid-edge nodes
 stay straight, :mod:`refine.solid.morph`), and the fit moves that polygon (an affine map of the
 ellipse it was meshed at) until the model's hole removes what the data's does. The fitted
-ellipse is therefore larger than the hole the model has by the polygon's deficit (at h 1.2 the
-benchmark's holes keep 0.959-0.973 of their ellipses), and the mesher puts about as many nodes on
-a hole at h 1.2 as at sqrt(2) x 1.2 (13-16), so that deficit does not fall as h^2 and a refit on
-a coarser mesh does not see it. The model's stiffness, which the fitted modulus and the hole's
-size absorb, does fall as h^2 (the modulus refitted sqrt(2) coarser extrapolates to 0.998-1.000 of
-the data's on the benchmark's seeds). So the extrapolation is made on the area cut,
+ellipse is therefore larger than the hole the model has by the polygon's deficit, and the mesher
+puts about as many nodes on a hole at h as at sqrt(2) x h, so that deficit does not fall as h^2
+and a refit on a coarser mesh does not see it. The model's stiffness, which the fitted modulus and
+the hole's size absorb, does fall as h^2. So the extrapolation is made on the area cut,
 ``C = fraction(h) x ellipse area``, whose limit h -> 0 is the ellipse's:
-``C_fine + (C_fine - C_coarse) / (factor^order - 1)`` (benchmarks/README.md, diagnose3d, session 24).
+``C_fine + (C_fine - C_coarse) / (factor^order - 1)``.
 
 The floor's elements through its thickness are a second discretisation: a refit on a coarser plan
-keeps them (2 layers of the 3 mm floor at h 1.2 and at 1.697), so it does not see their error. On
-seed 2's noise-free data (session 25) the cut area at h 0.85 / 1.2 / 1.697 and 2 / 3 / 4 layers
-follows ``C0 + a h^2 + b / L^2 + c h^2 / L^2`` to 0.035 % of the area (seven fits, four unknowns;
-b and c of the size of a: the layers' error and its coupling to the plan's are as large as the
-plan's own). :func:`with_plan_and_layers` therefore refits the fitted hole at the corners of that
+keeps them (the same layers through the floor), so it does not see their error. The cut area
+follows ``C0 + a h^2 + b / L^2 + c h^2 / L^2`` over plan sizes h and layers L, with the layers'
+error and its coupling to the plan's as large as the plan's own. :func:`with_plan_and_layers`
+therefore refits the fitted hole at the corners of that
 grid, ``(h, L)``, ``(factor h, L)``, ``(h, L + 1)``, ``(factor h, L + 1)``, and
 :func:`extrapolated_area` extrapolates the bilinear form in ``(h^2, 1 / L^2)`` to ``(0, 0)``.
 """

@@ -10,13 +10,12 @@ signed distance to the surface to first order (its volume exact:
 :meth:`EllipsoidModulus.fraction`), ``width`` a tenth of the cell size, so that the misfit is a
 smooth function of the shape (a cell-centroid test, all or nothing, is not). Its modulus is the
 Mori-Tanaka estimate of the background holding that share of the inclusion's material
-(:func:`mori_tanaka`): with ``E exp(log_ratio f)`` instead, a cell a third inside a 148 times
-stiffer ellipsoid came out 4.5 times stiffer where Mori-Tanaka gives 1.9, and the fit of a 7 times
-stiffer inclusion ran to a fifth of its volume at the ratio's bound.
+(:func:`mori_tanaka`): ``E exp(log_ratio f)`` instead makes a partly covered cell far too stiff,
+and a fit then runs to a small volume at the ratio's bound.
 
 Seen from the surface alone, the inclusion's volume and ratio trade against each other: fits
-place it within 1.3 % of the block's length but come out 40-55 % small and more extreme, some at
-the ratio's bound (:data:`MAX_LOG_RATIO`; benchmarks/inclusion3d.py), with the strength the
+place it well but can come out small and more extreme, some at the ratio's bound
+(:data:`MAX_LOG_RATIO`; benchmarks/inclusion3d.py), with the strength the
 surface fixes (:func:`refine.solid.inclusion_profile.strength`) close to the truth's; the report
 gives the ratio's profile (:mod:`refine.solid.inclusion_profile`) for the intervals. Part of
 the smallness is the coarse model's bias along that valley: the diagnosis refits the inclusion on
@@ -80,8 +79,8 @@ class EllipsoidShape:
 def sample_points(mesh, n: int = 6) -> Float[np.ndarray, "cells q 3"]:
     """Points of each cell at which the indicator is averaged: the points of a lattice of ``n``
     steps per edge of its corner tetrahedron, faces and corners included (84 for ``n = 6``), which
-    spread over the whole cell (the lattice's interior points alone huddle round the centroid: an
-    ellipsoid's share came out 18 % over its volume)."""
+    spread over the whole cell (the lattice's interior points alone huddle round the centroid and
+    overstate an ellipsoid's share)."""
     lam = np.array([(i, j, k, n - i - j - k) for i in range(n + 1) for j in range(n + 1 - i)
                     for k in range(n + 1 - i - j)], float) / n
     return np.einsum("qc,ncd->nqd", lam, mesh.nodes[mesh.cells[:, :4]])

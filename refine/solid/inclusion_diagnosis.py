@@ -44,13 +44,13 @@ class InclusionConfig:
     rises by at most ``profile_threshold`` times the reduced chi^2, at most ``profile_steps`` refits
     per side); ``fit_mesh``: a finer mesh of the same body on which the inclusions are fitted and
     profiled (and the initial model they are compared with solved again), the field staying on the
-    bundle's (None: the bundle's mesh throughout; a 4 mm model biased seed 11's volume 39 % low,
-    a 3 mm one 24 %, benchmarks/README.md's inclusion3d); ``focus``: without ``fit_mesh``, the
+    bundle's (None: the bundle's mesh throughout; a coarse model biases the volume low);
+    ``focus``: without ``fit_mesh``, the
     inclusion found on the bundle's mesh is refitted and profiled on the body's box graded fine
     around it (:func:`refine.solid.inclusion_mesh.refit_focused`; None: not; a body that is no box
     keeps its mesh); where the profile finds a point more than ``restart_tol`` below the fit in
-    chi^2 (the fit stopped short along the valley: softer seed 13's capped refit, 3.9 above its
-    profile's point), the fit is refitted from there (at most ``refit_steps`` evaluations) and
+    chi^2 (the fit stopped short along the valley), the fit is refitted from there (at most
+    ``refit_steps`` evaluations) and
     profiled again, at most ``restart_profiles`` times
     (:func:`refine.solid.inclusion_profile.profiled_fit`); ``discretisation``: the graded fit's
     discretisation error is estimated by its refit on the box graded over the same region with

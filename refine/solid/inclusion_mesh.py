@@ -1,8 +1,7 @@
 """The mesh an inclusion is fitted on: the body's box graded fine around the field's regions.
 
-A coarse model biases a fitted inclusion along its volume-ratio valley (benchmarks/README.md's
-inclusion3d: seed 11's volume 39 % low on a 4 mm model, 24 % on a 3 mm one, about as h^2; held at
-the truth's ratio the refitted volume was right on both). Refining the whole block costs the fits
+A coarse model biases a fitted inclusion along its volume-ratio valley (its volume low, about as
+h^2; benchmarks/inclusion3d_mesh.py). Refining the whole block costs the fits
 and the profile in proportion to its cells; refining where the inclusion is costs far less: a
 :func:`jaxfem.graded.graded_box` whose ticks are at most ``fine`` apart over the regions' extent
 plus a ``margin`` (along each axis; the body's cross-section is often all of it) and grow by
@@ -29,7 +28,7 @@ class FocusedMesh:
     """How the fit mesh is graded (length unit): spacing ``fine`` over the regions' extent plus
     ``margin``, growing by ``growth`` per cell up to ``coarse`` elsewhere; ``element``; the refit's
     Levenberg-Marquardt evaluations at most ``max_steps`` (its start is the coarse fit; along the
-    flat valley the profile goes on: seed 13's refit took 30, 583 s at load 10). The defaults
+    flat valley the profile goes on). The defaults
     mesh issue 23's 40 x 20 x 20 mm block around a 9-13 mm inclusion with ~3200 cells (a uniform
     3 mm box has 3822, a 4 mm one 1500)."""
 
@@ -72,7 +71,7 @@ def focused_mesh(body: jf.Mesh, regions, cfg: FocusedMesh = FocusedMesh()) -> jf
 def focus_of(shape, pad: float = 1.25) -> SimpleNamespace:
     """The region to mesh fine for a fitted :class:`~refine.solid.inclusion.EllipsoidShape`: its
     ellipsoid with the semi-axes grown by ``pad`` (a coarse model's fit comes out small along the
-    volume-ratio valley: seed 11's axes 16 % short on the 4 mm model)."""
+    volume-ratio valley)."""
     return SimpleNamespace(centroid=np.asarray(shape.centre), axes=pad * np.asarray(shape.axes),
                            rotation=np.asarray(shape.rotation))
 

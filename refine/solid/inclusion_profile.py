@@ -4,9 +4,9 @@ an inclusion's volume and ratio, which they trade against each other.
 Seen from the surface of a block, an inclusion acts to first order through one number, its
 strength ``S = V (r - 1) / (1 + beta (r - 1))`` (mm^3; :func:`strength`: the dilute sphere's
 shear polarisability, ``beta = 2 (4 - 5 nu) / (15 (1 - nu))`` Eshelby's factor), which stays
-finite as ``r`` grows: a smaller, stiffer inclusion acts alike. Fits of benchmarks/inclusion3d.py
-came out 40-55 % small in volume and more extreme in ratio with ``S`` within 5 % of the truth's,
-and their linearised standard errors did not cover the curved volume-ratio valley. So the ratio
+finite as ``r`` grows: a smaller, stiffer inclusion acts alike, so fits can come out small in
+volume and extreme in ratio with ``S`` close to the truth's, and linearised standard errors do
+not cover the curved volume-ratio valley. So the ratio
 and volume are reported as profile-likelihood intervals (:func:`profile_ratio`): the log ratio is
 held at values stepped out from the fit on either side, the nine shape unknowns refitted at each
 (warm started from the step before), and the interval is where chi^2 rises by at most
@@ -17,8 +17,7 @@ strength's likewise. An end not reached before :data:`~refine.solid.inclusion.MA
 before ``max_steps``) is open: the data fix only a bound there.
 
 A profile's point is a refit, so it can land lower than the fit it was stepped from where that fit
-stopped short along the flat valley (softer seed 13's refit, capped at 10 evaluations, lay 3.9
-above its profile's point at another ratio): :func:`profiled_fit` then refits from that point and
+stopped short along the flat valley: :func:`profiled_fit` then refits from that point and
 profiles again about the new minimum, so that the fit reported is the lowest point found and the
 intervals are about it.
 """
@@ -176,8 +175,8 @@ def profile_ratio(f: Fitted, points, sigma: float, threshold: float = 4.0, max_s
                   first_step: float | None = None, log=print) -> Profile:
     """The profile of ``f`` (a fitted :class:`~refine.solid.inclusion.Inclusion`) over its log
     ratio on the ``points`` mask with noise ``sigma`` (see the module). Steps start at the log
-    ratio's standard error (``f.z_std[0]``, clipped to 0.1-0.5: seed 13 stepped 0.83 then 1.24,
-    its refit there ran to 73543 mm^3) or ``first_step``, grow by half each
+    ratio's standard error (``f.z_std[0]``, clipped to 0.1-0.5: a larger step can send the refit
+    far along the valley) or ``first_step``, grow by half each
     step, stop where chi^2 has risen past the threshold, at the ratio's bound or after
     ``max_steps`` per side; each refit is a Levenberg-Marquardt fit of the nine shape unknowns (the
     fit's own ratio refitted too where the fit ran to the ratio's bound), warm started from the one
@@ -197,8 +196,8 @@ def profile_ratio(f: Fitted, points, sigma: float, threshold: float = 4.0, max_s
         return point, np.asarray(point.z[1:], float), n
 
     # the fit's own ratio refitted (from the fit: its chi^2 no higher) where the fit ran to the
-    # ratio's bound: held back there it stops short in its shape (seed 12 of
-    # benchmarks/inclusion3d.py: 37 higher); elsewhere the fit is its own point (a refit: ~50 s)
+    # ratio's bound: held back there it stops short in its shape; elsewhere the fit is its own
+    # point (a refit would cost as much as a profile step)
     if abs(float(z[0])) > 0.95 * MAX_LOG_RATIO:
         first, z1, evaluations = refit(float(z[0]), z[1:])
     else:

@@ -3,9 +3,9 @@ strength: the profile's statistical intervals widened by the fit mesh's bias.
 
 The profile (:mod:`refine.solid.inclusion_profile`) gives intervals of the fit mesh's own model:
 where chi^2 rises by at most 4 x the reduced chi^2, two standard errors of one unknown. They do not
-hold what that mesh leaves out: on issue 23's block the graded fit mesh (2.5 mm over the inclusion,
-smooth Mori-Tanaka cells) biases the fit along the volume-ratio valley, the truth's own shape lying
-36-107 above the least chi^2 (benchmarks/README.md's inclusion3d, session 22). As the 2D diagnosis
+hold what that mesh leaves out: the graded fit mesh (smooth Mori-Tanaka cells over the inclusion)
+biases the fit along the volume-ratio valley, the truth's own shape lying well above the least
+chi^2 (benchmarks/inclusion3d.py). As the 2D diagnosis
 does (:func:`refine.diagnosis.uncertainty.discretisation_bias`), the error is estimated by one refit
 of the reported inclusion, from its shape, on the same body graded over the same region with
 spacings ``factor`` (sqrt 2) times larger (:func:`discretisation_refit`): Richardson's estimate

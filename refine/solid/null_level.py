@@ -2,15 +2,12 @@
 own discretisation (as the 2D diagnosis's null level includes its model's discretisation error,
 :mod:`refine.diagnosis.discretisation`)?
 
-What the local model's null test rejected on a sound cup holder (benchmarks/_cup_null.py, seed 4,
-data solved on a finer tet10 mesh, h 0.8, noise 0.005 mm, 0.6 mm grid, 4 frames): the local model
-(:mod:`refine.solid.local`: the bottom slab alone, held by its outer face's ring under the wall)
-missed the noise-free data by 0.021 mm RMS (chi2 17.8 x the noise's; the noisy data's null test
-14.2 x): it leaves the wall out, which holds the floor's edge against rotation (its best uniform
-modulus 1.07: the floor too soft). Not the drive's noise (the same misfit on noise-free data). The
-global model (the whole cup holder held by the fixture's points; no hole, the null hypothesis)
-misses the same data by chi2 2.96 x, and by 1.00 x with a uniform modulus fitted (0.973: its
-coarser mesh's stiffness, what the global refit's modulus absorbs beside a hole).
+The local model (:mod:`refine.solid.local`: the bottom slab alone, held by its outer face's ring
+under the wall) is no null model: it leaves the wall out, which holds the floor's edge against
+rotation, so it misses a sound cup holder's data by far more than the noise, noise-free data too.
+The global model (the whole cup holder held by the fixture's points; no hole, the null
+hypothesis) with a uniform modulus fitted (its mesh's stiffness, what the global refit's modulus
+absorbs beside a hole) misses them by about the noise.
 
 So the null test weighs the global model's misfit at the bottom's guide points, its modulus
 fitted in closed form, against the noise and the model's discretisation error: the RMS change of

@@ -4,10 +4,9 @@ by a few fractions of a grid step, each tried in the global model by one solve (
 to fit, the model's only other unknown) and the best taken.
 
 Why: the edge lies anywhere between the last tracked crossing and a missing one up to the slack
-beyond the hole (a tracker loses crossings within about 0.7 pitch of a hole: on the rendered cup
-holder of benchmarks/diagnose3d.py, seed 2, 15 crossings were missing where about 7 lie in the
-hole), and a fit on a morph travels only so far before its remeshes run out: started at the
-ellipse between the two sets, that case ended at +57 % area, where the data fix it to 6 %.
+beyond the hole (a tracker loses crossings within about 0.7 pitch of a hole), and a fit on a
+morph travels only so far before its remeshes run out: started at the ellipse between the two
+sets, a fit can end far larger than the hole the data fix.
 """
 
 from __future__ import annotations

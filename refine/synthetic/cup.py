@@ -88,12 +88,10 @@ def data_hole_h(hole, h: float) -> float | None:
     """The data's element size along ``hole``'s curve: ``min(h / 4, 0.2 b^2 / a)`` (b^2 / a: the
     ellipse's smallest radius of curvature), None without a hole.
 
-    A mesh cuts a hole as the polygon through its curve's nodes, smaller than the ellipse: at the
-    data's h 0.8 mm the hole kept only 97.1-98.5 % of each drawn ellipse's area (seed 6, the most
-    elongated: 97.95 %), so the data's object was not the one its truth names and the benchmark's
-    area errors carried that -1.5 to -2.9 % (seed 6 refitted from the truth on the h 1.2 model:
-    -2.66 % on such data, -0.51 % on data cut at this size, 99.84 % of the ellipse;
-    benchmarks/README.md, diagnose3d, session 22)."""
+    A mesh cuts a hole as the polygon through its curve's nodes, smaller than the ellipse: with
+    the data's mesh size along the curve the data's hole keeps a few percent less area than the
+    drawn ellipse, so the data's object is not the one its truth names; at this size the polygon
+    keeps nearly all of it."""
     if hole is None:
         return None
     return min(h / 4, 0.2 * hole.min_radius_of_curvature)

@@ -145,7 +145,7 @@ def _section_force(solver, mesh, roi, thickness: float, per_h: int = 8):
     n = max(16, int(np.ceil(per_h * (y1 - y0) / h)))
     ys = y0 + (y1 - y0) * (np.arange(n) + 0.5) / n
     cells = jf.locate(mesh, np.stack([np.full(n, x1), ys], 1)).cells
-    # one compiled function: called eagerly, every jax op would compile on its own (~10 s)
+    # one compiled function: called eagerly, every jax op would compile on its own
     stress = jax.jit(lambda u, theta: first_piola_stress(solver, u, theta)[:, :2, 0])
 
     def force(u, theta) -> np.ndarray:
