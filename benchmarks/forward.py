@@ -56,6 +56,7 @@ from benchmarks._forward_problems import BLOCK, E_SHEET, NU, SHEET, STRETCH  # n
 from benchmarks._forward_report import _json_default, plot, targets  # noqa: E402
 from benchmarks._forward_sweeps import RESULTS, REUSE, sweep_block, sweep_documented, sweep_sheet, write_partial  # noqa: E402
 from benchmarks._timing import loadavg  # noqa: E402
+from benchmarks._cli import QUICK, quick  # noqa: E402
 
 
 def versions():
@@ -98,6 +99,7 @@ def mem_available_gb():
 
 
 def main(argv=None) -> int:
+    argv = quick(argv, ["--quick", "--out", str(QUICK / "forward.json")])
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--full", action="store_true", help="add the large sizes (2D to 406k, 3D to 103k DOFs)")
     ap.add_argument("--quick", action="store_true", help="tiny sizes, one repeat: a smoke test")

@@ -47,6 +47,7 @@ import jax.numpy as jnp  # noqa: E402
 import jaxfem as jf  # noqa: E402
 from jaxfem import linsolve  # noqa: E402
 from jaxfem.batch import batch_displacement  # noqa: E402
+from benchmarks._cli import QUICK  # noqa: E402
 
 TARGET_OVERHEAD = 0.5  # gradient beyond the forward solve, in forward solves
 BATCH = 8
@@ -269,9 +270,9 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     _install_counters()
     builds = {"sheet-2d": (sheet, True), "block-3d": (block, args.quick)}
-    out = ROOT / "benchmarks" / "results"
+    out = QUICK if args.quick else ROOT / "benchmarks" / "results"
     out.mkdir(parents=True, exist_ok=True)
-    path = out / f"gradients{'_quick' if args.quick else ''}.json"
+    path = out / "gradients.json"
     results = json.loads(path.read_text()) if (args.only or args.plot) and path.exists() else {}
     if args.plot:
         return plot(results, path.with_suffix(".png"))

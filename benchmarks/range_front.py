@@ -32,6 +32,7 @@ from refine.cli.track_range import RangeOptions  # noqa: E402
 from refine.synthetic.cup_views import (CupScene, compressed_cup, crossing_errors, cup_camera,  # noqa: E402
                                         painted_crossings, render_cup, write_frames)
 from refine.synthetic.solid_render import surface_distance  # noqa: E402
+from benchmarks._cli import QUICK, quick  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -128,6 +129,7 @@ def plot(rows, path):
 
 
 def main(argv=None) -> int:
+    argv = quick(argv, ["--quick", "--out", str(QUICK / "range_front.json")])
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--seeds", type=int, default=2)
     p.add_argument("--quick", action="store_true", help="noise 0.05 only, both cameras, h = 2.5")

@@ -40,6 +40,7 @@ from tracking import (GridTracker, SpeckleTracker, creased_displacement, deforme
 
 from benchmarks import _tracking_large as large  # noqa: E402
 from benchmarks._tracker_competitors import lucas_kanade, phase_correlation  # noqa: E402
+from benchmarks._cli import QUICK, quick  # noqa: E402
 
 SHAPE = (256, 256)
 ROI = (16, 16, 240, 240)
@@ -215,6 +216,7 @@ def dic_challenge(folder: Path):
 
 
 def main(argv=None) -> int:
+    argv = quick(argv, ["--quick", "--out", str(QUICK)])
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer sweep points")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results")
