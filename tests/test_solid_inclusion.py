@@ -386,7 +386,7 @@ def test_sound_block_gives_no_finding(tmp_path):
                                        "lowest point, seed 13 fits 0.243 (truth 0.384) with 69 % of the volume, "
                                        "interval 0.054-0.340; the profile rises by 10.8 at the truth's ratio "
                                        "(threshold 4.55) and the truth's own shape lies 107 above the fit "
-                                       "(benchmarks/results/inclusion3d_s22_seed13.json)")
+                                       "(benchmarks/inclusion3d.py, seed 13)")
 def test_softer_inclusion_ratio_lies_in_its_profile_interval(tmp_path):
     d, rep, truth = diagnosed(tmp_path, "softer-region", 13)
     assert rep["cause"] == "softer-region"

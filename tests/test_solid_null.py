@@ -1,6 +1,6 @@
 """The 3D diagnosis's null test on the global model (refine.solid.null_level): the uniform modulus
 fitted in closed form from the prediction alone, lost points left out; the null model named in
-the settings. (The null test itself on a sound and a holed cup holder: benchmarks/_cup_null.py
+the settings. (The null test itself on a sound and a holed cup holder: benchmarks/diagnose3d.py
 and the slow tests of test_solid_diagnosis.py: 3D solves take minutes here.)"""
 
 import numpy as np
