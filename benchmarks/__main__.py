@@ -81,7 +81,7 @@ def _commit(name: str, result: dict) -> str:
 def table() -> str:
     """The markdown table of every benchmark: what it measures, its targets passed, the failing
     ones with their figures, and the commit of its results (read from ``results/NAME.json``)."""
-    lines = ["| benchmark | what it measures | targets passed | failing (figure) | results from |",
+    lines = ["| benchmark | what it measures | targets passed | failing (figure) | written at |",
              "| --- | --- | --- | --- | --- |"]
     for name, what in benchmarks().items():
         path = RESULTS / f"{name}.json"
