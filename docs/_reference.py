@@ -1,0 +1,177 @@
+"""The API reference's pages, generated from the packages' public exports (an mkdocs hook).
+
+Every public name of ``jaxfem``, ``tracking`` and ``refine`` gets a ``::: module.name`` block
+(mkdocstrings renders its signature and docstring), so a new export appears in the site without
+editing a page. The public names of a module are its ``__all__``; a module without one (``refine``'s
+``threshold``, ``measures``, ``exceptions``) contributes the functions and classes it defines and its
+upper-case constants. The modules documented: each package, its public subpackages (recursively),
+and a plain public module where the package's ``__init__`` imports it by name (``from . import plot``)
+or where the package exports nothing itself (``refine``, whose rooms are its API).
+
+``pages()`` needs no mkdocs (tests/test_docs_reference.py checks the reference with it); the hooks
+below add the pages to the build and drop the Sphinx roles (``:class:``, ``:func:`` ...) that the
+docstrings use in front of their code spans.
+"""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import inspect
+import pkgutil
+import re
+from pathlib import Path
+
+PACKAGES = ("jaxfem", "tracking", "refine")
+ROOT = "reference"
+
+
+def public_names(module) -> list[str]:
+    """The public names of ``module``: its ``__all__``, or what it defines (see the module docstring)."""
+    names = getattr(module, "__all__", None)
+    if names is not None:
+        return list(names)
+    out = []
+    for name, obj in vars(module).items():
+        if name.startswith("_") or inspect.ismodule(obj):
+            continue
+        if inspect.isfunction(obj) or inspect.isclass(obj):
+            if getattr(obj, "__module__", None) == module.__name__:
+                out.append(name)
+        elif name.isupper():
+            out.append(name)
+    return out
+
+
+def _imported_by_name(package) -> set[str]:
+    """Submodules the package's ``__init__`` imports as ``from . import NAME``."""
+    tree = ast.parse(Path(package.__file__).read_text(encoding="utf-8"))
+    return {alias.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+            and node.level == 1 and node.module is None for alias in node.names}
+
+
+def documented_modules(package_name: str) -> list[str]:
+    """The dotted names of the modules whose public names the reference shows, package first."""
+    package = importlib.import_module(package_name)
+    out = [package_name] if public_names(package) else []
+    exports_nothing = not getattr(package, "__all__", None)
+    by_name = _imported_by_name(package)
+    for info in sorted(pkgutil.iter_modules(package.__path__), key=lambda i: i.name):
+        if info.name.startswith("_"):
+            continue
+        child = f"{package_name}.{info.name}"
+        if info.ispkg:
+            out += documented_modules(child)
+        elif exports_nothing or info.name in by_name:
+            if public_names(importlib.import_module(child)):
+                out.append(child)
+    return out
+
+
+def page(module_name: str) -> str:
+    """The markdown of one module's reference page: its docstring, then every public name."""
+    module = importlib.import_module(module_name)
+    lines = [f"# `{module_name}`", "", f"::: {module_name}", "    options:", "      members: false",
+             "      show_root_heading: false", "      show_root_toc_entry: false", ""]
+    for name in public_names(module):
+        lines += [f"::: {module_name}.{name}", ""]
+    return "\n".join(lines)
+
+
+def pages() -> dict[str, str]:
+    """``{path under docs/: markdown}`` for the whole reference, its index included."""
+    out, index = {}, ["# API reference", "",
+                      "Generated from the public exports of each package (`__all__`); every name links "
+                      "to its signature and docstring.", ""]
+    for package in PACKAGES:
+        index += [f"## `{package}`", ""]
+        for module_name in documented_modules(package):
+            path = f"{ROOT}/{module_name}.md"
+            out[path] = page(module_name)
+            names = ", ".join(f"[`{n}`]({module_name}.md#{module_name}.{n})"
+                              for n in public_names(importlib.import_module(module_name)))
+            index += [f"- [`{module_name}`]({module_name}.md): {names}", ""]
+    out[f"{ROOT}/index.md"] = "\n".join(index)
+    return out
+
+
+# --- mkdocs hooks (mkdocs.yml: hooks) ---------------------------------------------------------
+
+_ROLE = re.compile(r":(?:py:)?(?:class|func|meth|mod|data|attr|exc|obj|const):<code>(~?)([^<]*)</code>")
+
+
+def _code(match) -> str:
+    """``:class:`~a.b.C``` -> ``C``, ``:func:`a.f``` -> ``a.f`` (Sphinx's reading of the tilde)."""
+    tilde, target = match.groups()
+    return f"<code>{target.rsplit('.', 1)[-1] if tilde else target}</code>"
+
+
+try:  # the hooks need mkdocs; pages() does not
+    from mkdocs.plugins import event_priority
+except ImportError:  # pragma: no cover - imported by the test without mkdocs
+    def event_priority(priority):
+        return lambda f: f
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+NAV_TITLE = "API reference"
+
+
+def on_config(config):
+    """Replace the nav's ``API reference: reference/index.md`` by the index and a page per module."""
+    modules = [m for package in PACKAGES for m in documented_modules(package)]
+    section = [f"{ROOT}/index.md"] + [{m: f"{ROOT}/{m}.md"} for m in modules]
+    for k, entry in enumerate(config.nav or []):
+        if isinstance(entry, dict) and NAV_TITLE in entry:
+            config.nav[k] = {NAV_TITLE: section}
+    return config
+
+
+@event_priority(100)  # before mkdocs-jupyter's on_files, which turns the notebooks into pages
+def on_files(files, config):
+    """Add the generated reference pages, and the notebooks (``notebooks/*.ipynb``, as stored:
+    executed by their ``_make_*.py``, never at build time), to the build."""
+    from mkdocs.structure.files import File
+
+    for path, content in pages().items():
+        files.append(File.generated(config, path, content=content))
+    for nb in sorted((REPO / "notebooks").glob("*.ipynb")):
+        files.append(File(f"notebooks/{nb.name}", src_dir=str(REPO), dest_dir=config.site_dir,
+                          use_directory_urls=config.use_directory_urls))
+    return files
+
+
+_HELP = re.compile(r"^<!-- nonrigid-help:(?P<argv>[^>]*)-->$", re.M)
+
+
+def command_help(argv: list[str]) -> str:
+    """What ``nonrigid ARGV... --help`` prints (80 columns), from this checkout's parser."""
+    import contextlib
+    import io
+    import os
+
+    from refine.cli.main import build_parser
+
+    previous = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = "80"  # argparse wraps to the terminal's width: the same page everywhere
+    out = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(out), contextlib.suppress(SystemExit):
+            build_parser().parse_args([*argv, "--help"])
+    finally:
+        if previous is None:
+            os.environ.pop("COLUMNS", None)
+        else:
+            os.environ["COLUMNS"] = previous
+    return out.getvalue().rstrip()
+
+
+def on_page_markdown(markdown, page, config, files):
+    """``<!-- nonrigid-help: batch diagnose -->`` on a line of its own -> that command's ``--help``."""
+    return _HELP.sub(lambda m: "```text\n" + command_help(m["argv"].split()) + "\n```", markdown)
+
+
+def on_page_content(html, page, config, files):
+    """Drop the Sphinx roles in front of code spans (``:class:`Mesh``` reads as ``Mesh``)."""
+    return _ROLE.sub(_code, html)
