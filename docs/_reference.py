@@ -9,21 +9,26 @@ and a plain public module where the package's ``__init__`` imports it by name (`
 or where the package exports nothing itself (``refine``, whose rooms are its API).
 
 ``pages()`` needs no mkdocs (tests/test_docs_reference.py checks the reference with it); the hooks
-below add the pages to the build and drop the Sphinx roles (``:class:``, ``:func:`` ...) that the
-docstrings use in front of their code spans.
+below add the pages and the notebooks to the build, the pages to the nav, and each command's
+``--help`` to its page. (The docstrings' Sphinx roles are read by docs/_griffe_roles.py.)
 """
 
 from __future__ import annotations
 
 import ast
 import importlib
+import importlib.util
 import inspect
 import pkgutil
 import re
+import sys
 from pathlib import Path
 
 PACKAGES = ("jaxfem", "tracking", "refine")
 ROOT = "reference"
+REPO = Path(__file__).resolve().parents[1]
+if str(REPO) not in sys.path:  # document this checkout, whichever copy of the packages is installed
+    sys.path.insert(0, str(REPO))
 
 
 def public_names(module) -> list[str]:
@@ -68,13 +73,25 @@ def documented_modules(package_name: str) -> list[str]:
     return out
 
 
+def target(module_name: str, name: str) -> str:
+    """The dotted path mkdocstrings documents ``module_name.name`` by: that path, or the object's own
+    where a submodule of the same name would be taken instead (``refine.cli.track`` is the command's
+    function, ``refine.cli.track.track``, not its module)."""
+    module = importlib.import_module(module_name)
+    obj = getattr(module, name)
+    if (not inspect.ismodule(obj) and hasattr(module, "__path__")
+            and importlib.util.find_spec(f"{module_name}.{name}") is not None):
+        return f"{obj.__module__}.{obj.__qualname__}"
+    return f"{module_name}.{name}"
+
+
 def page(module_name: str) -> str:
     """The markdown of one module's reference page: its docstring, then every public name."""
     module = importlib.import_module(module_name)
     lines = [f"# `{module_name}`", "", f"::: {module_name}", "    options:", "      members: false",
              "      show_root_heading: false", "      show_root_toc_entry: false", ""]
     for name in public_names(module):
-        lines += [f"::: {module_name}.{name}", ""]
+        lines += [f"::: {target(module_name, name)}", ""]
     return "\n".join(lines)
 
 
@@ -88,7 +105,7 @@ def pages() -> dict[str, str]:
         for module_name in documented_modules(package):
             path = f"{ROOT}/{module_name}.md"
             out[path] = page(module_name)
-            names = ", ".join(f"[`{n}`]({module_name}.md#{module_name}.{n})"
+            names = ", ".join(f"[`{n}`]({module_name}.md#{target(module_name, n)})"
                               for n in public_names(importlib.import_module(module_name)))
             index += [f"- [`{module_name}`]({module_name}.md): {names}", ""]
     out[f"{ROOT}/index.md"] = "\n".join(index)
@@ -97,22 +114,12 @@ def pages() -> dict[str, str]:
 
 # --- mkdocs hooks (mkdocs.yml: hooks) ---------------------------------------------------------
 
-_ROLE = re.compile(r":(?:py:)?(?:class|func|meth|mod|data|attr|exc|obj|const):<code>(~?)([^<]*)</code>")
-
-
-def _code(match) -> str:
-    """``:class:`~a.b.C``` -> ``C``, ``:func:`a.f``` -> ``a.f`` (Sphinx's reading of the tilde)."""
-    tilde, target = match.groups()
-    return f"<code>{target.rsplit('.', 1)[-1] if tilde else target}</code>"
-
-
 try:  # the hooks need mkdocs; pages() does not
     from mkdocs.plugins import event_priority
 except ImportError:  # pragma: no cover - imported by the test without mkdocs
     def event_priority(priority):
         return lambda f: f
 
-REPO = Path(__file__).resolve().parents[1]
 
 
 NAV_TITLE = "API reference"
@@ -170,8 +177,3 @@ def command_help(argv: list[str]) -> str:
 def on_page_markdown(markdown, page, config, files):
     """``<!-- nonrigid-help: batch diagnose -->`` on a line of its own -> that command's ``--help``."""
     return _HELP.sub(lambda m: "```text\n" + command_help(m["argv"].split()) + "\n```", markdown)
-
-
-def on_page_content(html, page, config, files):
-    """Drop the Sphinx roles in front of code spans (``:class:`Mesh``` reads as ``Mesh``)."""
-    return _ROLE.sub(_code, html)
