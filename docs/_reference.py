@@ -123,28 +123,43 @@ except ImportError:  # pragma: no cover - imported by the test without mkdocs
 
 
 NAV_TITLE = "API reference"
+BENCHMARKS = "Benchmarks"
+
+
+def benchmark_files() -> list[str]:
+    """The files of benchmarks/ the site shows, as they are in the repository: its README (the page),
+    its other Markdown pages, and the results (``results/*.json``, ``*.png``) they link to."""
+    root = REPO / "benchmarks"
+    found = [*root.glob("*.md"), *(root / "results").glob("*.json"), *(root / "results").glob("*.png")]
+    return sorted(str(f.relative_to(REPO)) for f in found)
 
 
 def on_config(config):
-    """Replace the nav's ``API reference: reference/index.md`` by the index and a page per module."""
+    """Replace the nav's ``API reference: reference/index.md`` by the index and a page per module,
+    and ``Benchmarks: benchmarks/README.md`` by the README and benchmarks/'s other pages."""
     modules = [m for package in PACKAGES for m in documented_modules(package)]
-    section = [f"{ROOT}/index.md"] + [{m: f"{ROOT}/{m}.md"} for m in modules]
+    reference = [f"{ROOT}/index.md"] + [{m: f"{ROOT}/{m}.md"} for m in modules]
+    benchmarks = ["benchmarks/README.md"] + [f for f in benchmark_files()
+                                             if f.endswith(".md") and f != "benchmarks/README.md"]
     for k, entry in enumerate(config.nav or []):
         if isinstance(entry, dict) and NAV_TITLE in entry:
-            config.nav[k] = {NAV_TITLE: section}
+            config.nav[k] = {NAV_TITLE: reference}
+        elif isinstance(entry, dict) and BENCHMARKS in entry:
+            config.nav[k] = {BENCHMARKS: benchmarks}
     return config
 
 
 @event_priority(100)  # before mkdocs-jupyter's on_files, which turns the notebooks into pages
 def on_files(files, config):
-    """Add the generated reference pages, and the notebooks (``notebooks/*.ipynb``, as stored:
-    executed by their ``_make_*.py``, never at build time), to the build."""
+    """Add the generated reference pages, the notebooks (``notebooks/*.ipynb``, as stored: executed
+    by their ``_make_*.py``, never at build time) and :func:`benchmark_files` to the build."""
     from mkdocs.structure.files import File
 
     for path, content in pages().items():
         files.append(File.generated(config, path, content=content))
-    for nb in sorted((REPO / "notebooks").glob("*.ipynb")):
-        files.append(File(f"notebooks/{nb.name}", src_dir=str(REPO), dest_dir=config.site_dir,
+    shown = [f"notebooks/{nb.name}" for nb in sorted((REPO / "notebooks").glob("*.ipynb"))] + benchmark_files()
+    for path in shown:
+        files.append(File(path, src_dir=str(REPO), dest_dir=config.site_dir,
                           use_directory_urls=config.use_directory_urls))
     return files
 
