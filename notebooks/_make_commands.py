@@ -146,13 +146,17 @@ for name, cause, seed in (("stiff", "stiffer-region", 4), ("plain", "none", 5)):
 bundles.append(str(work / "broken"))"""),
         ("code", """status = main(["batch", "diagnose", *bundles, "--out", str(work / "reports"), "--workers", "1", "--quiet"])
 print("exit status", status)"""),
-        ("md", "One row per bundle (the broken one with its error), and the batch's summary:"),
+        ("md", """The exit status is 1 because a bundle failed (0 when every bundle was diagnosed); the others'
+reports are written all the same. One row per bundle (the broken one with its error), and the
+batch's summary:"""),
         ("code", """import json
 
 for line in (work / "reports" / "results.jsonl").read_text().splitlines():
     row = json.loads(line)
     print({k: row.get(k) for k in ("bundle", "cause", "gain", "seconds", "error")})
-print((work / "reports" / "summary.txt").read_text())"""),
+print((work / "reports" / "summary.txt").read_text())
+if (work / "reports" / "batch.png").exists():
+    display(Image(filename=str(work / "reports" / "batch.png"), width=560))"""),
         ("md", """From Python the same is `refine.batch.diagnose_many` (in a script, under
 `if __name__ == "__main__":`, since the workers are spawned processes)."""),
     ],

@@ -1,9 +1,10 @@
 """Every notebook in notebooks/ executes headless from top to bottom without an error.
 
-Every notebook here is marked slow (run them with `-m slow`): those in SLOW below, and
-paper_section3, tracking and diagnose by tests/conftest.py's SLOW_IN_CI (2-8 min each on 2 loaded
-cores; the default suite must stay under 15 minutes). Their code paths run in the default suite
-through test_paper.py, test_tracking*.py, test_diagnose.py and test_outputs.py.
+Every notebook here but command_import (seconds: no solve) is marked slow (run them with
+`-m slow`): those in SLOW below, and paper_section3, tracking and diagnose by tests/conftest.py's
+SLOW_IN_CI (2-8 min each on 2 loaded cores; the default suite must stay under 15 minutes). Their
+code paths run in the default suite through test_paper.py, test_tracking*.py, test_diagnose.py,
+test_outputs.py, test_cli*.py and test_correspond_follow.py.
 """
 
 from __future__ import annotations
