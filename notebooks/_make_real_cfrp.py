@@ -114,4 +114,4 @@ print(f"{time.perf_counter() - start:.0f} s in all")"""),
 
 if __name__ == "__main__":
     here = Path(__file__).resolve().parent
-    write(CELLS, here / "real_cfrp.ipynb", execute="--execute" in sys.argv, cwd=here)
+    write(CELLS, here / "real_cfrp.ipynb", execute="--execute" in sys.argv, cwd=here, timeout=3600)  # a diagnosis cell takes minutes

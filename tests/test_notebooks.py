@@ -1,9 +1,10 @@
 """Every notebook in notebooks/ executes headless from top to bottom without an error.
 
-Every notebook here is marked slow (run them with `-m slow`): those in SLOW below, and
-paper_section3, tracking and diagnose by tests/conftest.py's SLOW_IN_CI (2-8 min each on 2 loaded
-cores; the default suite must stay under 15 minutes). Their code paths run in the default suite
-through test_paper.py, test_tracking*.py, test_diagnose.py and test_outputs.py.
+Every notebook here but command_import (seconds: no solve) is marked slow (run them with
+`-m slow`): those in SLOW below, and paper_section3, tracking and diagnose by tests/conftest.py's
+SLOW_IN_CI (2-8 min each on 2 loaded cores; the default suite must stay under 15 minutes). Their
+code paths run in the default suite through test_paper.py, test_tracking*.py, test_diagnose.py,
+test_outputs.py, test_cli*.py and test_correspond_follow.py.
 """
 
 from __future__ import annotations
@@ -15,7 +16,10 @@ import pytest
 NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.ipynb"))
 SLOW = {"real_cfrp.ipynb",  # real data in ../shared and two diagnoses of 2,800 points: minutes (benchmarks/cfrp.py)
         "hand.ipynb",  # two scarred wrist motions and a tracked range sequence (a finer solve, two compiles): minutes
-        "cup_holder.ipynb"}  # a 3D data solve and the 3D diagnosis (local and global fits): minutes
+        "cup_holder.ipynb",  # a 3D data solve and the 3D diagnosis (local and global fits): minutes
+        # the command tutorials (notebooks/_make_commands.py) that solve: a compile and a forward solve
+        # (simulate), diagnoses (demo, batch on Dask), a followed sequence with refinements (follow)
+        "command_simulate.ipynb", "command_demo.ipynb", "command_batch.ipynb", "command_follow.ipynb"}
 # nbclient's limit is per cell. The fast notebooks keep 600 s; a slow notebook's longest cell is longer:
 # real_cfrp's whole-domain diagnosis (one cell, `whole = diagnose(bundle)`) took 1995.5 s at load 11-12
 # on 2 cores (benchmarks/results/cfrp.json, "without_hole" "seconds", commit 66e731a), so 600 s fails it

@@ -92,7 +92,8 @@ class HandModel:
     Args:
         hand: the meshed hand (:func:`~jaxfem.hand.hand_mesh`).
         tissues: material data.
-        linear_solver, options: as for :class:`~jaxfem.Solver`.
+        linear_solver: as for :class:`~jaxfem.Solver`.
+        options: as for :class:`~jaxfem.Solver`.
     """
 
     def __init__(self, hand: Hand, tissues: Tissues = Tissues(), linear_solver: str = "auto",

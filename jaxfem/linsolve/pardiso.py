@@ -44,8 +44,8 @@ class PardisoHandle:
     no conversion. The factors live in MKL's memory and are released with the handle.
 
     Args:
-        indptr, indices: CSR structure of the upper triangle (sorted column indices), ``(n + 1,)``
-            and ``(nnz_upper,)``.
+        indptr: CSR structure of the upper triangle, ``(n + 1,)``.
+        indices: its sorted column indices, ``(nnz_upper,)``.
     """
 
     def __init__(self, indptr, indices):

@@ -33,9 +33,11 @@ def run_tasks(fn: Callable[..., dict], tasks: Sequence[tuple], table: str | Path
             exception)`` and the others go on.
         tasks: the positional arguments of each call.
         table: the JSONL file the rows are appended to (created; earlier rows stay).
-        scheduler, workers, threads, gpus: where to run (see :func:`refine.batch.cluster.connect`):
-            a scheduler's address or client, else a local cluster of ``workers`` spawned processes
-            of ``threads`` cores each.
+        scheduler: where to run (see :func:`refine.batch.cluster.connect`): a scheduler's address
+            or client, else a local cluster of ``workers`` spawned processes of ``threads`` cores each.
+        workers: as for :func:`refine.batch.cluster.connect`.
+        threads: as for :func:`refine.batch.cluster.connect`.
+        gpus: as for :func:`refine.batch.cluster.connect`.
         progress: show a progress bar (tqdm, on stderr); ``total`` tasks in all (default
             ``len(tasks)``: give more when earlier rows count towards it), labelled ``desc``.
         line: a line to print under the bar about a row (None prints nothing).

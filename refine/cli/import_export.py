@@ -86,7 +86,8 @@ def import_export(sources: str | Path | Sequence[str | Path], out: str | Path, *
         origin: export coordinates ``(x, y)`` that become (0, 0) mm.
         name: experiment name; None: the name of ``out``.
         model: the model sections written to experiment.toml (a guess for the user to check).
-        validate_fraction, seed: share of interior points held out for validation, and its seed.
+        validate_fraction: share of interior points held out for validation.
+        seed: the seed of that draw.
         quiet: do not print the summary.
 
     Returns:

@@ -172,8 +172,8 @@ def track(images: Sequence[str | Path], out: str | Path, *, pattern: str = "grid
         origin: pixel ``(x, y)`` (or ``"x,y"``) of the first image that becomes (0, 0) mm.
         name: experiment name; None: the name of the ``out`` directory.
         model: the model sections written to experiment.toml (a guess for the user to check).
-        validate_fraction, seed: share of interior points held out for validation, and the seed of
-            that draw.
+        validate_fraction: share of interior points held out for validation.
+        seed: the seed of that draw.
         overlays: directory of the overlay PNGs ``frame_000.png``, ...; None: ``out/overlays``.
         tracker_options: further fields of the tracker (``tracking.GridTracker`` /
             ``tracking.SpeckleTracker``), e.g. ``{"spacing": 12.0, "subset": 21}``.

@@ -40,7 +40,9 @@ def coordinate_brent_search(
             (a call at a point already evaluated is answered from memory and not counted).
         brackets: n triples ``(a_i, b_i, c_i)``: bounds and starting value of each parameter.
         names: parameter names for ``values`` and the history (default ``x0, x1, ...``).
-        tol, abs_tol, max_iter: of each 1-D Brent search (tol relative on the parameter).
+        tol: of each 1-D Brent search, relative on the parameter.
+        abs_tol: of each 1-D Brent search.
+        max_iter: of each 1-D Brent search.
         max_sweeps: cap on the number of sweeps.
         progress: show a tqdm bar of forward solves.
 

@@ -39,7 +39,8 @@ def cubic_minimum(x, error, lower: float, upper: float) -> float | None:
     Args:
         x: ``(m,)`` sample abscissas, m >= 4 distinct (m = 4 interpolates).
         error: ``(m,)`` objective values there.
-        lower, upper: the bracket.
+        lower: the bracket's lower end.
+        upper: the bracket's upper end.
 
     Returns:
         The stationary point with positive curvature inside the bracket (the paper's "smaller
@@ -87,7 +88,9 @@ def cubic_brent_search(
             times the background modulus).
         step: half-width of the new bracket, parameter unit (the paper: the background modulus).
         points: number of evenly spread fit points (default 4, the paper's), or the points themselves.
-        tol, abs_tol, max_iter: as in :func:`refine.optimize.brent_search` (tol relative on the parameter).
+        tol: as in :func:`refine.optimize.brent_search` (relative on the parameter).
+        abs_tol: as in :func:`refine.optimize.brent_search`.
+        max_iter: as in :func:`refine.optimize.brent_search`.
         name: the parameter's name in ``values`` and the history.
         progress: show a tqdm bar of forward solves.
 
