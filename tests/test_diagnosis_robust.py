@@ -288,3 +288,26 @@ def test_a_failure_in_the_final_fit_writes_the_rows_so_far_and_exits_non_zero(in
     assert {h["tried"] for h in failed} == {"rectangle", "rectangle turned"}
     assert all(h["failed"]["message"] == "forced: no rectangle" for h in failed)
     assert "rectangle failed (ValueError: forced: no rectangle)" in text and "no rectangle" in page
+
+
+def test_error_bars_of_a_poorly_fixed_region_are_drawn_without_error():
+    """The crash of the real plates: the error bars' draws of a region the data barely fix cross
+    a semi-axis through zero and a log ratio far past any fit (was: "an ellipse needs positive
+    semi-axes", after "overflow encountered in exp")."""
+    from refine.diagnosis.uncertainty import sampled_variance
+    from refine.model.parametrize import bounded_exp
+
+    rng = np.random.default_rng(12)
+    geo = _ellipse_geometry(rng)
+
+    class Hyp:  # as refine.diagnosis.regions.Regions.shapes_at: the log ratio, then the geometry
+        def shapes_at(self, compiled, z):
+            g = geo.shape_params(z[1:])[0]
+            return (RegionShape((g[0], g[1]), (g[2], g[3]), g[4], "ellipse", float(bounded_exp(z[0]))),)
+
+    z = np.zeros(1 + geo.size)
+    cov = np.diag([900.0**2, 1.0, 1.0, *(rng.uniform(3, 6, 3) ** 2)])  # axes and ratio barely fixed
+    fitted = SimpleNamespace(z=z, hypothesis=Hyp(), compiled=None, shapes=Hyp().shapes_at(None, z))
+    with np.errstate(over="raise"):
+        var = sampled_variance(fitted, cov, draws=200)
+    assert var.shape == (1, 7) and np.all(np.isfinite(var[:, :6]))
