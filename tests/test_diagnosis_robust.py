@@ -256,12 +256,13 @@ def inclusion(tmp_path_factory):
     from refine.synthetic.sheet import Inclusion, Truth, synthetic_bundle
 
     rng = np.random.default_rng(8)
-    truth = Truth(inclusions=(Inclusion(jf.Ellipse(*rng.uniform(60, 80), 38.0, 14.0, 10.0, 0.4), ratio=6.0),))
+    truth = Truth(inclusions=(Inclusion(jf.Ellipse(rng.uniform(60, 80), 38.0, 14.0, 10.0, 0.4), ratio=6.0),))
     root = tmp_path_factory.mktemp("robust") / "inclusion"
     write_bundle(root, synthetic_bundle(truth, seed=8, spacing=8.0, noise=0.02, fractions=(1.0,), name="inclusion"))
     return root
 
 
+@pytest.mark.slow  # a real search (about a minute on 2 cores); the fast tests above fake the fits
 def test_a_failure_in_the_final_fit_writes_the_rows_so_far_and_exits_non_zero(inclusion, tmp_path, monkeypatch):
     """The search's rows (a fitted region, a failed rectangle with its reason) survive a failure in
     the chosen model's refit."""
