@@ -21,6 +21,10 @@ name the cause, extend the model, and measure the gain on held-out points.
    region's modulus low); a softer region whose stiffness is indistinguishable from zero and
    that holds no tracked point is named a hole; validation points, held out of every fit,
    measure the gain.
+
+An error or an interrupt after the initial model leaves with what was done attached
+(``exception.incomplete``, :mod:`refine.diagnosis.incomplete`: the rows so far, the stage, the
+error), which ``nonrigid diagnose`` writes before it exits non-zero.
 """
 
 from __future__ import annotations

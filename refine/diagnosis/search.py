@@ -65,7 +65,9 @@ def _try_hypotheses(trials: Trials, candidates: list[Candidate]) -> list[Fitted]
     """Greedy: the strongest candidate region first (as a stiffer/softer region, and as a hole
     when softer, the two fitted side by side); add the next candidate only while the misfit is
     still above the null level; other material laws (side by side) only if no region explains
-    the data, then the best hole in the law that fitted best (:func:`hole_law_jobs`)."""
+    the data, then the best hole in the law that fitted best (:func:`hole_law_jobs`). A hypothesis
+    whose building, start, fit or remesh raises is recorded in ``trials.failed`` (its reason) and
+    the search goes on without it."""
     out = trials.fitted
     model, fit, hold, sigma, cfg, log = trials.model, trials.fit, trials.hold, trials.sigma, trials.cfg, trials.log
 
