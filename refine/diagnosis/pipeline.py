@@ -241,7 +241,7 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
                     f"{100 * d.force.relative_residual:.1f} %)")
         d.seconds = time.perf_counter() - t0
         return d
-    except BaseException as e:  # incl. KeyboardInterrupt: what was done goes with the error (refine.diagnosis.incomplete)
+    except BaseException as e:  # incl. KeyboardInterrupt: what was done goes with it (diagnosis.incomplete)
         pool.shutdown(wait=False, cancel_futures=True)
         fitted = tried if len(tried) > 1 or trials is None else tried + list(trials.fitted)
         e.incomplete = Incomplete(bundle, cfg, null, tried[0], fitted, [] if trials is None else list(trials.failed),
