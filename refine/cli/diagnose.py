@@ -105,6 +105,9 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
 
     Raises:
         refine.exceptions.BundleError: the bundle directory is malformed.
+        Exception: any error (or ``KeyboardInterrupt``) after the initial model, once report.json,
+            summary.txt and report.html say what was done, where it stopped and why
+            (:mod:`refine.diagnosis.incomplete`); ``nonrigid diagnose`` then exits non-zero.
         refine.exceptions.SettingsError: a setting is unknown (the nearest is named) or invalid.
     """
     from refine.bundle.io import read_bundle
@@ -123,14 +126,39 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
         return diagnose_and_write(bundle, out, quiet=quiet)[0]
     if not isinstance(config, DiagnoseConfig):
         config = settings_of(bundle, config)
-    d = diagnosis_of(bundle, config, log=(lambda m: None) if quiet else print)
-    path = report.write(d, out)
-    again = refined.write(d, out)  # OUT/refined/: a bundle whose initial model is the chosen one
+    try:
+        d = diagnosis_of(bundle, config, log=(lambda m: None) if quiet else print)
+    except BaseException as e:  # after the initial model: what was done is written, then the error goes on
+        _write_incomplete(getattr(e, "incomplete", None), out, quiet)
+        raise
+    stage = "the report"
+    try:
+        path = report.write(d, out)
+        stage = "the refined bundle"
+        again = refined.write(d, out)  # OUT/refined/: a bundle whose initial model is the chosen one
+    except BaseException as e:
+        from refine.diagnosis.incomplete import of_diagnosis
+
+        _write_incomplete(of_diagnosis(d, f"writing {stage}", e), out, quiet)
+        raise
     if not quiet:
         print(report.summary(d))
         print(f"wrote {path}, {Path(out) / 'report.html'} and figures in {Path(out)}; "
               f"ParaView: open {Path(out) / 'paraview'}/*.pvd" + (f"; the refined model as a bundle in {again}" if again else ""))
     return d
+
+
+def _write_incomplete(inc, out, quiet: bool) -> None:
+    """Write a stopped diagnosis's report (:mod:`refine.diagnosis.incomplete`; nothing where it
+    stopped before the initial model: ``inc`` None) and say where."""
+    if inc is None:
+        return
+    from refine.diagnosis.incomplete import write
+
+    path = write(inc, out)
+    if not quiet:
+        print(inc.summary())
+        print(f"wrote what was done to {path}, {Path(out) / 'summary.txt'} and {Path(out) / 'report.html'}")
 
 
 def settings_of(bundle, given: dict | None = None):

@@ -16,7 +16,7 @@ from typing import Protocol
 import numpy as np
 from jaxtyping import Bool, Float
 
-from refine.diagnosis.shapes import Hole, RegionShape
+from refine.diagnosis.shapes import Hole, RegionShape, report_row
 from refine.diagnosis.uncertainty import drive_covariance, shape_errors
 from refine.exceptions import RefineError
 from refine.measures import Residuals
@@ -132,6 +132,41 @@ class Fitted:
     def describe(self) -> str:
         parts = [s.describe() for s in self.shapes]
         return f"{self.cause} [{'; '.join(parts) or self.law}] chi2 {self.chi2_fit:.0f} holdout {self.chi2_holdout:.0f}"
+
+
+@dataclass(frozen=True)
+class Failed:
+    """A hypothesis that could not be fitted: ``name`` (what the search tried, e.g. ``"hole"``,
+    ``"rectangle turned"``, a law's name), ``cause`` (what it would have named), and its reason,
+    the kind of ``error`` (the exception's class name) and its ``message``. The report lists it as
+    a row of the hypotheses table, and the search goes on with the others."""
+
+    name: str
+    cause: str
+    error: str
+    message: str
+
+    @classmethod
+    def of(cls, name: str, cause: str, e: BaseException) -> Failed:
+        return cls(name, cause, type(e).__name__, str(e))
+
+    def describe(self) -> str:
+        return f"{self.name} failed ({self.error}: {self.message})"
+
+    def row(self) -> dict:
+        """The row of report.json's hypotheses table: no score, the reason instead."""
+        return {"cause": self.cause, "tried": self.name, "k": None, "bic": None, "chi2_fit": None,
+                "chi2_holdout": None, "law": None, "shapes": [], "kinds": [],
+                "failed": {"error": self.error, "message": self.message}}
+
+
+def hypothesis_rows(tried, failed=()) -> list[dict]:
+    """report.json's hypotheses table: a row per fitted hypothesis of ``tried`` (its cause,
+    unknowns, scores, law and shapes), then a row per :class:`Failed` one of ``failed``."""
+    rows = [{"cause": f.cause, "k": f.k, "bic": f.bic, "chi2_fit": f.chi2_fit, "chi2_holdout": f.chi2_holdout,
+             "law": f.law, "shapes": [report_row(s) for s in f.shapes], "kinds": [s.kind for s in f.shapes]}
+            for f in tried]
+    return rows + [f.row() for f in failed]
 
 
 def fit_compiled(hypothesis: Hypothesis, compiled: Compiled, fit_mask: Mask, hold_mask: Mask, sigma: float,

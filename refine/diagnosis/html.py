@@ -104,6 +104,9 @@ def hypotheses_table(d) -> str:
                      f"{f.chi2_holdout:.1f}", f"{f.bic:.1f}",
                      f"{f.bic - base.bic:+.1f}", f"{_score(f):.1f}", verdict])
         classes.append("chosen" if (f is winner and winner is not base) else "")
+    for f in getattr(d, "failed", ()):  # could not be fitted: the reason instead of a score
+        rows.append([f"{f.cause} [{f.name}]", "", "", "", "", "", "", f"failed: {f.error}: {f.message}"])
+        classes.append("")
     rule = (f"A hypothesis passes when its BIC is lower than the initial model's by at least {cfg.bic_margin:g} "
             "(it pays for its extra unknowns) and its misfit on the held-out guide points (which no fit saw) is "
             "lower too; of those, the lowest BIC + held-out misfit wins and is refitted on every guide point "
@@ -170,7 +173,7 @@ def render(d, figures: dict[str, Figure], summary: str, files: list[str] = ()) -
 
 
 def write(d, path: str | Path, figures: dict[str, Figure], summary: str, files: list[str] = ()) -> Path:
-    """Write :func:`render`'s page to ``path``; return it."""
-    path = Path(path)
-    path.write_text(render(d, figures, summary, files), encoding="utf-8")
-    return path
+    """Write :func:`render`'s page to ``path`` (atomically: :mod:`refine.diagnosis.atomic`); return it."""
+    from refine.diagnosis.atomic import write_text
+
+    return write_text(path, render(d, figures, summary, files))

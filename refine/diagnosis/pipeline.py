@@ -21,6 +21,10 @@ name the cause, extend the model, and measure the gain on held-out points.
    region's modulus low); a softer region whose stiffness is indistinguishable from zero and
    that holds no tracked point is named a hole; validation points, held out of every fit,
    measure the gain.
+
+An error or an interrupt after the initial model leaves with what was done attached
+(``exception.incomplete``, :mod:`refine.diagnosis.incomplete`: the rows so far, the stage, the
+error), which ``nonrigid diagnose`` writes before it exits non-zero.
 """
 
 from __future__ import annotations
@@ -36,13 +40,12 @@ from refine.measures import Residuals, mean_position_error, tracking_error
 from refine.diagnosis.forces import ForceScale, force_scale
 from refine.diagnosis.config import DiagnoseConfig
 from refine.diagnosis.findings import Finding, findings
-from refine.diagnosis.fitted import Fitted, baseline
+from refine.diagnosis.fitted import Fitted, baseline, hypothesis_rows
 from refine.diagnosis.uncertainty import with_discretisation
 from refine.diagnosis.discretisation import discretisation_floor
 from refine.diagnosis.candidates import data_candidates
 from refine.diagnosis.holes import named_hole
 from refine.diagnosis.restarts import CHOSEN_RESTARTS, best_of_restarts
-from refine.diagnosis.shapes import report_row
 from refine.diagnosis.localize import fit_field
 from refine.diagnosis.scale import at_frames, drives_alike, every_frame, mesh_size, search_frames
 from refine.model.measured import MeasuredModel, grid_spacing
@@ -50,6 +53,7 @@ from refine.diagnosis.noise import NullTest, estimate_noise, null_test, propagat
 from refine.diagnosis.provenance import provenance
 from refine.diagnosis.search import Trials, _choose, _try_hypotheses
 from refine.diagnosis.final_fit import _hole_if_as_likely, _refit_on_every_frame
+from refine.diagnosis.incomplete import Incomplete
 
 
 #: the search model is padded as for a mesh this many times larger: the hypotheses' meshes (larger,
@@ -75,6 +79,7 @@ class Diagnosis:
     config: DiagnoseConfig = field(default_factory=DiagnoseConfig)
     selected: Fitted | None = None  # the chosen hypothesis as fitted and scored beside the others (before its refit)
     search_frames: tuple = ()
+    failed: list = field(default_factory=list)  # hypotheses that could not be fitted (fitted.Failed)
 
     @property
     def absolute(self) -> bool:
@@ -121,11 +126,7 @@ class Diagnosis:
                 "decision": {"null_statistic": self.null.statistic, "dof": self.null.dof,
                              "p_value": self.null.p_value, "noise_std": self.null.sigma,
                              "model_error_std": self.null.sigma_model,
-                             "hypotheses": [{"cause": f.cause, "k": f.k, "bic": f.bic, "chi2_fit": f.chi2_fit,
-                                             "chi2_holdout": f.chi2_holdout, "law": f.law,
-                                             "shapes": [report_row(s) for s in f.shapes],
-                                             "kinds": [s.kind for s in f.shapes]}
-                                            for f in self.tried],
+                             "hypotheses": hypothesis_rows(self.tried, self.failed),
                              "candidates": [{"source": c.source, "sign": c.sign,
                                              "centroid": [round(float(v), 4) for v in c.centroid],
                                              "axes": [round(float(v), 4) for v in c.axes]} for c in self.candidates],
@@ -188,46 +189,62 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
     null = null_test(at_guide.difference(base.predicted), at_guide.valid, sigma, sigma_model,
                      V.reshape((-1,) + shape) if V.size else np.zeros((0,) + shape))
     log(f"initial model: misfit {null.ratio:.2f}x its null level over {null.dof} residuals (p = {null.p_value:.3g})")
-    tried, candidates, z, selected = [base], [], None, None
-    chosen = base
-    if null.p_value < cfg.alpha:
-        n_res = Residuals.at(model.obs.displacements, fit).n
-        z, _ = fit_field(model, weight=cfg.field_weight * n_res / model.mesh.n_cells, sigma=sigma_eff, points=fit)
-        candidates = data_candidates(model, z, base.predicted, fit, sigma, cfg)
-        log(f"{len(candidates)} candidate regions: " +
-            ", ".join(f"{'stiffer' if c.sign > 0 else 'softer'} at ({c.centroid[0]:.1f}, {c.centroid[1]:.1f}) "
-                      f"from the {c.source}" for c in candidates))
-        trials = Trials(model, fit, hold, sigma_eff, cfg, null, n_res, log, pool)
-        tried += _try_hypotheses(trials, candidates)
-        chosen = selected = _choose(base, tried, cfg)
-        if chosen.cause in ("stiffer-region", "softer-region", "regions"):  # the search fits once; the chosen
-            chosen = best_of_restarts(chosen, chosen.shapes, fit, hold, CHOSEN_RESTARTS, pool)  # and along its valley
-        if chosen is not base:  # refit the chosen model on every guide point and every frame
-            log(f"refit on every frame: {chosen.describe()}")
-            chosen = _refit_on_every_frame(chosen, model, full, guide, hold, sigma_eff, cfg)
-            if chosen.cause == "softer-region" and chosen.shapes[0].ratio < cfg.hole_refit_below:
-                chosen = _hole_if_as_likely(replace(trials, model=full), chosen, guide)
-            chosen = named_hole(chosen, obs.reference, cfg.hole_refit_below)
-            if cfg.discretisation_error:  # the mesh's and the drive's share of the error bars: two more fits, side by side
-                t = time.perf_counter()
-                log(f"refitted: {chosen.describe()}; its discretisation error: a coarser mesh, a sparser drive")
-                chosen = with_discretisation(chosen, guide, hold, sigma_eff, pool=pool)
-                log(f"discretisation error estimated ({time.perf_counter() - t:.0f} s)")
-    if model is not full:
-        pred = full_compiled.result() if full_compiled is not None else every_frame(model, full, model.params())
-        base = baseline(full, fit, hold, sigma_eff, predicted=pred)
-    chosen = base if chosen is tried[0] else chosen
-    pool.shutdown()
-    log(f"chosen: {chosen.describe()}")
-    d = Diagnosis(bundle, null, base, chosen, tried, candidates, z, model, seconds=0.0, config=cfg, selected=selected,
-                  search_frames=frames)
-    eb, er = _errors(obs, base.predicted), _errors(obs, chosen.predicted)
-    gain = (eb["validation_error"] / er["validation_error"]) if er.get("validation_error") else None
-    d.errors = {"baseline": eb, "refined": er, "gain": gain}
-    if obs.forces is not None:
-        d.force = force_scale(chosen.model, chosen.theta)
-        if d.force is not None:
-            log(f"forces: background modulus {d.background_modulus:.4g} (the force is matched to "
-                f"{100 * d.force.relative_residual:.1f} %)")
-    d.seconds = time.perf_counter() - t0
-    return d
+    tried, candidates, z, selected, trials = [base], [], None, None, None
+    chosen, stage = base, "the localisation field"
+    try:
+        if null.p_value < cfg.alpha:
+            n_res = Residuals.at(model.obs.displacements, fit).n
+            z, _ = fit_field(model, weight=cfg.field_weight * n_res / model.mesh.n_cells, sigma=sigma_eff, points=fit)
+            stage = "the candidate regions"
+            candidates = data_candidates(model, z, base.predicted, fit, sigma, cfg)
+            log(f"{len(candidates)} candidate regions: " +
+                ", ".join(f"{'stiffer' if c.sign > 0 else 'softer'} at ({c.centroid[0]:.1f}, {c.centroid[1]:.1f}) "
+                          f"from the {c.source}" for c in candidates))
+            stage = "the search"
+            trials = Trials(model, fit, hold, sigma_eff, cfg, null, n_res, log, pool)
+            tried += _try_hypotheses(trials, candidates)
+            chosen = selected = _choose(base, tried, cfg)
+            if chosen.cause in ("stiffer-region", "softer-region", "regions"):  # the search fits once; the chosen
+                stage = "the chosen region's restarts"
+                chosen = best_of_restarts(chosen, chosen.shapes, fit, hold, CHOSEN_RESTARTS, pool)  # and its valley
+            if chosen is not base:  # refit the chosen model on every guide point and every frame
+                log(f"refit on every frame: {chosen.describe()}")
+                stage = "the refit on every frame"
+                chosen = _refit_on_every_frame(chosen, model, full, guide, hold, sigma_eff, cfg)
+                if chosen.cause == "softer-region" and chosen.shapes[0].ratio < cfg.hole_refit_below:
+                    stage = "the comparison with a hole"
+                    chosen = _hole_if_as_likely(replace(trials, model=full), chosen, guide)
+                chosen = named_hole(chosen, obs.reference, cfg.hole_refit_below)
+                if cfg.discretisation_error:  # the mesh's and the drive's share of the error bars: two more fits
+                    t = time.perf_counter()
+                    stage = "the discretisation error"
+                    log(f"refitted: {chosen.describe()}; its discretisation error: a coarser mesh, a sparser drive")
+                    chosen = with_discretisation(chosen, guide, hold, sigma_eff, pool=pool)
+                    log(f"discretisation error estimated ({time.perf_counter() - t:.0f} s)")
+        stage = "the initial model on every frame"
+        if model is not full:
+            pred = full_compiled.result() if full_compiled is not None else every_frame(model, full, model.params())
+            base = baseline(full, fit, hold, sigma_eff, predicted=pred)
+        chosen = base if chosen is tried[0] else chosen
+        pool.shutdown()
+        log(f"chosen: {chosen.describe()}")
+        stage = "the errors and forces"
+        d = Diagnosis(bundle, null, base, chosen, tried, candidates, z, model, seconds=0.0, config=cfg,
+                      selected=selected, search_frames=frames, failed=trials.failed if trials is not None else [])
+        eb, er = _errors(obs, base.predicted), _errors(obs, chosen.predicted)
+        gain = (eb["validation_error"] / er["validation_error"]) if er.get("validation_error") else None
+        d.errors = {"baseline": eb, "refined": er, "gain": gain}
+        if obs.forces is not None:
+            d.force = force_scale(chosen.model, chosen.theta)
+            if d.force is not None:
+                log(f"forces: background modulus {d.background_modulus:.4g} (the force is matched to "
+                    f"{100 * d.force.relative_residual:.1f} %)")
+        d.seconds = time.perf_counter() - t0
+        return d
+    except BaseException as e:  # incl. KeyboardInterrupt: what was done goes with it (diagnosis.incomplete)
+        pool.shutdown(wait=False, cancel_futures=True)
+        fitted = tried if len(tried) > 1 or trials is None else tried + list(trials.fitted)
+        e.incomplete = Incomplete(bundle, cfg, null, tried[0], fitted, [] if trials is None else list(trials.failed),
+                                  candidates, stage, e, time.perf_counter() - t0, model)
+        log(f"stopped in {stage}: {type(e).__name__}: {e}")
+        raise

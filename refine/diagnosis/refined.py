@@ -36,6 +36,7 @@ from refine.bundle.experiment import Experiment, MeshDomain
 from refine.bundle.io import Bundle, write_bundle
 from refine.bundle.regions import KnownRegion
 from refine.bundle.shapes import EllipseShape, RectangleShape
+from refine.diagnosis.atomic import folder
 from refine.exceptions import ExperimentError
 from refine.model.known import region_tag
 
@@ -103,14 +104,15 @@ def write(d, out: str | Path) -> Path | None:
     except ExperimentError as e:
         warnings.warn(f"{root} not written: {e}", stacklevel=2)
         return None
-    write_bundle(root, Bundle(ex, d.bundle.observations, root=d.bundle.root))
-    if ex is not d.bundle.experiment:
-        chosen = d.chosen
-        mesh = chosen.model.mesh.with_nodes(np.asarray(chosen.theta["X"]))
-        write_vtu(root / MESH, mesh)
-    path = root / "experiment.toml"
-    head = (f"# written by nonrigid diagnose from bundle {d.bundle.experiment.name!r}"
-            f"{'' if d.bundle.root is None else f' ({d.bundle.root})'}\n"
-            f"# chosen: {d.chosen.describe()}\n")
-    path.write_text(head + path.read_text(encoding="utf-8"), encoding="utf-8")
+    with folder(root) as tmp:  # the folder appears whole or not at all (refine.diagnosis.atomic)
+        write_bundle(tmp, Bundle(ex, d.bundle.observations, root=d.bundle.root))
+        if ex is not d.bundle.experiment:
+            chosen = d.chosen
+            mesh = chosen.model.mesh.with_nodes(np.asarray(chosen.theta["X"]))
+            write_vtu(tmp / MESH, mesh)
+        path = tmp / "experiment.toml"
+        head = (f"# written by nonrigid diagnose from bundle {d.bundle.experiment.name!r}"
+                f"{'' if d.bundle.root is None else f' ({d.bundle.root})'}\n"
+                f"# chosen: {d.chosen.describe()}\n")
+        path.write_text(head + path.read_text(encoding="utf-8"), encoding="utf-8")
     return root

@@ -15,7 +15,7 @@ from refine.diagnosis.shapes import RegionShape
 from refine.exceptions import RefineError
 from refine.model.measured import MeasuredModel, domain_mesh
 from refine.model.objective import Compiled
-from refine.model.parametrize import Combined, RegionModuli, ShapeGeometry, make_shape
+from refine.model.parametrize import Combined, RegionModuli, ShapeGeometry, bounded_exp, make_shape
 
 
 class OverlappingRegions(RefineError, ValueError):
@@ -115,7 +115,7 @@ class Regions:
 
     def shapes_at(self, compiled: Compiled, z) -> tuple[RegionShape, ...]:
         n = len(self.regions)
-        ratios = np.exp(z[:n])
+        ratios = bounded_exp(z[:n])  # (a drawn z may lie far beyond any fit: no overflow)
         if not self.geometry:
             return tuple(RegionShape.of(e, float(r)) for e, r in zip(self.regions, ratios))
         geo = np.asarray(compiled.param.parts[1].shape_params(z[n:]))

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from refine.diagnosis import atomic
+
 
 def summary(d) -> str:
     """A few lines saying what was found, in words."""
@@ -69,7 +71,8 @@ def orientation(k: dict) -> str:
 
 def write(d, out, with_figures: bool = True) -> Path:
     """Write DIR/report.json, summary.txt, the figures (PNG), report.html (the page a person
-    reads, figures embedded) and the ParaView series in DIR/paraview/; return report.json's path.
+    reads, figures embedded) and the ParaView series in DIR/paraview/, each atomically
+    (:mod:`refine.diagnosis.atomic`); return report.json's path.
     ``with_figures=False`` (e.g. in a batch, where they can take longer than a small bundle's
     diagnosis) writes report.json and summary.txt alone."""
     from refine.diagnosis import html
@@ -78,19 +81,24 @@ def write(d, out, with_figures: bool = True) -> Path:
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    path = out / "report.json"
-    path.write_text(json.dumps(_finite(d.report()), indent=2, default=_plain))
+    path = atomic.write_text(out / "report.json", report_json(d.report()))
     text = summary(d)
-    (out / "summary.txt").write_text(text + "\n")
+    atomic.write_text(out / "summary.txt", text + "\n")
     if not with_figures:
         return path
     U = equilibria(d)
     figs = figures(d, out, U)
-    series = write_series(d, out / "paraview", U)
+    with atomic.folder(out / "paraview") as tmp:  # the series appear whole or not at all
+        series = write_series(d, tmp, U)
     files = ["report.json", "summary.txt", *(f"{k}.png" for k in figs),
-             *(p.relative_to(out).as_posix() for p in series.values())]
+             *(("paraview" / p.relative_to(tmp)).as_posix() for p in series.values())]
     html.write(d, out / "report.html", figs, text, files)
     return path
+
+
+def report_json(report: dict) -> str:
+    """A report's dict as report.json's text (strict JSON: :func:`_finite`)."""
+    return json.dumps(_finite(report), indent=2, default=_plain)
 
 
 def _finite(x):
@@ -122,5 +130,5 @@ def figures(d, out: Path, U: dict | None = None) -> dict:
 
     figs = all_figures(d, U)
     for key, fig in figs.items():
-        fig.savefig(Path(out) / f"{key}.png", dpi=110, bbox_inches="tight")
+        atomic.save_figure(fig, Path(out) / f"{key}.png", dpi=110, bbox_inches="tight")
     return figs

@@ -6,13 +6,13 @@ the diagnosis's pool) and the choice among them (:func:`_choose`, by :func:`_sco
 from __future__ import annotations
 
 from concurrent.futures import Executor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
 from refine.diagnosis.config import DiagnoseConfig
-from refine.diagnosis.fitted import Fitted, NotApplicable
+from refine.diagnosis.fitted import Failed, Fitted, NotApplicable
 from refine.diagnosis.holes import fit_hole
 from refine.diagnosis.hole_law import hole_law_jobs
 from refine.diagnosis.laws import ALTERNATIVE_LAWS, fit_law
@@ -31,7 +31,11 @@ class Trials:
         model: the initial model; fit, hold: ``(n_points,)`` masks of the fitting and held-out
         guide points; sigma: the noise the residuals are weighted with (noise and model error);
         cfg: the settings; null: the initial model's null test; n_fit: residuals on the fitting
-        points; log: where progress lines go; pool: the threads that fit hypotheses side by side.
+        points; log: where progress lines go; pool: the threads that fit hypotheses side by side;
+        failed: the hypotheses that could not be fitted (:class:`~refine.diagnosis.fitted.Failed`,
+        appended by the search: rows of the report's hypotheses table with their reasons);
+        fitted: the hypotheses fitted so far (what :func:`_try_hypotheses` returns, kept here too
+        so that a search cut short still has them).
     """
 
     model: MeasuredModel
@@ -43,6 +47,8 @@ class Trials:
     n_fit: int
     log: Callable[[str], None]
     pool: Executor
+    failed: list = field(default_factory=list)
+    fitted: list = field(default_factory=list)
 
     def explains(self, f: Fitted) -> bool:
         """Whether a fit leaves no more misfit than noise, its propagation and model error would."""
@@ -59,8 +65,10 @@ def _try_hypotheses(trials: Trials, candidates: list[Candidate]) -> list[Fitted]
     """Greedy: the strongest candidate region first (as a stiffer/softer region, and as a hole
     when softer, the two fitted side by side); add the next candidate only while the misfit is
     still above the null level; other material laws (side by side) only if no region explains
-    the data, then the best hole in the law that fitted best (:func:`hole_law_jobs`)."""
-    out = []
+    the data, then the best hole in the law that fitted best (:func:`hole_law_jobs`). A hypothesis
+    whose building, start, fit or remesh raises is recorded in ``trials.failed`` (its reason) and
+    the search goes on without it."""
+    out = trials.fitted
     model, fit, hold, sigma, cfg, log = trials.model, trials.fit, trials.hold, trials.sigma, trials.cfg, trials.log
 
     def attempt(name, job):
@@ -71,8 +79,9 @@ def _try_hypotheses(trials: Trials, candidates: list[Candidate]) -> list[Fitted]
         except NotApplicable as e:
             log(f"  not tried: {e}")
             return None
-        except Exception as e:  # noqa: BLE001 - a hypothesis that cannot be fitted is reported and skipped
-            log(f"  could not fit {name}: {e}")
+        except Exception as e:  # noqa: BLE001 - a hypothesis that cannot be fitted is a row with its reason
+            trials.failed.append(Failed.of(name, _cause_of_job(name), e))
+            log(f"  could not fit {name}: {type(e).__name__}: {e}")
             return None
 
     def side_by_side(**jobs):
@@ -131,6 +140,16 @@ def _try_hypotheses(trials: Trials, candidates: list[Candidate]) -> list[Fitted]
                         for law in ALTERNATIVE_LAWS.get(model.experiment.law, ())})
         side_by_side(**hole_law_jobs(model, out, fit, hold, sigma))  # a hole in the law that fitted best
     return out
+
+
+def _cause_of_job(name: str) -> str:
+    """What a search job (by its name in :func:`_try_hypotheses`) would have named: a hole, a
+    material law (a law's name), a hole in another law, or a region."""
+    if name.startswith("hole"):  # "hole", "hole from region", "hole with LAW"
+        return "hole"
+    if name in {law for laws in ALTERNATIVE_LAWS.values() for law in laws}:
+        return "material-law"
+    return "region"
 
 
 def _rectangles_wanted(region: Fitted, model, cfg: DiagnoseConfig, explained: bool = False) -> bool:

@@ -70,10 +70,16 @@ class ShapeErrors:
 
 def shape_quantities(shapes) -> Float[np.ndarray, "shapes 7"]:
     """The reported quantities of ``shapes`` (:class:`~refine.diagnosis.shapes.RegionShape` or
-    ``Hole``), one row of :data:`QUANTITIES` each (a hole's ratio is 0)."""
+    ``Hole``), one row of :data:`QUANTITIES` each (a hole's ratio is 0). A shape with an axis
+    that is not positive (a draw of :func:`sampled_variance` past a vanishing axis: no fit
+    reaches one) has the signed area of the same formula, ``pi a b`` (``4 a b`` for a
+    rectangle): the map from the fitted unknowns carried on smoothly, not an error."""
     rows = []
     for s in shapes:
-        area, _ = s.outline()
+        if min(s.axes) > 0:
+            area, _ = s.outline()
+        else:
+            area = (4.0 if s.kind == "rectangle" else np.pi) * s.axes[0] * s.axes[1]
         rows.append([*s.centre, *s.axes, s.angle, area, float(s.ratio)])
     return np.asarray(rows, float)
 

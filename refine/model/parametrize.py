@@ -19,7 +19,18 @@ from refine.exceptions import ParametrizationError
 from refine.model.shape_geometry import ShapeGeometry, make_shape
 
 __all__ = ["RegionModuli", "ModulusField", "Combined", "ShapeGeometry", "UniformParameter", "make_shape",
-           "infeasibility", "cell_adjacency"]
+           "infeasibility", "cell_adjacency", "MAX_LOG_RATIO", "bounded_exp"]
+
+
+MAX_LOG_RATIO = 30.0
+"""The largest log modulus ratio :class:`RegionModuli` takes (a ratio of about 1e13 either way):
+an optimiser's step beyond it is refused (:meth:`RegionModuli.infeasibility`)."""
+
+
+def bounded_exp(z):
+    """``exp(z)`` of log ratios, the exponent clipped to what a float64 holds (no overflow: a
+    ratio drawn far beyond any fit reads as about 1e304, not inf with a warning)."""
+    return np.exp(np.clip(np.asarray(z, float), -700.0, 700.0))
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,6 +79,17 @@ class RegionModuli:
 
     def regularization(self, z):
         return 0.0
+
+    def infeasibility(self, z) -> str | None:
+        """Why the log moduli ``z`` are not taken (None: they are): not finite, or beyond
+        :data:`MAX_LOG_RATIO` (a modulus ratio of about 1e13 either way: a fit that runs there
+        has lost the region; its ``exp`` would soon overflow)."""
+        z = np.asarray(z, float)
+        if not np.all(np.isfinite(z)):
+            return "a log modulus would not be finite"
+        if z.size and np.abs(z).max() > MAX_LOG_RATIO:
+            return f"a log modulus would reach {z[np.argmax(np.abs(z))]:.3g} (bound {MAX_LOG_RATIO:g})"
+        return None
 
     def values(self, z) -> dict:
         z = np.asarray(z)

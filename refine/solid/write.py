@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 from refine.bundle.io import Bundle, read_bundle
+from refine.diagnosis.atomic import write_text
 from refine.solid.diagnose import SolidConfig, SolidDiagnosis, without_cavity, diagnose_solid, report, squeeze_force
 from refine.solid.global_model import global_check, global_mesh, write_global
 from refine.solid import inclusion_diagnosis
@@ -36,7 +37,7 @@ def diagnose_and_write(bundle: Bundle | str | Path, out: str | Path, cfg: SolidC
     rep["global"] = global_check(bundle, d.shape, squeeze_force(bundle.observations), meshes, tol, cfg.linear_solver)
     rep["global"]["bundle"] = str(root)
     Path(out).mkdir(parents=True, exist_ok=True)
-    (Path(out) / "report.json").write_text(json.dumps(rep, indent=1), encoding="utf-8")
+    write_text(Path(out) / "report.json", json.dumps(rep, indent=1))  # atomically
     if not quiet:
         f = rep["findings"][0] if rep["findings"] else None
         log(f"finding: {rep['cause']}" + (f" at {[round(v, 2) for v in f['centroid']]}, area {f['area']:.2f}"
