@@ -2,6 +2,7 @@
 
     python benchmarks/quirky.py --quick        # 3 draws (a thinned hole, a rim hole, a sound noisy edge)
     python benchmarks/quirky.py                # 20 draws, ~3-6 minutes each on a loaded core
+    python benchmarks/quirky.py --first 8      # resume at draw 8, keeping the rows before it
 
 Each draw hides an effect drawn under its seed (a stiffer or softer ellipse or rectangle, an
 elliptic hole, or nothing) in the 140 x 80 mm sheet pulled 15 % in one load step (two draws: two
@@ -123,11 +124,15 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help=f"the first {QUICK} draws")
     p.add_argument("--draws", type=int, default=len(DRAWS), help="how many of the draws, in order")
+    p.add_argument("--first", type=int, default=0,
+                   help="start at this draw, keeping the earlier draws' rows of results/quirky.json (a resumed run)")
     args = p.parse_args(argv)
     n = QUICK if args.quick else min(args.draws, len(DRAWS))
     OUT.mkdir(exist_ok=True)
     rows = []
-    for i in range(n):
+    if args.first and (OUT / "quirky.json").exists():
+        rows = [r for r in json.loads((OUT / "quirky.json").read_text())["rows"] if r["draw"] < args.first]
+    for i in range(args.first, n):
         try:
             rows.append(run_draw(i))
         except Exception as e:  # noqa: BLE001 - a draw that fails is a row with its reason, the rest go on
