@@ -113,7 +113,7 @@ def gmsh_mesh(effect: Effect, sheet=SHEET, h: float = 2.0, h_near: float | None 
                 occ.cut([(2, plate)], [(2, inner)])
                 inner = None
             else:
-                out, _ = occ.fragment([(2, plate)], [(2, inner)])
+                occ.fragment([(2, plate)], [(2, inner)])
         occ.synchronize()
         curves = [t for d, t in gmsh.model.getEntities(1)]
         outline = [t for t in curves if not _on_sheet_edge(gmsh.model.getBoundingBox(1, t), sheet)]
@@ -142,6 +142,7 @@ def gmsh_mesh(effect: Effect, sheet=SHEET, h: float = 2.0, h_near: float | None 
             t = index[np.asarray(conn[0], np.int64)].reshape(-1, 3)
             tris.append(t)
             centre = nodes[t].mean(1)
+            # a surface is the inclusion's when most of its triangles' centres lie in the shape
             inside.append(np.full(len(t), effect.kind not in ("none", "hole") and effect.contains(centre).mean() > 0.5))
     finally:
         gmsh.finalize()
@@ -237,7 +238,7 @@ def solve_sheet(effect: Effect, E: float = 83.76, nu: float = 0.3, pull: float =
     right_x, right_all = right_dofs.all("u^1"), right_dofs.all()
     fixed = np.unique(np.concatenate([left, right_all]))
     u = np.zeros(basis.N)
-    out, prev = [], 0.0
+    out = []
     steps = [prev + (s - prev) * (k + 1) / substeps for prev, s in zip((0.0, *fractions[:-1]), fractions)
              for k in range(substeps)]
     xdofs = np.zeros(basis.N, bool)

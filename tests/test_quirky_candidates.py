@@ -66,3 +66,25 @@ def test_an_edge_artefact_is_judged_against_the_edges_own_noise():
     assert not edge_artefact(at_edge, obs, real, fit, domain, 5.0, sigma)
     inside = Candidate(-1, np.zeros(0, int), np.array([60.0, 40.0]), np.array([8.0, 8.0]), 0.0, 1.0, 1.0)
     assert not edge_artefact(inside, obs, r, fit, domain, 5.0, sigma)
+
+
+def test_the_independent_solvers_linearisation_is_its_residuals_derivative():
+    """tests/_independent2d.py's hand-derived plane-stress tangent against finite differences of
+    its residual at a random deformed state (a coarse gmsh mesh with a stiff inclusion): the
+    generator's Newton converges to the law's equilibrium only if the two agree."""
+    import skfem
+
+    from tests._independent2d import _forms, gmsh_mesh
+
+    rng = np.random.default_rng(11)
+    nodes, tri, inside = gmsh_mesh(Effect("stiffer-region", "ellipse", 70.0, 40.0, 12.0, 8.0, 0.4, 5.0), h=20.0)
+    basis = skfem.Basis(skfem.MeshTri(nodes.T.copy(), tri.T.copy()), skfem.ElementVector(skfem.ElementTriP2()))
+    E = np.repeat(np.where(inside, 5 * 83.76, 83.76)[:, None], basis.X.shape[1], axis=1)
+    residual, tangent = _forms(0.3)
+    u = 0.02 * rng.standard_normal(basis.N) * 10
+    du = rng.standard_normal(basis.N)
+    K = tangent.assemble(basis, u=basis.interpolate(u), E=E)
+    eps = 1e-6
+    fd = (residual.assemble(basis, u=basis.interpolate(u + eps * du), E=E)
+          - residual.assemble(basis, u=basis.interpolate(u - eps * du), E=E)) / (2 * eps)
+    np.testing.assert_allclose(K @ du, fd, rtol=0, atol=1e-6 * np.abs(fd).max())
