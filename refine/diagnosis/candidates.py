@@ -3,6 +3,12 @@
 material points, so nothing can be tracked there) and places where the measured strain map
 departs from the initial model's (the paper reads a scar as a pocket of low measured strain, a
 hole as one of high strain).
+
+Any point layout: a gap is judged against the layout's own density where the points are not on a
+full lattice (an export thinned for size leaves wide empty discs by chance), and a narrower gap
+inside a softer candidate proposes a hole too; a candidate at the outline where the points are
+noisier than elsewhere (correlation lost near a free edge) is judged against that edge's own
+noise.
 """
 
 from __future__ import annotations
