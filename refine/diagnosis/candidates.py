@@ -3,6 +3,12 @@
 material points, so nothing can be tracked there) and places where the measured strain map
 departs from the initial model's (the paper reads a scar as a pocket of low measured strain, a
 hole as one of high strain).
+
+Any point layout: a gap is judged against the layout's own density where the points are not on a
+full lattice (an export thinned for size leaves wide empty discs by chance), and a narrower gap
+inside a softer candidate proposes a hole too; a candidate at the outline where the points are
+noisier than elsewhere (correlation lost near a free edge) is judged against that edge's own
+noise.
 """
 
 from __future__ import annotations
@@ -19,8 +25,22 @@ from refine.diagnosis.localize import Candidate, moment_ellipse, segment, segmen
 from refine.diagnosis.measured_strain import equivalent_strain, point_spacing, point_triangles, triangle_gradients
 
 GAP = 1.5
-"""A place is a gap in the points when its nearest tracked point is more than this many point
-spacings away (a single lost point of a grid leaves one spacing; two leave 1.1)."""
+"""A place is a gap in the points of a lattice when its nearest tracked point is more than this
+many point spacings away (a single lost point of a grid leaves one spacing; two leave 1.1)."""
+
+FALSE_GAPS = 0.05
+"""Irregular layouts (a thinned or jittered lattice, scattered points): a gap is one so wide that
+the layout's own density would leave one as wide anywhere in the domain this rarely (expected
+count, :func:`gap_radius`)."""
+
+SOFT_GAPS = 0.5
+"""A narrower gap inside a softer candidate (:func:`soft_gaps`) proposes a hole when the
+layout's density would leave one as wide inside that candidate this rarely (expected count)."""
+
+EDGE_MISFIT = 2.0
+"""A candidate at the domain's outline where the points are noisier than elsewhere is an edge
+artefact when the initial model's misfit of its points, over their own noise, is below this
+(per residual; :func:`edge_artefact`)."""
 
 
 def domain_contains(domain, X: Float[np.ndarray, "n 2"]) -> np.ndarray:
@@ -38,23 +58,64 @@ def domain_contains(domain, X: Float[np.ndarray, "n 2"]) -> np.ndarray:
     return inside
 
 
-def missing_point_regions(points: Float[np.ndarray, "n 2"], domain, gap: float = GAP) -> list[Candidate]:
-    """Gaps in the tracked points inside the domain, largest first, as softer candidates (source
-    ``"missing-points"``): the places farther than ``gap`` point spacings from every point, in
-    connected patches that do not reach the domain's outline and span at least a disc of one
-    spacing. Each is summarised by its ellipse of moments, grown by ``gap - 1/2`` spacings (the
-    patch stops ``gap`` spacings short of the points, which stop about half a spacing short of
-    the hole's edge); a hole fitted from it is shrunk until no point lies inside
-    (:func:`refine.diagnosis.holes.hole_hypothesis`)."""
-    points = np.asarray(points, float)
-    s = point_spacing(points)
+def _raster(points, domain, s):
+    """A raster of step ``s / 4`` over the points' box grown by ``s``: its positions ``(m, 2)``,
+    shape, inside-domain mask and distance to the nearest point (both of that shape)."""
     step = s / 4.0
     lo, hi = points.min(0) - s, points.max(0) + s
     xs, ys = np.arange(lo[0], hi[0] + step, step), np.arange(lo[1], hi[1] + step, step)
     X = np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2)
     inside = domain_contains(domain, X).reshape(len(ys), len(xs))
     dist = cKDTree(points).query(X)[0].reshape(len(ys), len(xs))
-    empty = inside & (dist > gap * s)
+    return X, step, inside, dist
+
+
+def _empty_count(radius: float, density: float, area: float) -> float:
+    """Expected number of empty discs of at least ``radius`` whose centres lie in ``area`` among
+    points scattered at random at ``density``: twice the points there (a Delaunay triangle per
+    point and a half) times the chance that a triangle's circumdisc is that wide, (1 + x) e^-x
+    with x = density pi radius^2 (its area holds Gamma(2) points on average)."""
+    x = density * np.pi * radius**2
+    return 2.0 * density * area * (1.0 + x) * np.exp(-x)
+
+
+def _radius_for(count: float, density: float, area: float) -> float:
+    """The radius at which :func:`_empty_count` falls to ``count``."""
+    r = np.sqrt(1.0 / (density * np.pi))
+    while _empty_count(r, density, area) > count:
+        r *= 1.02
+    return float(r)
+
+
+def gap_radius(points: Float[np.ndarray, "n 2"], area: float, gap: float = GAP) -> float:
+    """How far from every point a place must be to be a gap (length unit): ``gap`` point spacings
+    on a regular layout (a lattice with most of its sites tracked, jittered or not: the median
+    nearest-neighbour distance at least 0.7 times that of a square lattice of the same density
+    over ``area``; scattered points reach about 0.47, a lattice thinned to a third about 0.55);
+    on any other layout the radius that the layout's density would exceed by chance
+    :data:`FALSE_GAPS` times in ``area`` (:func:`_empty_count`), and at least ``gap``
+    spacings."""
+    s = point_spacing(points)
+    r = gap * s
+    if s >= 0.7 * np.sqrt(area / len(points)):
+        return r
+    return max(r, _radius_for(FALSE_GAPS, len(points) / area, area))
+
+
+def missing_point_regions(points: Float[np.ndarray, "n 2"], domain, gap: float = GAP) -> list[Candidate]:
+    """Gaps in the tracked points inside the domain, largest first, as softer candidates (source
+    ``"missing-points"``): the places farther than :func:`gap_radius` from every point (on a
+    lattice ``gap`` point spacings; on an irregular layout farther than its density explains),
+    in connected patches that do not reach the domain's outline and span at least a disc of one
+    spacing. Each is summarised by its ellipse of moments, grown by the gap radius less half a
+    spacing (the patch stops that far short of the points, which stop about half a spacing
+    short of the hole's edge); a hole fitted from it is shrunk until no point lies inside
+    (:func:`refine.diagnosis.holes.hole_hypothesis`)."""
+    points = np.asarray(points, float)
+    s = point_spacing(points)
+    X, step, inside, dist = _raster(points, domain, s)
+    radius = gap_radius(points, inside.sum() * step**2, gap)
+    empty = inside & (dist > radius)
     at_outline = ndimage.binary_dilation(~inside, iterations=2)
     label, n = ndimage.label(empty)
     out = []
@@ -65,10 +126,69 @@ def missing_point_regions(points: Float[np.ndarray, "n 2"], domain, gap: float =
             continue
         idx = np.flatnonzero(patch.ravel())
         centre, axes, angle = moment_ellipse(X[idx], np.full(len(idx), step**2))
-        out.append(Candidate(-1, idx, centre, axes + (gap - 0.5) * s, angle, float(area),
+        out.append(Candidate(-1, idx, centre, axes + radius - 0.5 * s, angle, float(area),
                              float(dist[patch].max() / s), "missing-points"))
     out.sort(key=lambda c: -c.strength)
     return out
+
+
+def soft_gaps(points: Float[np.ndarray, "n 2"], domain, soft: list[Candidate]) -> list[Candidate]:
+    """Holes where a gap and a softer candidate coincide: in each softer candidate's ellipse
+    (grown by a point spacing), the widest empty disc of the points (its centre inside the domain,
+    clear of the outline), if the layout's density would leave one as wide there only
+    :data:`SOFT_GAPS` times (:func:`_empty_count` over the ellipse's area) and it is wider than a
+    spacing; a candidate of source ``"missing-points"``: the disc less half a spacing (the points
+    stop about that short of a hole's edge). A hole nobody modelled in a thinned export leaves a
+    gap too narrow to stand out on its own, but the modulus field or the strain map finds a
+    softer place there."""
+    points = np.asarray(points, float)
+    s = point_spacing(points)
+    X, step, inside, dist = _raster(points, domain, s)
+    density = len(points) / (inside.sum() * step**2)
+    free = (inside & ~ndimage.binary_dilation(~inside, iterations=int(np.ceil(2 * s / step)))).ravel()
+    d = dist.ravel()
+    out = []
+    for c in soft:
+        if c.sign > 0:
+            continue
+        area = np.pi * (c.axes[0] + s) * (c.axes[1] + s)
+        near = free & jf.Ellipse(*c.centroid, c.axes[0] + s, c.axes[1] + s, c.angle).contains(X)
+        if not near.any():
+            continue
+        i = np.flatnonzero(near)[np.argmax(d[near])]
+        r = float(d[i])
+        if r < 1.5 * s or _empty_count(r, density, area) > SOFT_GAPS:
+            continue
+        a = r - 0.5 * s
+        out.append(Candidate(-1, np.array([i]), X[i].copy(), np.array([a, a]), 0.0, float(np.pi * a * a),
+                             r / s, "missing-points"))
+    return out
+
+
+def edge_artefact(c: Candidate, obs, residuals, fit, domain, spacing: float, sigma: float) -> bool:
+    """Whether candidate ``c`` is an artefact of a noisy edge: its ellipse grown by a point
+    ``spacing`` reaches the domain's outline, the points there are noisier than ``sigma`` (the
+    whole data's noise; their own noise by :func:`~refine.diagnosis.noise.noise_at`, 1.25 times
+    ``sigma`` or more), and the initial model's ``residuals`` ``(frames, n_points, 2)`` at its
+    fitting points (``fit`` mask) are within :data:`EDGE_MISFIT` of that own noise per residual.
+    Correlation degrades near a free edge (subsets run off the specimen); the modulus field
+    reads the larger scatter there as softer or stiffer material."""
+    from refine.diagnosis.noise import noise_at
+
+    grown = jf.Ellipse(*c.centroid, c.axes[0] + spacing, c.axes[1] + spacing, c.angle)
+    t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    (ca, sa), (a, b) = (np.cos(c.angle), np.sin(c.angle)), grown.params[2:4]
+    u, v = a * np.cos(t), b * np.sin(t)
+    ring = np.asarray(c.centroid) + np.c_[ca * u - sa * v, sa * u + ca * v]
+    if domain_contains(domain, ring).all():
+        return False
+    there = grown.contains(obs.reference)
+    own = noise_at(obs, there)
+    if own < 1.25 * sigma:
+        return False
+    r = residuals[:, there & fit]
+    r = r[np.isfinite(r)]
+    return bool(r.size) and float(np.mean(r**2) / own**2) < EDGE_MISFIT
 
 
 def triangle_pairs(triangles: np.ndarray) -> np.ndarray:
@@ -129,24 +249,71 @@ def merged(*lists: list[Candidate]) -> list[Candidate]:
     return out
 
 
+def joined(cands: list[Candidate], mesh, gap: float) -> list[Candidate]:
+    """Field candidates with one sign whose cells come within ``gap`` (length unit) of each other
+    joined into one (their cells together, the ellipse of their moments, strengths summed),
+    strongest first. A stiff square pulled along a side reads in the regularised field as two
+    patches at the sides across the pull (the load paths); fitted from one of them the region
+    stopped at a thin ellipse twice as stiff, too thin to be tried as a rectangle."""
+    cent, area = mesh.centroids(), mesh.volumes()
+    groups = [[c] for c in cands]
+    merged_any = True
+    while merged_any:
+        merged_any = False
+        for i in range(len(groups)):
+            for j in range(i + 1, len(groups)):
+                gi, gj = groups[i], groups[j]
+                if gi[0].sign != gj[0].sign:
+                    continue
+                a = cent[np.concatenate([c.cells for c in gi])]
+                b = cent[np.concatenate([c.cells for c in gj])]
+                if cKDTree(a).query(b)[0].min() <= gap:
+                    groups[i] = gi + gj
+                    del groups[j]
+                    merged_any = True
+                    break
+            if merged_any:
+                break
+    out = []
+    for g in groups:
+        if len(g) == 1:
+            out.append(g[0])
+            continue
+        cells = np.concatenate([c.cells for c in g])
+        centre, axes, angle = moment_ellipse(cent[cells], area[cells])
+        out.append(Candidate(g[0].sign, cells, centre, axes, angle, float(sum(c.strength for c in g)),
+                             max(c.peak for c in g), g[0].source))
+    out.sort(key=lambda c: -c.strength)
+    return out
+
+
 def data_candidates(model, z, predicted, fit, sigma: float, cfg) -> list[Candidate]:
     """Where to look, strongest evidence first: gaps in the tracked points inside the domain
-    (no material was seen there: a hole, or material that could not be tracked), the fitted
-    modulus field's regions, then the measured strain map's departures from the initial
-    model's in the frame of most motion; one place seen twice is kept once.
+    (no material was seen there: a hole, or material that could not be tracked), then narrower
+    gaps inside a softer candidate (:func:`soft_gaps`: a hole tried where a gap and a soft patch
+    coincide), the fitted modulus field's regions (those of one sign a point spacing apart
+    joined: :func:`joined`), then the measured strain map's departures
+    from the initial model's in the frame of most motion; one place seen twice is kept once; a
+    field or strain candidate at a noisy edge that the edge's own noise explains is left out
+    (:func:`edge_artefact`).
 
     Args: model: the search's model; z: the fitted log-modulus field per cell; predicted: the
     initial model's displacements ``(frames, n_points, 2)``; fit: ``(n_points,)`` mask of the
     fitting points (no held-out point proposes a place); sigma: the noise (length unit); cfg: a
     :class:`~refine.diagnosis.config.DiagnoseConfig`."""
-    obs = model.obs
+    obs, domain = model.obs, model.experiment.domain
     field = segment(model.mesh, z, min_area=0.5 * model.spacing**2, max_regions=cfg.max_regions)
     field = [c for c in field if c.strength >= 0.2 * field[0].strength] if field else []
-    gaps = missing_point_regions(obs.reference, model.experiment.domain)[:cfg.max_regions]
+    field = joined(field, model.mesh, model.spacing)
     strain = []
     if cfg.strain_candidates > 0:
         k = int(np.nanargmax(np.nanmedian(np.linalg.norm(obs.displacements, axis=2), axis=1)))
         seen = (fit | (obs.roles == "boundary")) & obs.valid[k]  # no held-out point proposes a place
         strain = strain_regions(obs.reference[seen], obs.displacements[k, seen], predicted[k, seen], sigma,
                                 min_area=2.0 * model.spacing**2, max_regions=cfg.strain_candidates)
+    residuals = np.asarray(obs.displacements) - np.asarray(predicted)
+    field, strain = ([c for c in cs if not edge_artefact(c, obs, residuals, fit, domain, model.spacing, sigma)]
+                     for cs in (field, strain))
+    gaps = missing_point_regions(obs.reference, domain)[:cfg.max_regions]
+    gaps = merged(gaps, soft_gaps(obs.reference, domain, field + strain))
     return merged(gaps, field, strain)

@@ -25,10 +25,17 @@ def estimate_noise(obs: Observations, k: int = 12) -> float:
     fit; the prediction residual has variance sigma^2 (1 + leverage). A median makes the estimate
     robust to the few places where the field is not locally smooth (an inclusion's edge).
     """
+    return noise_at(obs, np.ones(obs.n_points, bool), k)
+
+
+def noise_at(obs: Observations, where: np.ndarray, k: int = 12) -> float:
+    """:func:`estimate_noise` from the points ``where`` ``(n_points,)`` bool only (their
+    neighbours taken among all points): the noise of one part of the data, such as a band along
+    a free edge where the correlation degrades. 0 where no residual is available."""
     X = obs.reference
     _, nb = cKDTree(X).query(X, k=k + 1)
     ratios = []
-    for i in range(len(X)):
+    for i in np.flatnonzero(where):
         j = nb[i, 1:]
         d = X[j] - X[i]
         s = np.abs(d).max() or 1.0
