@@ -144,7 +144,8 @@ class GridTracker:
 
     def _reference(self, image, material, roi, geometry: GridGeometry, refiner):
         ink = ink_image(image, geometry, _ink_mask(material, roi))
-        candidates = crossing_candidates(ink, geometry.pitch, material)
+        candidates = crossing_candidates(ink, geometry.pitch, material, (geometry.col_step, geometry.row_step),
+                                         _inner(material, roi, geometry.pitch))
         # grow the lattice from the pattern's most interior point (not the ROI's centre: a hole)
         depth = ndimage.distance_transform_edt(np.pad(material, 1))[1:-1, 1:-1]
         row, col = np.unravel_index(int(np.argmax(depth)), depth.shape)
@@ -176,8 +177,11 @@ class GridTracker:
         # each crossing's own deviation from its frame's affine motion, extrapolated in time
         residual = [h - f.apply(reference) + reference for h, f in zip(history, fitted)]
         predicted = motion.apply(reference) + predict(residual, active) - reference
-        ink = ink_image(image, geometry, _ink_mask(_moved(material, motion), _moved(roi, motion)))
-        candidates = crossing_candidates(ink, geometry.pitch)
+        moved, moved_roi = _moved(material, motion), _moved(roi, motion)
+        ink = ink_image(image, geometry, _ink_mask(moved, moved_roi))
+        candidates = crossing_candidates(ink, geometry.pitch, None,
+                                         (motion.linear @ geometry.col_step, motion.linear @ geometry.row_step),
+                                         _inner(moved, moved_roi, geometry.pitch) | ~moved_roi)
         coarse, _ = propagate(predicted, active, candidates, radius=0.3 * geometry.pitch)
         frame = GridFrame(image, ink, geometry.line_width, geometry.pitch)
         positions, quality, ok = self._measure(frame, coarse, active, geometry, refiner)
@@ -281,6 +285,19 @@ def _ink_mask(material: np.ndarray, roi: np.ndarray) -> np.ndarray | None:
     (holes, background); None when that is nothing (the ink is then as without a mask)."""
     mask = material | ~roi
     return None if mask.all() else mask
+
+
+def _inner(material: np.ndarray, roi: np.ndarray, pitch: float) -> np.ndarray:
+    """The material less a band of a quarter pitch along its edges inside the ROI (a hole's, the
+    sheet's; not the ROI's own border): where crossing candidates set the strength they are
+    judged by, because at the material's edge the ink's local normalisation sees half a
+    neighbourhood and can peak far above any crossing's ink."""
+    # the mask's own fall within half a pitch of the ROI's border (or the image's) is no edge
+    inside = ndimage.distance_transform_edt(np.pad(roi, 1))[1:-1, 1:-1] > 0.5 * pitch
+    off = ~material & inside
+    if not off.any():
+        return material
+    return material & (ndimage.distance_transform_edt(~off) > 0.25 * pitch)
 
 
 def _moved(mask: np.ndarray, motion: CoarseMotion) -> np.ndarray:
