@@ -21,7 +21,7 @@ centres at integer coordinates) and their exact positions x = X + u(X) in every 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -47,6 +47,7 @@ class Convention:
         noise: Gaussian noise (grey levels RMS).
         jpeg: JPEG quality (None: lossless).
         strain: largest stretch of the motion (fraction); shear and bulge scale with it.
+        anchor: (x, y) of the stretch's fixed point as fractions of the view (a clamp: x < 0).
         shape: (rows, cols) of the images.
         supersample: sub-pixels per pixel side.
     """
@@ -69,7 +70,7 @@ class Convention:
     shape: tuple[int, int] = (200, 260)
     supersample: int = 3
     seed: int = 0
-    extra: dict = field(default_factory=dict)
+    anchor: tuple[float, float] = (0.5, 0.5)
 
     def with_(self, **changes) -> "Convention":
         return replace(self, **changes)
@@ -78,18 +79,19 @@ class Convention:
 def displacement(c: Convention, X: np.ndarray, Y: np.ndarray, frame: float):
     """u(X) (px) of ``frame`` (0 the reference, 1 the full motion) and its Jacobian (4 arrays).
 
-    A stretch along x about the view's centre with Poisson contraction, a shear and a smooth
-    bulge (a Gaussian bump of displacement a third of the view wide), all scaled by ``strain``.
+    A stretch along x about the ``anchor`` with Poisson contraction, a shear and a smooth bulge
+    (a Gaussian bump of displacement a third of the view wide at the centre), scaled by ``strain``.
     """
     rows, cols = c.shape
+    ax, ay = c.anchor[0] * (cols - 1), c.anchor[1] * (rows - 1)
     cx, cy = 0.5 * (cols - 1), 0.5 * (rows - 1)
     e = c.strain * frame
     ex, ey, g = e, -0.35 * e, 0.3 * e
     r = 0.3 * min(rows, cols)
     bump = np.exp(-((X - cx) ** 2 + (Y - cy) ** 2) / (2 * r ** 2))
     amp = 0.15 * e * r
-    ux = ex * (X - cx) + g * (Y - cy) + amp * bump + 1.3 * frame
-    uy = ey * (Y - cy) + 0.5 * amp * bump - 0.7 * frame
+    ux = ex * (X - ax) + g * (Y - ay) + amp * bump + 1.3 * frame
+    uy = ey * (Y - ay) + 0.5 * amp * bump - 0.7 * frame
     dbx, dby = -bump * (X - cx) / r ** 2, -bump * (Y - cy) / r ** 2
     return ux, uy, ex + amp * dbx, g + amp * dby, 0.5 * amp * dbx, ey + 0.5 * amp * dby
 
@@ -136,8 +138,12 @@ def _background(c: Convention, x, y, rng):
         return np.full(x.shape, 25.0)
     if kind == "light":
         return np.full(x.shape, 235.0)
-    if kind == "texture":   # a fixed, camera-frame texture of blobs at several scales
-        return 110.0 + 40.0 * np.sin(x / 7.3) * np.cos(y / 5.1) + 25.0 * np.sin((x + 2 * y) / 3.1)
+    if kind == "texture":   # a fixed, camera-frame clutter of blobs (smoothed noise, not periodic)
+        field = ndimage.gaussian_filter(np.random.default_rng(7).standard_normal((64, 64)), 2.0)
+        field = field / field.std()
+        ix = (np.floor(x / 3.0).astype(int)) % 64
+        iy = (np.floor(y / 3.0).astype(int)) % 64
+        return 110.0 + 40.0 * field[iy, ix]
     return 128.0 + 60.0 * rng.standard_normal(x.shape)
 
 

@@ -81,7 +81,8 @@ def silhouette(image: np.ndarray, scale: float, ignore: np.ndarray | None = None
     stays in the camera's frame; with a grid filling the view it alone would fix a translation,
     a wrong one).
     """
-    blurred = ndimage.gaussian_filter(np.asarray(image, dtype=np.float64), scale, mode="nearest")
+    image = np.asarray(image, dtype=np.float64)
+    blurred = ndimage.gaussian_filter(image, scale, mode="nearest")
     gy, gx = np.gradient(blurred)
     out = np.hypot(gx, gy)
     band = int(np.ceil(2.0 * scale))
@@ -142,8 +143,8 @@ def translation(reference: np.ndarray, image: np.ndarray, linear: np.ndarray, pr
 
 
 def _fixed_directions(scores: np.ndarray, at, reach: int) -> np.ndarray:
-    """(2, k) unit directions along which the score drops by 0.01 over ``reach`` px on both sides
-    of its peak ``at`` (row, col) (a side beyond the score's border is not looked at). The
+    """(2, k) unit directions along which the score drops by 0.01 (and by a fifth of its largest
+    drop) over ``reach`` px on both sides of its peak ``at`` (row, col) (a side beyond the score's border is not looked at). The
     candidates are the principal directions of the score's curvature there (finite differences
     at ``reach``); both sides must drop, so a peak picked at the end of a plateau (an edge seen
     along its length) fixes nothing along it."""
@@ -169,7 +170,10 @@ def _fixed_directions(scores: np.ndarray, at, reach: int) -> np.ndarray:
     for v in vectors.T:
         around = [value for sign in (-1, 1) if (value := s(sign * r * v[1], sign * r * v[0])) is not None]
         drops.append(centre - max(around) if around else 0.0)
-    return vectors[:, np.array(drops) >= 0.01]
+    drops = np.array(drops)
+    # along a straight edge whose contrast varies (lighting) the score still drops a little: a
+    # direction is fixed when its drop is also a fifth of the best direction's at least
+    return vectors[:, (drops >= 0.01) & (drops >= 0.2 * drops.max())]
 
 
 def frame_lattice(image: np.ndarray, geometry: GridGeometry, previous: np.ndarray) -> np.ndarray | None:
@@ -197,10 +201,21 @@ def frame_lattice(image: np.ndarray, geometry: GridGeometry, previous: np.ndarra
     return linear if abs(np.linalg.det(linear) - 1.0) < 0.6 else None
 
 
+LOCAL = 3.0
+"""How many times its median the silhouette's 99th percentile must reach to hold edges."""
+
 PARTIAL_EDGE = 5.0
 """How many times ``min_contrast`` the silhouette's 99th percentile must reach for a translation
 fixed in one direction only to be used: a sheet's end on a dark background reaches 13 (the
 foreign grid-thin-stiff set), a lighting gradient with vignetting about 1."""
+
+
+def carry(prior: CoarseMotion, linear: np.ndarray, shape) -> CoarseMotion:
+    """The map with the frame's own ``linear`` part and the ``prior``'s displacement at the centre
+    of an image of ``shape`` (rows, cols): what is known of a frame whose translation the data
+    do not fix (not supported)."""
+    centre = 0.5 * np.array([shape[1] - 1, shape[0] - 1])
+    return CoarseMotion(linear, prior.apply(centre) - linear @ centre)
 
 
 def grid_motion(reference_features: np.ndarray, image: np.ndarray, geometry: GridGeometry,
@@ -221,10 +236,12 @@ def grid_motion(reference_features: np.ndarray, image: np.ndarray, geometry: Gri
     linear = frame_lattice(image, geometry, prior.linear)
     if linear is None:
         return prior
-    centre = 0.5 * np.array([image.shape[1] - 1, image.shape[0] - 1])
-    # the prior's translation at the image centre, carried to the frame's own linear part
-    carried = CoarseMotion(linear, prior.apply(centre) - linear @ centre)
-    if float(np.percentile(reference_features, 99)) < min_contrast:
+    carried = carry(prior, linear, image.shape)
+    strength = float(np.percentile(reference_features, 99))
+    # edges are local: a lighting ramp or vignetting (fixed to the camera) has a gradient about
+    # as strong everywhere, so its 99th percentile stays within 2-3 times its median
+    seen = reference_features[reference_features > 0]   # not the border band silhouette() zeroes
+    if strength < min_contrast or not seen.size or strength < LOCAL * float(np.median(seen)):
         return carried
     features = silhouette(image, pitch, ignore)
     search = max(4.0 * pitch, 0.1 * max(image.shape))
@@ -232,7 +249,7 @@ def grid_motion(reference_features: np.ndarray, image: np.ndarray, geometry: Gri
                                        step=max(1, int(pitch // 3)), sharpness=0.5 * pitch)
     # one direction fixed: a straight edge, or what a lighting ramp fixed to the camera leaves;
     # trusted only from an edge well above the threshold (a lighting ramp barely passes it)
-    edge = float(np.percentile(reference_features, 99)) >= PARTIAL_EDGE * min_contrast
+    edge = strength >= PARTIAL_EDGE * min_contrast
     if score < 0.5 or fixed == 0 or (fixed == 1 and not edge):
         return carried
     # an edge fixes the translation across it only: the map is better, but not the data's alone

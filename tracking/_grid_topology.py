@@ -67,7 +67,8 @@ def label_grid(candidates: np.ndarray, geometry: GridGeometry, seed_xy) -> np.nd
     step of the prediction. Returns nodes (R, C, 2), NaN where no candidate was found.
     """
     if len(candidates) < 4:
-        raise GridNotFoundError(f"only {len(candidates)} grid crossings found; need at least 4")
+        raise GridNotFoundError(f"grid not found at the crossings stage: only {len(candidates)} grid crossings "
+                                "found, at least 4 are needed", "crossings")
     tree = cKDTree(candidates)
     start = int(tree.query(np.asarray(seed_xy, dtype=np.float64))[1])
     label = {start: (0, 0)}

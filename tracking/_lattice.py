@@ -42,7 +42,8 @@ def _spectral_peaks(image: np.ndarray, mask: np.ndarray, pitch_range) -> tuple[n
     rows, cols = np.nonzero(mask)
     r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
     if min(r1 - r0, c1 - c0) < 2 * pitch_range[0]:
-        raise GridNotFoundError("the region of interest is too small to hold a grid; enlarge the ROI")
+        raise GridNotFoundError("grid not found at the lattice stage: the region of interest is too small "
+                                f"to hold two pitches of {pitch_range[0]:g} px; enlarge the ROI (--roi)", "lattice")
     patch = image[r0:r1, c0:c1]
     inside = mask[r0:r1, c0:c1]
     patch = np.where(inside, patch - patch[inside].mean(), 0.0)
@@ -54,7 +55,9 @@ def _spectral_peaks(image: np.ndarray, mask: np.ndarray, pitch_range) -> tuple[n
     usable = (radius >= 1.0 / pitch_range[1]) & (radius <= 1.0 / pitch_range[0])
     usable &= (fx > 0) | ((fx == 0) & (fy > 0))
     if not usable.any():
-        raise GridNotFoundError("no usable frequencies for the given pitch range")
+        raise GridNotFoundError(f"grid not found at the lattice stage: no frequencies of the image fit the pitch "
+                                f"range {pitch_range[0]:g}-{pitch_range[1]:g} px; widen it (GridTracker.pitch_range)",
+                                "lattice")
     # peaks are picked on the whitened spectrum: an edge in view (the specimen's, a hole's) has a
     # power falling as 1/f^2 that can beat a grid's peak at low frequencies; a grid's peak stays
     whitened = power * radius ** 2
@@ -69,8 +72,10 @@ def _spectral_peaks(image: np.ndarray, mask: np.ndarray, pitch_range) -> tuple[n
     for peak in (first, second):
         if power[peak] < 20.0 * background:
             raise GridNotFoundError(
-                "no grid found: the image spectrum has no two clear line-family peaks; check the "
-                "ROI, the pitch range (grid pitch in pixels) and that the grid is in focus")
+                f"grid not found at the lattice stage: the image spectrum shows no two clear line "
+                f"families with a pitch of {pitch_range[0]:g}-{pitch_range[1]:g} px; try the grid's pitch "
+                "range (GridTracker.pitch_range; nonrigid track --option 'pitch_range=(LO,HI)' in px), a "
+                "region of interest on the grid alone (--roi), and check that the grid is in focus", "lattice")
     return _refined_frequency(power, first, fx, fy), _refined_frequency(power, second, fx, fy)
 
 
