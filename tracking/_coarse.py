@@ -11,7 +11,8 @@ estimated globally as an affine map of the reference, x' = L x + t:
   its holes and edges, its far end. t is the normalised cross-correlation peak of that
   "silhouette" image against the reference's, warped by L. Where the view has no such feature
   (a grid filling the whole view) the estimate is not supported and the trackers fall back to
-  temporal prediction (and a motion of more than half a pitch cannot be told from the data).
+  temporal prediction of the translation (a motion of more than half a pitch cannot be told
+  from the data); where it has one straight edge only, that fixes the translation across it.
 - Speckle: the translation by the same correlation on lightly smoothed images over a search of
   a tenth of the image, then an affine refinement by ECC (OpenCV's enhanced correlation).
 
@@ -80,7 +81,8 @@ def silhouette(image: np.ndarray, scale: float, ignore: np.ndarray | None = None
     stays in the camera's frame; with a grid filling the view it alone would fix a translation,
     a wrong one).
     """
-    blurred = ndimage.gaussian_filter(np.asarray(image, dtype=np.float64), scale, mode="nearest")
+    image = np.asarray(image, dtype=np.float64)
+    blurred = ndimage.gaussian_filter(image, scale, mode="nearest")
     gy, gx = np.gradient(blurred)
     out = np.hypot(gx, gy)
     band = int(np.ceil(2.0 * scale))
@@ -106,17 +108,22 @@ def _peak(scores: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def translation(reference: np.ndarray, image: np.ndarray, linear: np.ndarray, prior: np.ndarray,
-                search: float, step: int = 1, sharpness: float = 4.0) -> tuple[np.ndarray, float]:
+                search: float, step: int = 1, sharpness: float = 4.0) -> tuple[np.ndarray, float, int]:
     """The offset t of x' = linear @ x + t that best aligns ``image`` with ``reference``.
 
     Both are float32 (rows, cols) feature images (e.g. :func:`silhouette`). The reference is
     warped by the prior map, and the remaining shift found by normalised cross-correlation
-    within ``search`` px (on images subsampled by ``step``). Returns t (2,) and the peak score,
-    0 when the score does not drop by 0.01 over ``sharpness`` px in both directions (the data
-    do not fix the translation).
+    within ``search`` px (on images subsampled by ``step``). A direction is fixed by the data
+    when the score drops by 0.01 over ``sharpness`` px along it (the curvature of the score at
+    its peak); a feature that fixes one direction only (a straight edge) leaves the score flat
+    along the other, and t keeps the prior's offset there.
+
+    Returns:
+        t (2,), the peak score (-1..1) and how many directions (0, 1 or 2) the data fix.
     """
     rows, cols = reference.shape
-    matrix = np.hstack([linear, np.asarray(prior, np.float64).reshape(2, 1)]).astype(np.float64)
+    prior = np.asarray(prior, np.float64)
+    matrix = np.hstack([linear, prior.reshape(2, 1)]).astype(np.float64)
     warped = cv2.warpAffine(reference, matrix, (cols, rows), flags=cv2.INTER_LINEAR)
     if step > 1:
         warped, image = warped[::step, ::step], image[::step, ::step]
@@ -126,21 +133,47 @@ def translation(reference: np.ndarray, image: np.ndarray, linear: np.ndarray, pr
         margin = max(1, min(h, w) // 4)
     template = np.ascontiguousarray(warped[margin:h - margin, margin:w - margin])
     if float(template.std()) == 0.0:
-        return np.asarray(prior, np.float64), 0.0
+        return prior, 0.0, 0
     scores = cv2.matchTemplate(np.ascontiguousarray(image), template, cv2.TM_CCOEFF_NORMED)
     where, score = _peak(scores)
-    # a feature that fixes only one direction (a straight edge) leaves the score flat along it:
-    # the score is then that of the worse direction (its drop over ``sharpness`` px)
-    iy, ix = np.rint(where[::-1]).astype(int)
-    reach = max(1, int(round(sharpness / step)))
+    fixed = _fixed_directions(scores, np.unravel_index(int(np.argmax(scores)), scores.shape),
+                              max(1, int(round(sharpness / step))))
+    shift = fixed @ fixed.T @ ((where - margin) * step) if len(fixed.T) else np.zeros(2)
+    return prior + shift, score, fixed.shape[1]
+
+
+def _fixed_directions(scores: np.ndarray, at, reach: int) -> np.ndarray:
+    """(2, k) unit directions along which the score drops by 0.01 (and by a fifth of its largest
+    drop) over ``reach`` px on both sides of its peak ``at`` (row, col) (a side beyond the score's border is not looked at). The
+    candidates are the principal directions of the score's curvature there (finite differences
+    at ``reach``); both sides must drop, so a peak picked at the end of a plateau (an edge seen
+    along its length) fixes nothing along it."""
+    iy, ix = at
+
+    def s(dy, dx):
+        y, x = int(round(iy + dy)), int(round(ix + dx))
+        inside = 0 <= y < scores.shape[0] and 0 <= x < scores.shape[1]
+        return float(scores[y, x]) if inside else None
+
+    r = reach
+    centre = s(0, 0)
+
+    def near(dy, dx):
+        value = s(dy, dx)
+        return centre if value is None else value
+
+    hxx = (near(0, r) + near(0, -r) - 2 * centre) / r ** 2
+    hyy = (near(r, 0) + near(-r, 0) - 2 * centre) / r ** 2
+    hxy = (near(r, r) - near(r, -r) - near(-r, r) + near(-r, -r)) / (4 * r ** 2)
+    _, vectors = np.linalg.eigh(-np.array([[hxx, hxy], [hxy, hyy]]))
     drops = []
-    for dy, dx in ((0, reach), (reach, 0)):
-        around = [scores[iy + sy * dy, ix + sy * dx] for sy in (-1, 1)
-                  if 0 <= iy + sy * dy < scores.shape[0] and 0 <= ix + sy * dx < scores.shape[1]]
-        drops.append(score - max(around) if around else 0.0)
-    if min(drops) < 0.01:
-        score = min(score, 0.0)
-    return np.asarray(prior, np.float64) + (where - margin) * step, score
+    for v in vectors.T:
+        around = [value for sign in (-1, 1) if (value := s(sign * r * v[1], sign * r * v[0])) is not None]
+        drops.append(centre - max(around) if around else 0.0)
+    drops = np.array(drops)
+    # along a straight edge whose contrast varies (lighting) the score still drops a little: a
+    # direction is fixed when its drop is also a fifth of the best direction's at least
+    return vectors[:, (drops >= 0.01) & (drops >= 0.2 * drops.max())]
 
 
 def frame_lattice(image: np.ndarray, geometry: GridGeometry, previous: np.ndarray) -> np.ndarray | None:
@@ -168,28 +201,59 @@ def frame_lattice(image: np.ndarray, geometry: GridGeometry, previous: np.ndarra
     return linear if abs(np.linalg.det(linear) - 1.0) < 0.6 else None
 
 
+LOCAL = 3.0
+"""How many times its median the silhouette's 99th percentile must reach to hold edges."""
+
+PARTIAL_EDGE = 5.0
+"""How many times ``min_contrast`` the silhouette's 99th percentile must reach for a translation
+fixed in one direction only to be used: a sheet's end on a dark background reaches 13 (the
+foreign grid-thin-stiff set), a lighting gradient with vignetting about 1."""
+
+
+def carry(prior: CoarseMotion, linear: np.ndarray, shape) -> CoarseMotion:
+    """The map with the frame's own ``linear`` part and the ``prior``'s displacement at the centre
+    of an image of ``shape`` (rows, cols): what is known of a frame whose translation the data
+    do not fix (not supported)."""
+    centre = 0.5 * np.array([shape[1] - 1, shape[0] - 1])
+    return CoarseMotion(linear, prior.apply(centre) - linear @ centre)
+
+
 def grid_motion(reference_features: np.ndarray, image: np.ndarray, geometry: GridGeometry,
                 prior: CoarseMotion, min_contrast: float, ignore: np.ndarray | None = None) -> CoarseMotion:
     """A grid frame's affine motion (see the module's notes); ``prior``: the temporal guess.
 
-    ``reference_features`` is the reference's :func:`silhouette` at a pitch; the estimate is
-    supported when the silhouette holds edges (its 99th percentile above ``min_contrast`` grey
-    levels per px) and the frame's correlates with it (score >= 0.5, sharp in x and y).
+    ``reference_features`` is the reference's :func:`silhouette` at a pitch. The linear part is
+    the frame's lattice wherever its spectrum shows one (else the prior is returned). The
+    estimate is supported when the silhouette holds edges (its 99th percentile above
+    ``min_contrast`` grey levels per px) and the frame's correlates with it (score >= 0.5, sharp
+    in every direction). Where the correlation fixes one direction only (one straight edge in
+    view, e.g. the sheet's end with its sides out of view; the silhouette :data:`PARTIAL_EDGE`
+    times above the threshold) the translation across it is the data's and along it the
+    prior's, and the map is not marked supported; with no feature the
+    prior's displacement at the image centre is kept under the frame's lattice.
     """
     pitch = geometry.pitch
     linear = frame_lattice(image, geometry, prior.linear)
-    if linear is None or float(np.percentile(reference_features, 99)) < min_contrast:
+    if linear is None:
         return prior
+    carried = carry(prior, linear, image.shape)
+    strength = float(np.percentile(reference_features, 99))
+    # edges are local: a lighting ramp or vignetting (fixed to the camera) has a gradient about
+    # as strong everywhere, so its 99th percentile stays within 2-3 times its median
+    seen = reference_features[reference_features > 0]   # not the border band silhouette() zeroes
+    if strength < min_contrast or not seen.size or strength < LOCAL * float(np.median(seen)):
+        return carried
     features = silhouette(image, pitch, ignore)
-    centre = 0.5 * np.array([image.shape[1] - 1, image.shape[0] - 1])
-    # the prior's translation at the image centre, carried to the new linear part
-    offset = prior.apply(centre) - linear @ centre
     search = max(4.0 * pitch, 0.1 * max(image.shape))
-    offset, score = translation(reference_features, features, linear, offset, search,
-                                step=max(1, int(pitch // 3)), sharpness=0.5 * pitch)
-    if score < 0.5:
-        return prior
-    return CoarseMotion(linear, offset, True, score)
+    offset, score, fixed = translation(reference_features, features, linear, carried.offset, search,
+                                       step=max(1, int(pitch // 3)), sharpness=0.5 * pitch)
+    # one direction fixed: a straight edge, or what a lighting ramp fixed to the camera leaves;
+    # trusted only from an edge well above the threshold (a lighting ramp barely passes it)
+    edge = strength >= PARTIAL_EDGE * min_contrast
+    if score < 0.5 or fixed == 0 or (fixed == 1 and not edge):
+        return carried
+    # an edge fixes the translation across it only: the map is better, but not the data's alone
+    return CoarseMotion(linear, offset, fixed == 2, score)
 
 
 def speckle_motion(reference: np.ndarray, image: np.ndarray, prior: CoarseMotion, search: float) -> CoarseMotion:
@@ -198,8 +262,8 @@ def speckle_motion(reference: np.ndarray, image: np.ndarray, prior: CoarseMotion
     and holes move with the material and help; unsupported (score < 0.3): the prior."""
     ref = ndimage.gaussian_filter(np.asarray(reference, np.float64), 1.5).astype(np.float32)
     cur = ndimage.gaussian_filter(np.asarray(image, np.float64), 1.5).astype(np.float32)
-    offset, score = translation(ref, cur, prior.linear, prior.offset, search, step=2)
-    if score < 0.3:
+    offset, score, fixed = translation(ref, cur, prior.linear, prior.offset, search, step=2)
+    if score < 0.3 or fixed < 2:
         return prior
     warp = np.hstack([prior.linear, offset.reshape(2, 1) / 2.0]).astype(np.float32)
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-5)

@@ -22,4 +22,14 @@ class OptionError(TrackingError):
 
 
 class GridNotFoundError(TrackingError):
-    """No regular grid of lines could be detected in the reference image."""
+    """No regular grid of lines could be detected in the reference image.
+
+    ``stage`` names where the grid tracker stopped: ``"lattice"`` (the spectrum shows no two
+    line families: pitch and orientation unknown), ``"mask"`` (the grid's texture covers almost
+    none of the region of interest) or ``"crossings"`` (too few crossings found, labelled or
+    measured); None where no stage applies. The message says what to try.
+    """
+
+    def __init__(self, message: str, stage: str | None = None):
+        super().__init__(message)
+        self.stage = stage

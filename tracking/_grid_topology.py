@@ -18,13 +18,34 @@ from ._lattice import GridGeometry
 NEIGHBOURS = ((0, 1), (0, -1), (1, 0), (-1, 0))
 
 
-def crossing_candidates(ink: np.ndarray, pitch: float, mask: np.ndarray | None = None) -> np.ndarray:
+def crossing_candidates(ink: np.ndarray, pitch: float, mask: np.ndarray | None = None,
+                        steps: tuple[np.ndarray, np.ndarray] | None = None,
+                        inner: np.ndarray | None = None) -> np.ndarray:
     """Local maxima of the ink smoothed at a quarter pitch (where two lines cross), (m, 2) xy.
 
     Smoothing at pitch/4 leaves one maximum per crossing (more ink around a crossing than along a
-    line), a saddle between crossings and minima in the cells.
+    line), a saddle between crossings and minima in the cells. With the lattice ``steps``
+    (col_step, row_step) the maxima are those of a crossing's template instead: the smoothed
+    ink at the point plus its mean at the four arms' midpoints (half a step away) less its mean
+    at the four cell centres around it. A crossing scores high on all of it; a bright patch of
+    ink that is no crossing (what is left of an edge's step, a blemish, the border of the
+    mask) has no arms and cells around it and scores low, so it no longer sets the strength
+    that faint real crossings are judged against.
+
+    A maximum is kept when it reaches 0.35 of the 90th percentile of the maxima in ``inner``
+    (default: all), e.g. the material away from its edges, where the ink's local normalisation
+    sees half a neighbourhood and can peak far above any crossing.
     """
     smooth = ndimage.gaussian_filter(ink, 0.25 * pitch, mode="nearest")
+    if steps is not None:
+        a, b = 0.5 * np.asarray(steps[0], float), 0.5 * np.asarray(steps[1], float)
+
+        def at(d):
+            return ndimage.shift(smooth, (-d[1], -d[0]), order=1, mode="nearest")
+
+        arms = 0.25 * (at(a) + at(-a) + at(b) + at(-b))
+        cells = 0.25 * (at(a + b) + at(a - b) + at(-a + b) + at(-a - b))
+        smooth = smooth + arms - cells
     size = max(3, int(0.6 * pitch) | 1)
     peaks = (smooth == ndimage.maximum_filter(smooth, size=size, mode="nearest"))
     if mask is not None:
@@ -33,7 +54,8 @@ def crossing_candidates(ink: np.ndarray, pitch: float, mask: np.ndarray | None =
     if rows.size == 0:
         return np.zeros((0, 2))
     values = smooth[rows, cols]
-    strong = values > 0.35 * np.percentile(values, 90)
+    typical = values if inner is None else values[inner[rows, cols]]
+    strong = values > 0.35 * np.percentile(typical if typical.size else values, 90)
     return np.stack([cols[strong], rows[strong]], axis=1).astype(np.float64)
 
 
@@ -45,7 +67,8 @@ def label_grid(candidates: np.ndarray, geometry: GridGeometry, seed_xy) -> np.nd
     step of the prediction. Returns nodes (R, C, 2), NaN where no candidate was found.
     """
     if len(candidates) < 4:
-        raise GridNotFoundError(f"only {len(candidates)} grid crossings found; need at least 4")
+        raise GridNotFoundError(f"grid not found at the crossings stage: only {len(candidates)} grid crossings "
+                                "found, at least 4 are needed", "crossings")
     tree = cKDTree(candidates)
     start = int(tree.query(np.asarray(seed_xy, dtype=np.float64))[1])
     label = {start: (0, 0)}

@@ -33,9 +33,9 @@ import numpy as np
 from scipy import ndimage
 
 from . import _lost as lost_codes
-from ._coarse import CoarseMotion, grid_motion, silhouette
+from ._coarse import CoarseMotion, carry, grid_motion, silhouette
 from ._crossings import CrossingGuess, GridFrame, Refined
-from ._errors import GridNotFoundError, OptionError
+from ._errors import GridNotFoundError, OptionError, TrackingError
 from ._grid_motion import affine_fit, jumps, predict, propagate
 from ._grid_topology import crossing_candidates, fill_positions, interior_gaps, label_grid, lattice_spacing
 from ._images import as_stack, inside_mask, roi_mask
@@ -111,9 +111,17 @@ class GridTracker:
         material = roi
         if self.find_pattern:
             waves = np.linalg.inv(np.stack([geometry.col_step, geometry.row_step], axis=1))
-            material = pattern_mask(stack[0], geometry.pitch, roi, waves)
+            try:
+                material = pattern_mask(stack[0], geometry.pitch, roi, waves)
+            except TrackingError as e:
+                raise GridNotFoundError(f"grid not found at the mask stage: {e}", "mask") from e
             if np.count_nonzero(material) < 4 * geometry.pitch ** 2:
-                raise GridNotFoundError("the grid covers almost none of the region of interest; check the ROI")
+                raise GridNotFoundError(
+                    f"grid not found at the mask stage: the grid's texture (pitch {geometry.pitch:.1f} px) covers "
+                    f"{np.count_nonzero(material)} px of the region of interest, under 4 cells; try a region of "
+                    "interest on the grid (--roi), the grid's pitch range if that pitch is wrong "
+                    "(GridTracker.pitch_range; --option 'pitch_range=(LO,HI)'), or find_pattern=False "
+                    "(--option find_pattern=False) to measure every crossing of the ROI", "mask")
             geometry = grid_geometry(stack[0], material, self.pitch_range, geometry.dark_lines)
         nodes, quality, excluded = self._reference(stack[0], material, roi, geometry, refiner)
         active = np.isfinite(nodes[..., 0])
@@ -131,7 +139,9 @@ class GridTracker:
                 if self.coarse else prior
             measure = lambda m: self._frame(image, history, fitted, m, active, geometry, refiner,  # noqa: E731
                                             material, roi)
-            motion, (positions, quality, reason) = _borne_out(motion, prior, measure, active)
+            # a map the crossings refute gives way to the prior under the frame's own lattice
+            fallback = carry(prior, motion.linear, image.shape) if self.coarse else prior
+            motion, (positions, quality, reason) = _borne_out(motion, fallback, measure, active)
             history.append(positions)
             qualities.append(quality)
             reasons.append(reason)
@@ -144,10 +154,13 @@ class GridTracker:
 
     def _reference(self, image, material, roi, geometry: GridGeometry, refiner):
         ink = ink_image(image, geometry, _ink_mask(material, roi))
-        candidates = crossing_candidates(ink, geometry.pitch, material)
+        candidates = crossing_candidates(ink, geometry.pitch, material, (geometry.col_step, geometry.row_step),
+                                         _inner(material, roi, geometry.pitch))
         # grow the lattice from the pattern's most interior point (not the ROI's centre: a hole)
         depth = ndimage.distance_transform_edt(np.pad(material, 1))[1:-1, 1:-1]
         row, col = np.unravel_index(int(np.argmax(depth)), depth.shape)
+        if len(candidates) < 4:
+            raise self._no_crossings(0, len(candidates), 0, geometry)
         nodes = label_grid(candidates, geometry, (col, row))
         valid = np.isfinite(nodes[..., 0])
         filled = fill_positions(nodes, valid)
@@ -159,9 +172,7 @@ class GridTracker:
         positions, quality, ok = self._measure(frame, nodes, valid | gaps, geometry, refiner)
         ok &= inside_mask(material, np.nan_to_num(positions, nan=-1.0).reshape(-1, 2)).reshape(ok.shape)
         if np.count_nonzero(ok) < 4:
-            raise GridNotFoundError(
-                f"only {np.count_nonzero(ok)} grid crossings could be measured in the reference image; "
-                "check the ROI and that the grid lines are visible")
+            raise self._no_crossings(np.count_nonzero(ok), len(candidates), np.count_nonzero(valid), geometry)
         positions[~ok] = np.nan
         glare = _near(saturated(image), filled, 0.5 * geometry.pitch)
         excluded = lost_codes.reason_counts(np.select(
@@ -170,14 +181,34 @@ class GridTracker:
              lost_codes.NOT_SEEN, lost_codes.REJECTED]))
         return positions, quality, excluded
 
+    def _no_crossings(self, measured: int, found: int, labelled: int, geometry: GridGeometry) -> GridNotFoundError:
+        """The crossings stage's error: what was found, and what to try."""
+        polarity = "dark" if geometry.dark_lines else "light"
+        other = "dark_lines=False" if geometry.dark_lines else "dark_lines=True"
+        hints = [f"the other polarity ({other}; --option {other})" if self.dark_lines is None else
+                 "the polarity you set (dark_lines) if it is not the grid's"]
+        hints += ["the grid's pitch range if that pitch is wrong (GridTracker.pitch_range; --option "
+                  "'pitch_range=(LO,HI)' in px)", "a region of interest on the grid alone (--roi)"]
+        if measured < labelled:
+            hints.append(f"a lower min_quality (--min-quality; the refiner's is {self._refiner().min_quality:g})"
+                         if hasattr(self._refiner(), "min_quality") else "another refiner (--refiner)")
+        return GridNotFoundError(
+            f"grid not found at the crossings stage: only {measured} grid crossings could be measured in the "
+            f"reference image ({found} candidates found, {labelled} labelled on the lattice of pitch "
+            f"{geometry.pitch:.1f} px with {polarity} lines {geometry.line_width:.1f} px wide); try " + ", ".join(hints),
+            "crossings")
+
     def _frame(self, image, history, fitted, motion: CoarseMotion, active, geometry: GridGeometry, refiner,
                material, roi):
         reference = history[0]
         # each crossing's own deviation from its frame's affine motion, extrapolated in time
         residual = [h - f.apply(reference) + reference for h, f in zip(history, fitted)]
         predicted = motion.apply(reference) + predict(residual, active) - reference
-        ink = ink_image(image, geometry, _ink_mask(_moved(material, motion), _moved(roi, motion)))
-        candidates = crossing_candidates(ink, geometry.pitch)
+        moved, moved_roi = _moved(material, motion), _moved(roi, motion)
+        ink = ink_image(image, geometry, _ink_mask(moved, moved_roi))
+        candidates = crossing_candidates(ink, geometry.pitch, None,
+                                         (motion.linear @ geometry.col_step, motion.linear @ geometry.row_step),
+                                         _inner(moved, moved_roi, geometry.pitch) | ~moved_roi)
         coarse, _ = propagate(predicted, active, candidates, radius=0.3 * geometry.pitch)
         frame = GridFrame(image, ink, geometry.line_width, geometry.pitch)
         positions, quality, ok = self._measure(frame, coarse, active, geometry, refiner)
@@ -281,6 +312,19 @@ def _ink_mask(material: np.ndarray, roi: np.ndarray) -> np.ndarray | None:
     (holes, background); None when that is nothing (the ink is then as without a mask)."""
     mask = material | ~roi
     return None if mask.all() else mask
+
+
+def _inner(material: np.ndarray, roi: np.ndarray, pitch: float) -> np.ndarray:
+    """The material less a band of a quarter pitch along its edges inside the ROI (a hole's, the
+    sheet's; not the ROI's own border): where crossing candidates set the strength they are
+    judged by, because at the material's edge the ink's local normalisation sees half a
+    neighbourhood and can peak far above any crossing's ink."""
+    # the mask's own fall within half a pitch of the ROI's border (or the image's) is no edge
+    inside = ndimage.distance_transform_edt(np.pad(roi, 1))[1:-1, 1:-1] > 0.5 * pitch
+    off = ~material & inside
+    if not off.any():
+        return material
+    return material & (ndimage.distance_transform_edt(~off) > 0.25 * pitch)
 
 
 def _moved(mask: np.ndarray, motion: CoarseMotion) -> np.ndarray:

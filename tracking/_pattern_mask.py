@@ -73,13 +73,24 @@ def texture_amplitude(image: np.ndarray, scale: float, waves: np.ndarray | None 
     rows, cols = np.mgrid[0:image.shape[0], 0:image.shape[1]].astype(np.float64)
     pitch = 1.0 / float(np.max(np.linalg.norm(np.asarray(waves, dtype=np.float64), axis=1)))
     centred = image - _median(image, int(round(pitch)) | 1)
-    amplitudes = []
-    for k in np.asarray(waves, dtype=np.float64):
+
+    def demodulated(k):
         phase = 2.0 * np.pi * (k[0] * cols + k[1] * rows)
         re = ndimage.gaussian_filter(centred * np.cos(phase), scale, mode="reflect")
         im = ndimage.gaussian_filter(centred * np.sin(phase), scale, mode="reflect")
-        amplitudes.append(np.hypot(re, im))
-    return np.minimum(*amplitudes)
+        return np.hypot(re, im)
+
+    return np.minimum(*[demodulated(k) for k in np.asarray(waves, dtype=np.float64)])
+
+
+def control_amplitude(image: np.ndarray, scale: float, waves: np.ndarray) -> np.ndarray:
+    """:func:`texture_amplitude` of a grid at its wave vectors turned by 45 degrees (between the
+    families, where a grid has no texture), the larger over the two families: what a corner or
+    a curved edge leaves of its step after the median, or noise, shows at every wave vector
+    alike, so texture that is the grid's stands well above it."""
+    turn = np.array([[1.0, -1.0], [1.0, 1.0]]) / np.sqrt(2.0)
+    turned = [turn @ k for k in np.asarray(waves, dtype=np.float64)]
+    return np.maximum(*[texture_amplitude(image, scale, np.stack([k, k])) for k in turned])
 
 
 def _median(image: np.ndarray, size: int) -> np.ndarray:
@@ -116,6 +127,8 @@ def pattern_mask(image: np.ndarray, scale: float, roi: np.ndarray | None = None,
     provisional = usable & (amplitude > 0.25 * np.percentile(amplitude[usable], 90))
     typical = np.median(amplitude[provisional])
     mask = usable & (amplitude > 0.5 * typical)
+    if waves is not None:   # and the texture is the grid's, not a corner's leftovers or noise
+        mask &= amplitude > 2.0 * control_amplitude(image, smoothing, waves)
     # specks of texture in the background and pinholes in the material are not features
     size = max(3, int(round(0.5 * scale)) | 1)
     mask = ndimage.binary_opening(mask, np.ones((size, size), bool))

@@ -36,6 +36,8 @@ SHAPES = ("straight", "curved", "adaptive")
 # profile samples of the line): at 0.5 nearly every line became a parabola (reference frames as
 # noisy as with "curved"), at 3 most lines at a stiff inclusion's edge stayed straight
 PENALTY = 2.0
+# a crossing whose asymmetry share is this many times the frame's median one is rejected
+OUTLIER = 4.0
 
 
 @dataclass(frozen=True)
@@ -105,9 +107,18 @@ class LineFitRefiner:
         quality = np.where((fit.arms >= 3) & inked, quality, 0.0)
         moved = np.linalg.norm(centre - guess.xy, axis=1)
         inside = frame.spline.inside(centre[:, 0], centre[:, 1], margin=0.5 * frame.pitch)
-        ok = np.isfinite(centre).all(axis=1) & (quality >= self.min_quality) & inside
+        ok = np.isfinite(centre).all(axis=1) & (quality >= self._floor(quality)) & inside
         ok &= moved < max(1.5, 0.5 * width)
         return Refined(np.where(ok[:, None], centre, np.nan), quality, ok)
+
+    def _floor(self, quality: np.ndarray) -> float:
+        """The quality a crossing must reach: ``min_quality``, and an asymmetry share at most
+        :data:`OUTLIER` times the frame's median one (noise lowers every crossing's quality
+        alike; one whose arms are cut or caught on something stands out below the others)."""
+        seen = quality[quality > 0]
+        if seen.size < 8:
+            return self.min_quality
+        return max(self.min_quality, 1.0 - OUTLIER * (1.0 - float(np.median(seen))))
 
     def _stations(self, along, clear):
         fractions = (np.arange(self.stations) + 0.5) / self.stations
