@@ -35,7 +35,7 @@ from .cup import CupHolder, cup_holder
 from .surface import surface_interpolation
 from .shapes import Ellipse, Polygon, Rect, curve_nodes, morph
 from .solver import Solution, Solver
-from .program import compilation_cache
+from .cache import cache_info, clear_cache, compilation_cache, compile_counts, compiles_since
 from .series import equilibrium_series
 from . import plot
 
@@ -51,5 +51,5 @@ __all__ = [
     "strain_energy", "von_mises_stress", "Ellipse", "Polygon", "Rect", "curve_nodes", "morph", "plate", "domain",
     "Solution", "Solver", "taylor_test", "batch_displacement", "stack_params", "check_geometry",
     "with_geometry", "equilibrium_series", "CupHolder", "cup_holder", "surface_interpolation",
-    "compilation_cache",
+    "compilation_cache", "cache_info", "clear_cache", "compile_counts", "compiles_since",
 ]

@@ -201,20 +201,3 @@ def program(element: str, material, kinematics: str, lin, opts: NewtonOptions, f
         law = reduced_law(material, kinematics)
         _PROGRAMS[key] = Program(Assembler(element, law), lin.shared(), opts, facet_element, material.finite)
     return _PROGRAMS[key]
-
-
-def compilation_cache(path, min_compile_seconds: float = 1.0) -> None:
-    """Keep compiled programs in the folder ``path`` (JAX's persistent compilation cache), so that
-    a later process (the same diagnosis run again, a benchmark, another bundle of the same mesh
-    sizes) loads them instead of compiling; only programs that took ``min_compile_seconds`` or
-    more to compile are written. The environment variable ``JAX_COMPILATION_CACHE_DIR`` does the
-    same without code.
-
-    JAX does not keep a program that calls back into Python: those of the host linear solvers
-    (``"pardiso"``, ``"superlu"``, ``"cholmod"``) are compiled in every process; with ``"klu"``
-    (2D), ``"dense"`` or ``"cg"`` every program of the solve is kept."""
-    from pathlib import Path
-
-    Path(path).mkdir(parents=True, exist_ok=True)
-    jax.config.update("jax_compilation_cache_dir", str(path))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", float(min_compile_seconds))

@@ -38,10 +38,10 @@ def _stretch_bundle(path: Path, seed: int) -> Path:
 
 
 def _comparable(report: dict) -> dict:
-    """report.json without its timing (and the provenance's seconds and time of writing)."""
+    """report.json without its timing (and the provenance's seconds, compiles and time of writing)."""
     out = {k: v for k, v in report.items() if k != "seconds"}
     if "provenance" in out:
-        out["provenance"] = {k: v for k, v in out["provenance"].items() if k not in ("seconds", "written")}
+        out["provenance"] = {k: v for k, v in out["provenance"].items() if k not in ("seconds", "compiles", "written")}
     return out
 
 

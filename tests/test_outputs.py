@@ -47,6 +47,8 @@ def test_report_json_records_settings_and_provenance(diagnosed):
     assert p["linear_solver"]["setting"] == "auto" and p["linear_solver"]["used"] in jf.linsolve.available()
     assert set(p["machine"]) >= {"platform", "cpu_count", "jax", "backend"} and p["machine"]["cpu_count"] >= 1
     assert p["seconds"] == pytest.approx(d.seconds, abs=0.01) and p["version"]
+    c = p["compiles"]  # the programs the diagnosis compiled or loaded from the cache (jaxfem.cache)
+    assert c["compiled"] + c["cached"] > 0 and c["compile_seconds"] >= 0 and set(c) >= {"slowest", "cache_dir"}
 
 
 def test_report_html_holds_the_finding_and_its_figures(diagnosed):

@@ -19,7 +19,7 @@ import importlib
 import sys
 from importlib.metadata import PackageNotFoundError, version
 
-COMMANDS = ("simulate", "diagnose", "track", "import_export", "batch", "demo", "follow", "mesh")  # modules of refine.cli, in the order of --help
+COMMANDS = ("simulate", "diagnose", "track", "import_export", "batch", "demo", "follow", "mesh", "cache")  # modules of refine.cli, in the order of --help
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -35,6 +35,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from jaxfem.cache import compile_counts, compiles_since
+
 from refine.bundle.io import Bundle
 from refine.measures import Residuals, mean_position_error, tracking_error
 from refine.diagnosis.forces import ForceScale, force_scale
@@ -80,6 +82,7 @@ class Diagnosis:
     selected: Fitted | None = None  # the chosen hypothesis as fitted and scored beside the others (before its refit)
     search_frames: tuple = ()
     failed: list = field(default_factory=list)  # hypotheses that could not be fitted (fitted.Failed)
+    compiles: dict = field(default_factory=dict)  # the programs compiled meanwhile (jaxfem.compiles_since)
 
     @property
     def absolute(self) -> bool:
@@ -149,7 +152,7 @@ def _errors(obs, pred) -> dict:
 def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) -> Diagnosis:
     """Diagnose a measurement bundle (see the module docstring)."""
     cfg = config or DiagnoseConfig()
-    t0 = time.perf_counter()
+    t0, compiles0 = time.perf_counter(), compile_counts()
     say = log
     log = lambda msg: say(f"[{time.perf_counter() - t0:6.1f} s] {msg}")  # noqa: E731
     ex, obs = bundle.experiment, bundle.observations
@@ -239,7 +242,7 @@ def diagnose(bundle: Bundle, config: DiagnoseConfig | None = None, log=print) ->
             if d.force is not None:
                 log(f"forces: background modulus {d.background_modulus:.4g} (the force is matched to "
                     f"{100 * d.force.relative_residual:.1f} %)")
-        d.seconds = time.perf_counter() - t0
+        d.seconds, d.compiles = time.perf_counter() - t0, compiles_since(compiles0)
         return d
     except BaseException as e:  # incl. KeyboardInterrupt: what was done goes with it (diagnosis.incomplete)
         pool.shutdown(wait=False, cancel_futures=True)

@@ -29,13 +29,25 @@ def machine() -> dict:
             "devices": [d.device_kind for d in jax.devices()]}
 
 
+def compiles(d) -> dict:
+    """The XLA programs the process compiled while the diagnosis ``d`` ran (other threads' too):
+    ``compiled`` and ``compile_seconds`` (wall seconds), ``cached`` and ``cached_seconds`` (loaded
+    from the persistent cache instead: :mod:`jaxfem.cache`), ``slowest`` (the 5 programs by compile
+    seconds, ``[name, compiled, seconds]``) and ``cache_dir`` (None: the cache was off)."""
+    from jaxfem.cache import cache_dir
+
+    where = cache_dir()
+    return {**d.compiles, "cache_dir": None if where is None else str(where)}
+
+
 def provenance(d) -> dict:
     """The provenance of a :class:`~refine.diagnosis.Diagnosis`: ``version``, ``settings`` (every
     field of its :class:`~refine.diagnosis.DiagnoseConfig`), ``seed``, ``linear_solver``
     (``setting`` as asked, ``used`` by the initial model: ``"auto"`` picks by size), ``seconds``
-    (the diagnosis' wall time), ``machine`` (:func:`machine`) and ``written`` (UTC, ISO 8601)."""
+    (the diagnosis' wall time), ``compiles`` (:func:`compiles`), ``machine`` (:func:`machine`) and
+    ``written`` (UTC, ISO 8601)."""
     cfg = d.config
     return {"version": package_version(), "settings": cfg.settings(), "seed": cfg.seed,
             "linear_solver": {"setting": cfg.linear_solver, "used": d.model.solver.linear_solver},
-            "seconds": round(d.seconds, 2), "machine": machine(),
+            "seconds": round(d.seconds, 2), "compiles": compiles(d), "machine": machine(),
             "written": datetime.now(timezone.utc).isoformat(timespec="seconds")}

@@ -1,0 +1,146 @@
+"""What compiling costs a small 2D diagnosis, cold and warm (issue 45): a ~300-point bundle
+(benchmarks/diagnose.py's 5 mm grid, 4 frames) diagnosed as ``nonrigid diagnose`` does, in a fresh
+process with an empty compilation cache folder (cold), then in a second fresh process with the
+folder the first one filled (warm). Per run: the process's wall and CPU seconds, the diagnosis's,
+and report.json's ``provenance.compiles`` (programs compiled and their seconds, programs loaded
+from the cache and theirs, the slowest programs); the finding and its printed figures of both runs
+must be the same.
+
+    python benchmarks/speed.py            # the three default cases (stiffer, softer region, hole)
+    python benchmarks/speed.py --quick    # the hole case alone
+    python benchmarks/speed.py --linear-solver klu   # a solver whose programs JAX can keep
+
+Writes results/speed.json (rows, ``targets``) and results/speed.png. Targets: the warm diagnosis
+spends under a tenth of its CPU seconds compiling (the issue's "bounded by its solves"), and both
+runs print the same finding.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+# this tree's library first (not an installed copy), this folder last (a script named like a package)
+sys.path[:] = [str(HERE.parent)] + [p for p in sys.path if Path(p or ".").resolve() != HERE] + [str(HERE)]
+OUT = HERE / "results"
+CASES = ("5/0.02/stiffer-region/0", "5/0.02/softer-region/0", "5/0.02/hole/0")
+WARM_COMPILE_SHARE = 0.1  # target: the warm run's compile seconds under this share of its CPU seconds
+
+
+def _cpu(who=resource.RUSAGE_SELF) -> float:
+    r = resource.getrusage(who)
+    return r.ru_utime + r.ru_stime
+
+
+def child(bundle: str, out: str, linear_solver: str, row_to: str) -> None:
+    """One diagnosis in this (fresh) process; its figures written as JSON to ``row_to``."""
+    c0, w0 = _cpu(), time.perf_counter()
+    from refine.cli.diagnose import diagnose
+    from refine.diagnosis import report
+
+    config = {} if linear_solver == "auto" else {"linear_solver": linear_solver}
+    d = diagnose(bundle, out, config=config, quiet=True)
+    r = json.loads((Path(out) / "report.json").read_text())
+    printed = re.sub(r"\(\d+ s\)", "(- s)", report.summary(d))  # the printed figures, less the time
+    Path(row_to).write_text(json.dumps({
+        "diagnosis_wall_s": round(d.seconds, 1), "process_cpu_s_in": round(_cpu() - c0, 1),
+        "process_wall_s_in": round(time.perf_counter() - w0, 1), "compiles": r["provenance"]["compiles"],
+        "linear_solver": r["provenance"]["linear_solver"]["used"], "findings": r.get("findings"),
+        "printed": printed}))
+
+
+def run_case(key: str, bundle: str, folder: Path, linear_solver: str) -> dict:
+    """``key``'s bundle diagnosed cold (empty cache folder) then warm, each in a fresh process."""
+    cache = folder / "cache"
+    row = {"case": key, "load": [round(os.getloadavg()[0], 2)]}
+    for run in ("cold", "warm"):
+        env = {**os.environ, "NONRIGID_CACHE_DIR": str(cache)}
+        env.pop("NONRIGID_CACHE", None)
+        c0, w0 = _cpu(resource.RUSAGE_CHILDREN), time.perf_counter()
+        subprocess.run([sys.executable, __file__, "--child", bundle, str(folder / run), linear_solver,
+                        str(folder / f"{run}.json")], env=env, check=True, cwd=HERE.parent)
+        got = json.loads((folder / f"{run}.json").read_text())
+        got.update(process_wall_s=round(time.perf_counter() - w0, 1),
+                   process_cpu_s=round(_cpu(resource.RUSAGE_CHILDREN) - c0, 1))
+        row[run] = got
+        row["load"].append(round(os.getloadavg()[0], 2))
+        print(f"{key} {run}: {got['process_wall_s']} s wall, {got['process_cpu_s']} CPU s, compiled "
+              f"{got['compiles']['compiled']} ({got['compiles']['compile_seconds']} s), loaded "
+              f"{got['compiles']['cached']} ({got['compiles']['cached_seconds']} s)", flush=True)
+    row["same_finding"] = (row["cold"]["printed"] == row["warm"]["printed"]
+                           and row["cold"]["findings"] == row["warm"]["findings"])
+    return row
+
+
+def targets(rows: list[dict]) -> dict:
+    share = max(r["warm"]["compiles"]["compile_seconds"] / max(r["warm"]["process_cpu_s"], 1e-9) for r in rows)
+    return {"warm_compile_share": {"target": f"< {WARM_COMPILE_SHARE} of the warm run's CPU seconds (worst case)",
+                                   "value": round(share, 3), "pass": share < WARM_COMPILE_SHARE},
+            "same_finding_cold_and_warm": {"target": True, "value": all(r["same_finding"] for r in rows),
+                                           "pass": all(r["same_finding"] for r in rows)}}
+
+
+def plot(rows: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    fig, ax = plt.subplots(figsize=(8, 4))
+    x = np.arange(len(rows))
+    for i, (run, what, colour) in enumerate((("cold", "process_wall_s", "C0"), ("cold", "compile", "C1"),
+                                              ("warm", "process_wall_s", "C2"), ("warm", "compile", "C3"))):
+        v = [r[run]["compiles"]["compile_seconds"] if what == "compile" else r[run][what] for r in rows]
+        ax.bar(x + (i - 1.5) * 0.2, v, 0.2, color=colour, label=f"{run}: {'compile s' if what == 'compile' else 'wall s'}")
+    ax.set_xticks(x, [r["case"] for r in rows])
+    ax.set_ylabel("seconds")
+    ax.set_title("a ~300-point 2D diagnosis: empty cache (cold) and a second process (warm)")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--quick", action="store_true", help="the hole case alone")
+    p.add_argument("--cases", nargs="*", default=None, help=f"SPACING/NOISE/CAUSE/K (default: {' '.join(CASES)})")
+    p.add_argument("--linear-solver", default="auto")
+    p.add_argument("--out", type=Path, default=OUT / "speed.json")
+    p.add_argument("--child", nargs=4, default=None, help=argparse.SUPPRESS)
+    a = p.parse_args(argv)
+    if a.child:
+        child(*a.child)
+        return 0
+    os.environ["NONRIGID_CACHE"] = "0"  # generating the bundles fills no cache folder
+    from diagnose_speed import write_bundles
+
+    keys = a.cases or ([CASES[-1]] if a.quick else list(CASES))
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        bundles = write_bundles(keys, Path(tmp) / "bundles")
+        for key in keys:
+            folder = Path(tmp) / key.replace("/", "_")
+            folder.mkdir()
+            rows.append(run_case(key, bundles[key], folder, a.linear_solver))
+    result = {"machine": {"cpu_count": os.cpu_count(), "load_at_end": round(os.getloadavg()[0], 2)},
+              "settings": {"cases": keys, "linear_solver": a.linear_solver, "quick": a.quick},
+              "rows": rows, "targets": targets(rows)}
+    a.out.parent.mkdir(parents=True, exist_ok=True)
+    a.out.write_text(json.dumps(result, indent=1))
+    plot(rows, a.out.with_suffix(".png"))
+    print(json.dumps(result["targets"], indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
