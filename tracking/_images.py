@@ -94,7 +94,11 @@ def _read_frames(path: Path) -> list[np.ndarray]:
             warnings.simplefilter("ignore", DeprecationWarning)
             image = skimage.io.imread(str(path))
     except Exception as error:  # noqa: BLE001 - report any reader failure the same way
-        raise ImageError(f"cannot read image {path}: {error}") from error
+        if path.stat().st_size == 0:
+            raise ImageError(f"image file {path} is empty (0 bytes); export the frame again") from None
+        first = next((line.strip() for line in str(error).splitlines() if line.strip()), type(error).__name__)
+        raise ImageError(f"cannot read image {path}: {first}; give a TIFF, PNG, JPEG or BMP file that "
+                         "opens in an image viewer") from error
     return [_to_grey(np.asarray(image), bgr=False)]
 
 

@@ -157,6 +157,8 @@ def _read_experiment(path: Path) -> Experiment:
             data = tomllib.load(f)
     except tomllib.TOMLDecodeError as e:
         raise BundleError(path, f"is not valid TOML: {e}") from None
+    except UnicodeDecodeError as e:
+        raise BundleError(path, f"is not UTF-8 text (byte {e.start}); save it as UTF-8") from None
     try:
         return Experiment.from_toml(data)
     except ExperimentError as e:
@@ -252,18 +254,23 @@ def _read_csv(path: Path, header: list[str]) -> list[tuple[int, list[str]]]:
     rows = []
     with open(path, newline="", encoding="utf-8-sig") as f:
         reader = csv.reader(f)
-        found = next(reader, None)
-        if found is None or [c.strip() for c in found] != header:
-            raise BundleError(path, f"header must be {','.join(header)} (the model's dimension decides x,y or "
-                                    f"x,y,z), got {','.join(found or [])!r}", 1)
-        for cells in reader:
-            cells = [c.strip() for c in cells]
-            if not any(cells):
-                continue
-            if len(cells) != len(header):
-                raise BundleError(path, f"expected {len(header)} values ({','.join(header)}), got {len(cells)}",
-                                  reader.line_num)
-            rows.append((reader.line_num, cells))
+        try:
+            found = next(reader, None)
+            if found is None or [c.strip() for c in found] != header:
+                raise BundleError(path, f"header must be {','.join(header)} (the model's dimension decides x,y or "
+                                        f"x,y,z), got {','.join(found or [])!r}", 1)
+            for cells in reader:
+                cells = [c.strip() for c in cells]
+                if not any(cells):
+                    continue
+                if len(cells) != len(header):
+                    raise BundleError(path, f"expected {len(header)} values ({','.join(header)}), got "
+                                            f"{len(cells)}", reader.line_num)
+                rows.append((reader.line_num, cells))
+        except UnicodeDecodeError as e:
+            raise BundleError(path, f"is not UTF-8 text (byte {e.start}); save it as UTF-8") from None
+        except csv.Error as e:
+            raise BundleError(path, f"is not valid CSV: {e}", reader.line_num) from None
     return rows
 
 

@@ -27,6 +27,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="nonrigid", description="Nonrigid motion analysis with "
                                      "differentiable finite elements.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {_installed_version()}")
+    parser.add_argument("--debug", action="store_true", help="show the traceback of an unexpected error")
     sub = parser.add_subparsers(dest="command", required=True)
     for name in COMMANDS:
         # import_module, not attribute access: refine.cli exports the command functions under these names
@@ -35,17 +36,37 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    """Run ``nonrigid`` with ``argv`` (default: ``sys.argv[1:]``); the exit status, 2 on an error
-    of the input (its message on stderr)."""
+    """Run ``nonrigid`` with ``argv`` (default: ``sys.argv[1:]``); the exit status.
+
+    An error of the input (a RefineError, TrackingError, JaxfemError, OSError or ValueError) is one
+    line on stderr, ``nonrigid CMD: error: ...``, and exit status 2; any other exception is one line
+    too, with a hint to rerun with ``--debug`` (which lets it propagate with its traceback), and
+    exit status 1.
+    """
     args = build_parser().parse_args(argv)
     from jaxfem.exceptions import JaxfemError
     from refine.exceptions import RefineError
+    from tracking import TrackingError
 
     try:
         return args.run(args)
-    except (JaxfemError, RefineError, FileNotFoundError) as e:
-        print(f"nonrigid {args.command}: error: {e}", file=sys.stderr)
+    except (JaxfemError, RefineError, TrackingError, OSError, ValueError) as e:
+        if args.debug:
+            raise
+        print(f"nonrigid {args.command}: error: {_one_line(e)}", file=sys.stderr)
         return 2
+    except Exception as e:  # noqa: BLE001 - an internal error: one line, the traceback under --debug
+        if args.debug:
+            raise
+        print(f"nonrigid {args.command}: internal error: {type(e).__name__}: {_one_line(e)}; rerun with "
+              "--debug for the traceback", file=sys.stderr)
+        return 1
+
+
+def _one_line(error: BaseException) -> str:
+    """The message of ``error`` on one line (its lines joined by '; '), or its type's name if empty."""
+    text = "; ".join(line.strip() for line in str(error).splitlines() if line.strip())
+    return text or type(error).__name__
 
 
 def _installed_version() -> str:
