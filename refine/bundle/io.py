@@ -287,9 +287,12 @@ def _real(cell: str, name: str, path: Path, line: int) -> float:
 
 def _integer(cell: str, name: str, path: Path, line: int) -> int:
     try:
-        return int(cell)
+        value = int(cell)
     except ValueError:
         raise BundleError(path, f"{name} = {cell!r} is not an integer", line) from None
+    if not -2**63 <= value < 2**63:
+        raise BundleError(path, f"{name} = {cell!r} does not fit a 64-bit integer (|value| < 2**63)", line)
+    return value
 
 
 def _frame(cell: str, path: Path, line: int) -> int:
