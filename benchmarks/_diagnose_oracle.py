@@ -16,14 +16,14 @@ def _med(v):
 
 def _case_truth(case: dict):
     """The case's hidden effect, drawn under its seed."""
-    from refine.synthetic.sheet import random_truth
+    from refine.demo_data import random_truth
 
     return random_truth(np.random.default_rng(case["seed"]), case["cause"])
 
 
 def _case_bundle(case: dict):
     """The case's hidden effect (drawn under its seed) and the bundle generated from it."""
-    from refine.synthetic.sheet import synthetic_bundle
+    from refine.demo_data import synthetic_bundle
 
     fractions = tuple(np.linspace(0, 1, case["frames"] + 1)[1:])
     truth = _case_truth(case)

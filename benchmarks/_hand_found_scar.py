@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 import jaxfem as jf
-from jaxfem.hand import Scar, run_motion, scar_cells, skin_area, skin_strain_function, standard_motions
+from examples.hand import Scar, run_motion, scar_cells, skin_area, skin_strain_function, standard_motions
 
 from benchmarks._hand_scars import AREA, STRAIN_LIMIT, changes
 
@@ -31,7 +31,7 @@ FOUND_SEED, FOUND_AT, FOUND_DEPTH, FOUND_H = 0, (0.0, -8.0), 7.0, 12.0
 
 def found_scar(seed: int = FOUND_SEED):
     """The scar the skin diagnosis found in benchmarks/results/scar.json's row ``seed`` (its shape's
-    half sides and angle, its relative elasticity) as a :class:`jaxfem.hand.Scar` at FOUND_AT."""
+    half sides and angle, its relative elasticity) as a :class:`examples.hand.Scar` at FOUND_AT."""
     row = next(r for r in json.loads((OUT / "scar.json").read_text())["rows"] if r["seed"] == seed)
     m = re.search(r"(rectangle|ellipse) at \(([-\d.]+), ([-\d.]+)\) (?:half sides|semi-axes) \(([-\d.]+), "
                   r"([-\d.]+)\) angle ([-\d.]+) deg", row["chosen"])

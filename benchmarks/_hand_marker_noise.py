@@ -2,11 +2,11 @@
 track the hand, i.e. whether a joint angle off by more than 1 degree from the 13 markers is the
 tracker's fault or the markers' noise.
 
-For a generated sequence (``refine.synthetic.hand_range``, one seed) the markers' noise-free
+For a generated sequence (``examples.hand.range``, one seed) the markers' noise-free
 positions (the fine solve's skin nodes, posed) and the tracker's exact Jacobian at the true angles
 and pose of every frame give the linearised fit: per frame ``dq = -(J^T J)^-1 J^T r``, over the
-sequence the smoother's quadratic (:func:`refine.hand.smooth.smooth_quadratic`, the default
-:class:`~refine.hand.MotionModel`). ``r`` is the noise-free residual (the model's own error at
+sequence the smoother's quadratic (:func:`examples.hand.smooth.smooth_quadratic`, the default
+:class:`~examples.hand.MotionModel`). ``r`` is the noise-free residual (the model's own error at
 the markers: the floor) minus a fresh noise draw (``MARKER_NOISE`` per coordinate) in every frame,
 ``draws`` draws under a seed: the spread of the smoothed errors against the reported deviations
 (the sequence covariance's diagonal), the chance that some angle of some frame ends beyond 1 degree,
@@ -24,9 +24,9 @@ import time
 import numpy as np
 from scipy.stats import chi2
 
-from refine.hand import HandTracker, MotionModel, TrackConfig
-from refine.hand.smooth import sequence_covariance, smooth_quadratic
-from refine.synthetic.hand_range import hand_range_sequence, pose_matrix
+from examples.hand import HandTracker, MotionModel, TrackConfig
+from examples.hand.smooth import sequence_covariance, smooth_quadratic
+from examples.hand.range import hand_range_sequence, pose_matrix
 
 DRAWS = 2000
 

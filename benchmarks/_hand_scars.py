@@ -1,5 +1,5 @@
 """benchmarks/hand.py's scar section (issue 25 items 2-4): the paper-size hand's three motions
-(jaxfem.hand.standard_motions) with no, a small and a large wrist scar (the paper's relative
+(examples.hand.standard_motions) with no, a small and a large wrist scar (the paper's relative
 elasticity 5.1), the maximum skin strain over the area of interest (AREA) and over the whole
 skin, restriction at LIMIT x the normal hand's full-range maximum and at the literature's
 STRAIN_LIMIT, the threshold of each curve (``_hand_threshold.detect_json``), and the wrist
@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 import jaxfem as jf
-from jaxfem.hand import (PAPER, Box, HandDimensions, HandModel, Scar, default_body, hand_mesh, reachable, run_motion,
+from examples.hand import (PAPER, Box, HandDimensions, HandModel, Scar, default_body, hand_mesh, reachable, run_motion,
                          scar_cells, skin_area, skin_strain_function, standard_motions, write_motion_series)
 
 from benchmarks import _hand_threshold

@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxfem.hand import Box, run_motion, skin_strain_function, standard_motions
+from examples.hand import Box, run_motion, skin_strain_function, standard_motions
 from refine.exceptions import ObservationError
 from refine.threshold import ThresholdRule, strain_threshold
 
@@ -147,7 +147,7 @@ def _holds(found, rule: ThresholdRule = RULE) -> np.ndarray:
 
 
 def perturbed_skin(model, motion, result, strains, step_deg: float = STEP_DEG):
-    """Per frame of ``result`` (a :func:`jaxfem.hand.run_motion` of ``motion``) and per joint angle
+    """Per frame of ``result`` (a :func:`examples.hand.run_motion` of ``motion``) and per joint angle
     of the hand, the marked point's displacement (mm) and the skin strain per facet with that angle
     ``step_deg`` further: ``((n_frames, n_angles), (n_frames, n_angles, n_skin))``, each a
     warm-started solve from the frame's solution (forward differences of any area's curve)."""
@@ -219,7 +219,7 @@ def tracked_draws(x, s, J, sigma_deg, rng, draws=None):
 
 
 def _curve(data, name, mesh, box):
-    """The area's maximum strain per frame (``box`` a jaxfem.hand.Box over the skin-facet centres)."""
+    """The area's maximum strain per frame (``box`` a examples.hand.Box over the skin-facet centres)."""
     area = box.contains(data[f"{mesh}/centres"])
     if not area.any():
         raise SystemExit(f"the area {box} holds no skin facet of the {mesh} hand")

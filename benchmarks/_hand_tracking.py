@@ -1,7 +1,7 @@
 """benchmarks/hand.py's tracking section (issue 25, item 5): a synthetic range sequence of the
-moving hand (refine.synthetic.hand_range: random joint angles and global pose under a seed, solved
+moving hand (examples.hand.range: random joint angles and global pose under a seed, solved
 on a finer mesh, one range camera with depth noise, part of the hand out of view or self-occluded;
-the marked points beside it) tracked by refine.hand.HandTracker on the paper-size model (a) from
+the marked points beside it) tracked by examples.hand.HandTracker on the paper-size model (a) from
 the unlabelled clouds, (b) from the markers and (c) from both together (the paper's set-up: range
 data and a few marked points); the joint-angle errors per frame, seconds per frame, and the
 skin-strain maps against the truth (the fine solve's skin strain carried onto the model's skin
@@ -17,11 +17,11 @@ from dataclasses import asdict
 import jax.numpy as jnp
 import numpy as np
 
-from jaxfem.hand import HandModel, skin_area
+from examples.hand import HandModel, skin_area
 from refine.correspond.geometry import boundary_facets, triangle_distances
-from refine.hand import (HandTracker, MotionModel, TrackConfig, angle_errors, error_chi2, skin_strain_on, smooth,
+from examples.hand import (HandTracker, MotionModel, TrackConfig, angle_errors, error_chi2, skin_strain_on, smooth,
                          tracking_model)
-from refine.synthetic.hand_range import STOP_REVERSE, hand_range_sequence
+from examples.hand.range import STOP_REVERSE, hand_range_sequence
 
 #: the sequences tracked (each its own angles, pose, rays and noise)
 SEEDS = (0, 1, 2)
@@ -30,7 +30,7 @@ KINDS = ("clouds", "markers", "both")
 #: cloud points used per frame (of ~2,300-2,600; all of them moved seed 1's thumb tip from 1.31 to 1.21
 #: degrees off at twice the cost: the README)
 MAX_POINTS = 1500
-#: the temporal prior (refine.hand.smooth): the stated motion model, its defaults (1 degree per frame^2)
+#: the temporal prior (examples.hand.smooth): the stated motion model, its defaults (1 degree per frame^2)
 MOTION = MotionModel()
 #: the motions generated: equal steps (the targets), and one that is not smooth (a stop, then a reversal)
 PROFILES = {"steady": None, "stop-reverse": STOP_REVERSE}
@@ -38,14 +38,14 @@ PROFILES = {"steady": None, "stop-reverse": STOP_REVERSE}
 #: (the 1-degree figure kept beside): the 13 markers alone at 0.1 mm know the thumb tip to ~0.6 degrees
 #: per frame, and a sequence of 25 angle-frames passes 1 degree by chance only (README: markers alone)
 NOISE_LIMITED = ("markers",)
-#: the chi-square tail (refine.hand.error_chi2 over a sequence) below which its errors exceed the
+#: the chi-square tail (examples.hand.error_chi2 over a sequence) below which its errors exceed the
 #: reported uncertainty (a correct tracker fails this one sequence in a hundred)
 CHI2_P = 0.01
 
 
 def thumb_model(h_thumb: float, h: float = 24.0, snap: float = 4.5) -> HandModel:
     """The paper-size hand at ``h`` with both thumb phalanges split along their length (x) to at most
-    ``h_thumb`` mm (the rest of the grid unchanged): :func:`refine.hand.tracking_model`, whose default
+    ``h_thumb`` mm (the rest of the grid unchanged): :func:`examples.hand.tracking_model`, whose default
     (6 mm) is the default tracking model."""
     return tracking_model(h_thumb, h, snap)
 
@@ -77,7 +77,7 @@ def _errors(fits, truth, names) -> dict:
 def _uncertainty(sm, truth) -> dict:
     """Each angle's reported standard deviation (smoothed, and each frame's alone; degrees), how
     many errors lie within 2 of them, and the whole sequence's errors in the reported covariance
-    (``chi2`` on ``chi2_dof``, upper tail ``chi2_p``: :func:`refine.hand.error_chi2`)."""
+    (``chi2`` on ``chi2_dof``, upper tail ``chi2_p``: :func:`examples.hand.error_chi2`)."""
     e = np.abs(angle_errors(sm.fits, truth))
     e0 = np.abs(angle_errors(sm.frames, truth))
     std, std0 = np.degrees(sm.std), np.degrees(sm.frame_std)
@@ -90,7 +90,7 @@ def _uncertainty(sm, truth) -> dict:
 def tracking(model, strains, area_box, seed: int = 0, frames: int = 4, h: float = 12.0, profile=None,
              kinds=KINDS) -> dict:
     """Track a generated sequence with ``model`` (its skin-strain function ``strains``); the area of
-    interest ``area_box`` (a jaxfem.hand.Box) for the strain errors there; ``profile``: the motion's
+    interest ``area_box`` (a examples.hand.Box) for the strain errors there; ``profile``: the motion's
     share of the final angles per frame (default equal steps). The figures are of the smoothed
     sequence (:data:`MOTION`), the per-frame fits' errors beside them (``per_frame``); ``kinds``: the
     ways of tracking run (:data:`KINDS`)."""
@@ -212,7 +212,7 @@ def targets(res: dict) -> dict:
 def within_reported(runs, kind: str, row: dict) -> dict:
     """The target of a noise-limited way of tracking (:data:`NOISE_LIMITED`): every seed's smoothed
     errors within the reported uncertainty, i.e. the sequence's chi-square in the reported
-    covariance (``chi2_p``, :func:`refine.hand.error_chi2`) at least :data:`CHI2_P`; ``row``, the
+    covariance (``chi2_p``, :func:`examples.hand.error_chi2`) at least :data:`CHI2_P`; ``row``, the
     1-degree target's figures, kept beside (its ``pass`` as ``within_1_deg``). ``pass`` is None
     where a run has no chi-square (run before it was recorded)."""
     p = {r["seed"]: r[kind].get("chi2_p") for r in runs}
@@ -230,8 +230,8 @@ def prior_bias(motion: MotionModel = MOTION, frame_std_deg=(0.1, 0.3, 0.6, 0.9),
     """The prior's own bias on one angle measured exactly (no noise) through a sudden stop and a
     stop then reversal (:data:`STOP_REVERSE`'s shape) at each step (degrees per frame) for each
     frame's standard deviation (degrees): ``{std: {"max_deg", "at_step_deg", "at_12.5_deg"}}``, the
-    largest over the steps. (The quadratic model of :func:`refine.hand.smooth`; degrees.)"""
-    from refine.hand.smooth import smooth_quadratic
+    largest over the steps. (The quadratic model of :func:`examples.hand.smooth`; degrees.)"""
+    from examples.hand.smooth import smooth_quadratic
     out = {}
     for sd in frame_std_deg:
         H = np.full((5, 1, 1), 1 / np.radians(sd) ** 2)

@@ -3,7 +3,7 @@ mesh, and does a longer motion show one?
 
 The same curve as ``_hand_threshold`` (the area's maximum skin strain against the marked point's
 displacement, each motion in ``FRAMES`` equal steps, noise-free) on the paper-size hand
-(``jaxfem.hand.PAPER``) meshed at each of ``SIZES`` (h, mm; 2,412 / 4,248 / 12,420 tet10), and
+(``examples.hand.PAPER``) meshed at each of ``SIZES`` (h, mm; 2,412 / 4,248 / 12,420 tet10), and
 on the coarsest mesh again over ``RANGES`` times each motion's range. Per curve: the rising hinge
 (``refine.threshold.strain_threshold(rising=True)``), its growth-rate rise and whether it is a
 threshold by ``_hand_threshold.RULE``.
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxfem.hand import PAPER, HandModel, default_body, hand_mesh, run_motion, skin_strain_function, standard_motions
+from examples.hand import PAPER, HandModel, default_body, hand_mesh, run_motion, skin_strain_function, standard_motions
 from refine.exceptions import ObservationError
 
 from benchmarks import _hand_threshold
@@ -51,14 +51,14 @@ OTHER_WRISTS = (12.0,)
 #: draws per score of the refined model's section (the 50 of the others left a sampling error of ~6 %)
 REFINED_DRAWS = 200
 #: where the up-down motion's area maximum sits (the palm-side skin of the wrist, y -16..0, on the
-#: coarse mesh at x = -13 then +16 mm): slabs ``(axis, lo, hi)`` (mm) of ``jaxfem.hand.hand_mesh(fine=...)``
+#: coarse mesh at x = -13 then +16 mm): slabs ``(axis, lo, hi)`` (mm) of ``examples.hand.hand_mesh(fine=...)``
 #: split to the refinement's h (the wrist and 8 mm beyond it along y; the palm-side tissue under the
 #: skin along z; the area's strip along x): a model refined where the maximum strain sits
 WRIST_SLABS = ((1, -24.0, 8.0), (2, -14.0, -4.5), (0, -16.0, 16.0))
 
 
 def wrist_refined(h_fine: float | None) -> tuple:
-    """The ``fine`` rows of :func:`jaxfem.hand.hand_mesh` that split :data:`WRIST_SLABS` to at most
+    """The ``fine`` rows of :func:`examples.hand.hand_mesh` that split :data:`WRIST_SLABS` to at most
     ``h_fine`` mm (none for ``None``: the uniform mesh)."""
     return () if h_fine is None else tuple((a, lo, hi, float(h_fine)) for a, lo, hi in WRIST_SLABS)
 
@@ -69,7 +69,7 @@ def _tag(name: str, h: float, frames: int, scale: float, wrist: float | None = N
 
 def mesh_curve(name: str, h: float, frames: int = FRAMES, scale: float = 1.0, cache: Path | None = None,
                wrist: float | None = None) -> dict:
-    """The motion ``name`` of :func:`jaxfem.hand.standard_motions` at ``scale`` x its range on the
+    """The motion ``name`` of :func:`examples.hand.standard_motions` at ``scale`` x its range on the
     paper-size hand meshed at ``h`` mm (its wrist refined to ``wrist`` mm: :func:`wrist_refined`):
     the arrays of the module's docstring (from ``cache`` if there, solved and saved there otherwise)."""
     path = None if cache is None else Path(cache) / f"{_tag(name, h, frames, scale, wrist)}.npz"
@@ -136,7 +136,7 @@ def extrapolated(elements, fractions) -> dict:
 
 
 def convergence(areas: dict, cache: Path, sizes=SIZES, ranges=RANGES, frames: int = FRAMES) -> dict:
-    """Per motion of ``areas`` ({motion: jaxfem.hand.Box}): the hinge on each mesh of ``sizes`` and
+    """Per motion of ``areas`` ({motion: examples.hand.Box}): the hinge on each mesh of ``sizes`` and
     its extrapolation (:func:`extrapolated`), and on the coarsest mesh over each of ``ranges``;
     model sizes and seconds per frame."""
     out = {"sizes_h_mm": list(sizes), "frames": frames, "rule": {"min_rise": RULE.min_rise, "alpha": RULE.alpha}}

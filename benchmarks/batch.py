@@ -42,7 +42,7 @@ OVERHEAD_MAX = 0.10  # batch on 1 worker: extra wall time per bundle, as a share
 def make_bundles(work: Path, n: int) -> list[Path]:
     """``n`` small synthetic bundles (seeds 1..n) in ``work/bundles``, made once and reused."""
     from refine.bundle import write_bundle
-    from refine.synthetic import random_truth, synthetic_bundle
+    from refine.demo_data import random_truth, synthetic_bundle
 
     paths = []
     for seed in range(1, n + 1):

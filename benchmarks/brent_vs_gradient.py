@@ -1,7 +1,7 @@
 """Benchmark: the paper's derivative-free searches against exact-gradient fits.
 
 Three cases, each over ``--seeds`` random seeds with noise 0.02 mm (data from
-:func:`refine.synthetic.synthetic_bundle`: quadratic triangles on a larger sheet; the inversions
+:func:`refine.demo_data.synthetic_bundle`: quadratic triangles on a larger sheet; the inversions
 use other meshes):
 
 1. ``paper``: the Sec. 3.1 experiment with one unknown, the embedded rectangle's modulus (the paper's
@@ -51,10 +51,10 @@ from benchmarks._subprocess import command, environment  # noqa: E402
 from refine import optimize  # noqa: E402
 from refine.model import MeasuredModel, ModulusField, Objective, RegionModuli, domain_mesh  # noqa: E402
 from refine.optimize import coordinate_brent_search  # noqa: E402
-from refine.paper import (BACKGROUND, INCLUSION, MIDDLE_POINTS, NAME, EmbeddedRectangle,  # noqa: E402
+from examples.paper import (BACKGROUND, INCLUSION, MIDDLE_POINTS, NAME, EmbeddedRectangle,  # noqa: E402
                           PaperExperiment, solves_to_reach)
-from refine.paper.experiment import displacement_error_function, evaluations_to_reach  # noqa: E402
-from refine.synthetic import random_truth, synthetic_bundle  # noqa: E402
+from examples.paper.experiment import displacement_error_function, evaluations_to_reach  # noqa: E402
+from refine.demo_data import random_truth, synthetic_bundle  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "results"
 DATA = dict(spacing=10.0, noise=0.02, fractions=(0.5, 1.0), h=3.0)

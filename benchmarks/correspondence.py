@@ -1,6 +1,6 @@
 """Tracking without correspondences: how well the dense motion is recovered from unlabelled clouds.
 
-Generated sequences (refine.synthetic.clouds: a 100 x 50 mm sheet clamped left, moved by a random
+Generated sequences (examples.synthetic.clouds: a 100 x 50 mm sheet clamped left, moved by a random
 rigid grip motion right, solved on a finer quadratic mesh that follows a hidden inclusion, seen in
 every frame as fresh unlabelled samples of its outline and surface with Gaussian noise) are
 followed by
@@ -15,7 +15,7 @@ refinements, the region found (cause, centroid error) and the prediction errors.
 
 3D (``--dim 3``, results in correspondence3d.json): a 40 x 20 x 20 mm block clamped at its left
 face, its right face moved by a random 6-DOF rigid motion, optionally hiding a stiff sphere,
-solved on a finer tet10 mesh (refine.synthetic.solid_clouds) and seen by one range camera as the
+solved on a finer tet10 mesh (examples.synthetic.solid_clouds) and seen by one range camera as the
 points where its rays meet the surface, with depth noise; the model is a coarser tet10 block.
 
     python -m benchmarks correspondence               # 3 seeds x (none, stiffer-region), 2D
@@ -40,8 +40,8 @@ from benchmarks._cli import QUICK, quick  # noqa: E402
 
 from refine.correspond import (CloudModel, FitConfig, FollowConfig, Grips, HausdorffConfig,  # noqa: E402
                                follow_clouds, hausdorff_track)
-from refine.synthetic.clouds import cloud_sequence, random_cloud_truth  # noqa: E402
-from refine.synthetic.solid_clouds import BLOCK, random_solid_truth, solid_cloud_sequence  # noqa: E402
+from examples.synthetic.clouds import cloud_sequence, random_cloud_truth  # noqa: E402
+from examples.synthetic.solid_clouds import BLOCK, random_solid_truth, solid_cloud_sequence  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 DOMAIN = (0.0, 0.0, 100.0, 50.0)

@@ -2,7 +2,7 @@
 
 3D diagnosis benchmark: the paper's Sec. 4 cup holder with a hidden hole in its bottom.
 
-For several seeds it draws a hole (refine.synthetic.cup.random_hole), solves the squeezed cup holder
+For several seeds it draws a hole (examples.cup_holder.synthetic.random_hole), solves the squeezed cup holder
 on a finer tet10 mesh (h_data) with noise, runs the 3D diagnosis (refine.solid: the local model of
 the bottom, the hole fitted through an extruded morph) and the global model with the finding, and
 measures:
@@ -20,7 +20,7 @@ It writes benchmarks/results/diagnose3d.json (rows, targets with pass/fail, the 
 diagnose3d.png.
 
 - end to end (``--e2e SEEDS``): the compressed cup holder rendered as intensity + range images
-  (refine.synthetic.cup_views, orthographic camera from below, depth noise ``--depth-noise``),
+  (examples.cup_holder.views, orthographic camera from below, depth noise ``--depth-noise``),
   ``nonrigid track --range``, the load cell's forces added as forces.csv, then the diagnosis: the
   same centre, area and seconds, and the tracked points against the painted crossings
   (``tracking``); ``--e2e-sound SEEDS``: the same without a hole; ``--e2e-pitch`` / ``--e2e-scale``:
@@ -60,7 +60,7 @@ RESULTS = HERE / "results"
 def case(seed: int, hole: bool, args) -> dict:
     from refine.solid.diagnose import SolidConfig
     from refine.solid.write import diagnose_and_write
-    from refine.synthetic.cup import CupGeometry, random_hole, write_cup_bundle
+    from examples.cup_holder.synthetic import CupGeometry, random_hole, write_cup_bundle
 
     g = CupGeometry()
     truth = random_hole(g, seed) if hole else None
@@ -124,9 +124,9 @@ def end_to_end(seed: int, args, hole: bool = True) -> dict:
     from refine.cli.track import track
     from refine.cli.track_range import RangeOptions
     from refine.solid.write import diagnose_and_write
-    from refine.synthetic.cup import CupGeometry, random_hole
-    from refine.synthetic.cup_views import CupScene, add_squeeze_forces, cup_camera, write_cup_frames
-    from refine.synthetic.solid_render import SurfaceGrid
+    from examples.cup_holder.synthetic import CupGeometry, random_hole
+    from examples.cup_holder.views import CupScene, add_squeeze_forces, cup_camera, write_cup_frames
+    from examples.synthetic.solid_render import SurfaceGrid
 
     g = CupGeometry()
     truth = random_hole(g, seed) if hole else None
@@ -161,11 +161,11 @@ def end_to_end(seed: int, args, hole: bool = True) -> dict:
 
 def tracking_errors(obs, truth: np.ndarray, tol: float) -> dict:
     """The tracked points against the painted crossings' truth (``(n_frames + 1, m, 3)``,
-    :func:`refine.synthetic.cup_views.crossing_errors`): how many lie within ``tol`` mm of a true
+    :func:`examples.cup_holder.views.crossing_errors`): how many lie within ``tol`` mm of a true
     crossing in the reference (the others are crossings nearer the hole or the edge than the
     truth's margin), and those points' displacement errors per axis (RMS over frames and points,
     mm) and largest."""
-    from refine.synthetic.cup_views import crossing_errors
+    from examples.cup_holder.views import crossing_errors
 
     e = crossing_errors(obs.reference, obs.displacements, truth, tol)
     seen = e["kept"] - np.asarray(e["lost"])  # points compared per deformed frame

@@ -9,7 +9,7 @@ sizes (tracked points 300 -> 5,000, frames 1 -> 20), on synthetic bundles with a
     python -m benchmarks diagnose_scale --sizes 3000x11 --profile   # where its CPU seconds go (_diagnose_profile.py)
 
 Each cell draws its hidden effect (place, size, ratio) under its own seed from ``--causes``; the
-data come from refine.synthetic (a finer quadratic mesh of a larger sheet, solved
+data come from refine.demo_data (a finer quadratic mesh of a larger sheet, solved
 independently, Gaussian noise of 0.02 mm) on the 100 x 60 mm region, the point grid's spacing
 chosen for the number of points. Every case runs in a fresh process (no compiled program is
 shared between cases), one at a time, with ``--threads`` threads (the diagnosis's workers);
@@ -65,9 +65,9 @@ def cpu_seconds() -> float:
 
 def case_bundle(case: dict):
     """``(truth, bundle)`` of a cell: its hidden effect drawn under its seed, the data from
-    refine.synthetic's finer solve plus noise."""
+    refine.demo_data's finer solve plus noise."""
     os.environ.setdefault("JAX_PLATFORMS", "cpu")
-    from refine.synthetic.sheet import random_truth, synthetic_bundle
+    from refine.demo_data import random_truth, synthetic_bundle
 
     truth = random_truth(np.random.default_rng(case["seed"]), case["cause"])
     return truth, synthetic_bundle(truth, seed=case["seed"], spacing=case["spacing"], noise=0.02,

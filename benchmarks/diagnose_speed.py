@@ -83,9 +83,9 @@ def _truth(case: dict):
     """The case's hidden effect drawn under its seed by the ``refine`` imported (this code's or a
     baseline tree's: the draw is the same, the row records it)."""
     try:
-        from refine.synthetic.sheet import random_truth
+        from refine.demo_data import random_truth
     except ImportError:  # the issue's code (df5f359): one module
-        from refine.synthetic import random_truth
+        from refine.demo_data import random_truth
     return random_truth(np.random.default_rng(case["seed"]), case["cause"])
 
 

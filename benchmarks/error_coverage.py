@@ -7,7 +7,7 @@
 
 
 Each case draws a hidden effect (place, size, ratio) under its own seed from
-:func:`refine.synthetic.random_truth` (kinds: a stiff circle, a soft ellipse, a hole, a
+:func:`refine.demo_data.random_truth` (kinds: a stiff circle, a soft ellipse, a hole, a
 rectangle whose ratio is drawn in 3-10), generates its data from an independent finer solve on
 quadratic triangles of a larger sheet plus Gaussian noise, and fits the TRUE hypothesis kind, as
 the diagnosis fits it: linear triangles on a mesh that follows the shape, started off the truth
@@ -63,7 +63,7 @@ OUT = Path(__file__).parent / "results"
 def truth_of(kind: str, seed: int):
     """The hidden effect of a case: :func:`random_truth`'s, a rectangle's ratio drawn in 3-10."""
     import jaxfem as jf  # noqa: F401
-    from refine.synthetic.sheet import Inclusion, Truth, random_truth
+    from refine.demo_data import Inclusion, Truth, random_truth
 
     rng = np.random.default_rng(seed)
     truth = random_truth(rng, kind)
@@ -140,7 +140,7 @@ def run_case(case: dict) -> dict:
     from refine.diagnosis.fitted import covariance
     from refine.diagnosis.uncertainty import (discretisation_bias, drive_bias, quantity_jacobian, shape_errors,
                                               shape_quantities)
-    from refine.synthetic.sheet import synthetic_bundle
+    from refine.demo_data import synthetic_bundle
 
     t0 = time.perf_counter()
     kind, seed, noise, spacing = case["kind"], case["seed"], case["noise"], case["spacing"]

@@ -1,6 +1,6 @@
 """The articulated hand of the paper's Sec. 5: model size, seconds per frame, scar strain.
 
-The articulated hand of the paper's Sec. 5 (jaxfem.hand): model size, seconds per frame, and the
+The articulated hand of the paper's Sec. 5 (examples.hand): model size, seconds per frame, and the
 maximum skin strain of its three motions with and without a scar on the wrist.
 
     python -m benchmarks hand                 # paper-size hand, 3 motions x (no, small, large scar); larger hand timed
@@ -10,9 +10,9 @@ maximum skin strain of its three motions with and without a scar on the wrist.
     python -m benchmarks hand --fine-only     # only the finer mesh's wrist motions, into the last hand.json
     python -m benchmarks hand --series out/hand   # also the ParaView series of every run
 
-Sizes: the paper-size hand (jaxfem.hand.PAPER at h = 24 mm: one finger block, thumb of two
+Sizes: the paper-size hand (examples.hand.PAPER at h = 24 mm: one finger block, thumb of two
 phalanges; the paper's model had 1,947 elements and 1,596 nodes) and a larger one (four fingers
-of three phalanges, h = ``--large-h``), timed on one motion. Motions (jaxfem.hand.standard_motions):
+of three phalanges, h = ``--large-h``), timed on one motion. Motions (examples.hand.standard_motions):
 thumb flexion (45 + 60 degrees), wrist side-to-side (30), wrist up-down (45), 10 frames each.
 Scars (the paper's relative elasticity 5.1, Sec. 3.2): a small one inside the wrist's palm side,
 a large one from the wrist onto the forearm. A motion is restricted where Newton fails at every
@@ -30,13 +30,13 @@ OTHER_AREAS are reported too, from the same solves.
 
 The strain threshold (the change of growth rate the paper finds at 80-90 % of a motion) is found
 per run by refine.threshold.ThresholdRule.find (the one definition: the rising hinge, a threshold
-only where the rate rises >= 1.25x with p < 0.01) through ``jaxfem.hand.run_motion(detector=...)``,
+only where the rate rises >= 1.25x with p < 0.01) through ``examples.hand.run_motion(detector=...)``,
 on the area's maximum strain against the marked point's displacement: a threshold with its
 ``fraction`` of the motion and 95 % profile-likelihood interval, or none with why (the hinge kept).
 
 Tracking (issue 25 item 5, ``_hand_tracking.py``): a synthetic range sequence of the moving hand
 (a finer mesh, random angles and pose, depth noise, part of the hand unseen) tracked by
-refine.hand from the unlabelled clouds and from the marked points; joint-angle errors, seconds per
+examples.hand from the unlabelled clouds and from the marked points; joint-angle errors, seconds per
 frame, skin-strain RMS against the truth; seeds 0-2, from the clouds, the markers and both (the
 markers alone, noise-limited at 1 degree, judged by their reported uncertainty; their limit
 measured by ``_hand_marker_noise.py``). The
@@ -70,7 +70,7 @@ import numpy as np
 
 OUT = Path(__file__).parent / "results"
 
-from jaxfem.hand import (PAPER, HandDimensions, plot_curves, reachable, run_motion,  # noqa: E402
+from examples.hand import (PAPER, HandDimensions, plot_curves, reachable, run_motion,  # noqa: E402
                          skin_strain_function, standard_motions)
 
 from benchmarks import _hand_marker_noise  # noqa: E402
@@ -162,7 +162,7 @@ def main(argv=None) -> int:
                      for k, v in SCARS.items()},
            "area_of_interest": {"box_mm": [AREA.lo, AREA.hi], "others": {k: [b.lo, b.hi] for k, b in OTHER_AREAS.items()}},
            "threshold": "refine.threshold.ThresholdRule.find on the area's max strain vs the marked point's "
-                        "displacement (jaxfem.hand.run_motion(detector=...)): a threshold (fraction of the motion, "
+                        "displacement (examples.hand.run_motion(detector=...)): a threshold (fraction of the motion, "
                         "95 % interval) or none with why",
            "sizes": {}}
     hand, model, res["sizes"]["paper"] = build(PAPER, 24.0, 4.5)

@@ -1,6 +1,6 @@
 """3D hidden-inclusion benchmark: a block held by grips hiding an ellipsoidal inclusion (issue 23).
 
-For several seeds it draws an inclusion (refine.synthetic.block.random_inclusion: place, semi-axes,
+For several seeds it draws an inclusion (examples.block.synthetic.random_inclusion: place, semi-axes,
 orientation and ratio), solves the stretched block on a finer tet10 mesh (h_data, and 1 mm over
 the inclusion: ``--h-data-inclusion``, whose staircase then holds the ellipsoid's volume to 0.6 %) with noise,
 tracks its four long faces and its grips (surface points only), runs the solid diagnosis
@@ -57,7 +57,7 @@ RESULTS = HERE / "results"
 def case(seed: int, cause: str, args) -> dict:
     from refine.bundle.io import read_bundle
     from refine.solid import diagnose_solid, report
-    from refine.synthetic.block import BlockSetting, data_inclusion, write_block_bundle
+    from examples.block.synthetic import BlockSetting, data_inclusion, write_block_bundle
 
     from refine.solid.inclusion_diagnosis import InclusionConfig, diagnose_inclusion
     from refine.solid.inclusion_mesh import FocusedMesh
@@ -70,7 +70,7 @@ def case(seed: int, cause: str, args) -> dict:
         t_data = time.perf_counter() - t0
         t0, c0 = time.perf_counter(), time.process_time()
         if args.h_fit:  # the inclusion diagnosis with its fits on a finer mesh (the field on the bundle's)
-            from refine.synthetic.block import model_mesh
+            from examples.block.synthetic import model_mesh
 
             cfg = InclusionConfig(fit_mesh=model_mesh(replace(setting, h_model=args.h_fit)))
             d = diagnose_inclusion(read_bundle(root), cfg, log=lambda m: None)
@@ -171,7 +171,7 @@ def reinterval(row: dict) -> dict:
     without: none), its coverage flags with them."""
     from refine.solid.inclusion_profile import ProfilePoint, interval
     from refine.solid.inclusion_total import Discretisation, total_intervals
-    from refine.synthetic.block import BlockSetting
+    from examples.block.synthetic import BlockSetting
 
     f = (row["report"]["findings"] or [{}])[0]
     if "profile" not in f:

@@ -55,7 +55,7 @@ def row(bundle, truth, setting, h: float, fine: float | None = None) -> dict:
     from refine.solid.inclusion_diagnosis import with_errors
     from refine.solid.inclusion_profile import RatioHeld, strength
     from refine.solid.inclusion_mesh import FocusedMesh, focused_mesh
-    from refine.synthetic.block import model_mesh
+    from examples.block.synthetic import model_mesh
 
     t0 = time.perf_counter()
     obs, sigma = bundle.observations, setting.noise
@@ -99,7 +99,7 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=Path, default=RESULTS / "inclusion3d_mesh.json")
     args = p.parse_args(argv)
     from refine.solid.inclusion_profile import strength
-    from refine.synthetic.block import BlockSetting, block_bundle
+    from examples.block.synthetic import BlockSetting, block_bundle
 
     setting = BlockSetting(h_data=args.h_data, h_model=max([*args.h_models, *(g[1] for g in args.graded)]))
     bundle, _, truth = block_bundle(args.cause, args.seed, setting)

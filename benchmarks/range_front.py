@@ -2,7 +2,7 @@
 
 The range-image front end's accuracy: a cup holder compressed by jaxfem (fine tet10 mesh, a hidden
 hole in its bottom at a random place and size under each seed) rendered from below as intensity +
-range images (refine.synthetic.cup_views), tracked by ``nonrigid track --range``; the tracked 3D
+range images (examples.cup_holder.views), tracked by ``nonrigid track --range``; the tracked 3D
 points against the painted crossings' true positions, and the clouds against the true surface, for
 both cameras, the bilinear and the quadratic lookup, and range noise 0.02 / 0.05 / 0.1 mm. Clouds
 are judged by the exact distance of each point to the deformed surface's triangles.
@@ -29,9 +29,9 @@ import numpy as np
 import jaxfem as jf  # noqa: E402
 from refine.cli.track import track  # noqa: E402
 from refine.cli.track_range import RangeOptions  # noqa: E402
-from refine.synthetic.cup_views import (CupScene, compressed_cup, crossing_errors, cup_camera,  # noqa: E402
+from examples.cup_holder.views import (CupScene, compressed_cup, crossing_errors, cup_camera,  # noqa: E402
                                         painted_crossings, render_cup, write_frames)
-from refine.synthetic.solid_render import surface_distance  # noqa: E402
+from examples.synthetic.solid_render import surface_distance  # noqa: E402
 from benchmarks._cli import QUICK, quick  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"

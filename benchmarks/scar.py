@@ -6,10 +6,10 @@ Skin with a burn scar (issue 25 item 1; the paper's Secs. 3.2 and 5.1), diagnose
     python -m benchmarks scar --merge               # summary and plot from the rows only
     python -m benchmarks scar --locking             # also the plane-stress locking check
 
-Each case draws a scar under its own seed (:func:`refine.synthetic.skin.random_scar`: normal
+Each case draws a scar under its own seed (:func:`examples.skin.synthetic.random_scar`: normal
 skin of modulus 10-100 kPa, nu 0.49, 1-2 mm thick; an ellipse at any angle or a rectangle of
 relative elasticity 2-6, placed at random), generates its bundle from the finer quadratic solve
-of the larger stretched skin plus noise (:func:`refine.synthetic.skin.skin_bundle`), and runs
+of the larger stretched skin plus noise (:func:`examples.skin.synthetic.skin_bundle`), and runs
 the diagnosis as ``nonrigid diagnose`` runs it (:func:`refine.diagnosis.diagnose`, default
 settings but one worker). Targets (the issue's): a stiffer region named; its relative elasticity
 within 5 % of the truth (each seed); its centroid within 2 % of the field of view (its diagonal;
@@ -48,7 +48,7 @@ RATIO_TOL, CENTROID_TOL = 0.05, 0.02
 def run_case(seed: int) -> dict:
     """One scar: generate, diagnose, score against the truth; the measured strain pocket."""
     from refine.diagnosis import DiagnoseConfig, diagnose
-    from refine.synthetic.skin import SKIN, random_scar, skin_bundle
+    from examples.skin.synthetic import SKIN, random_scar, skin_bundle
 
     t0 = time.perf_counter()
     truth = random_scar(np.random.default_rng(seed))

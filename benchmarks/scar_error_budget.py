@@ -7,7 +7,7 @@ The error budget of a scar's relative elasticity (issue 25; benchmarks/scar.py's
     python -m benchmarks scar_error_budget --seed 3 --out scar_error_budget_seed3
     python -m benchmarks scar_error_budget --noise-free 2 3 4 5 6 7   # noise-free errors only
 
-For one seed of :func:`refine.synthetic.skin.random_scar` the chosen hypothesis (the true kind,
+For one seed of :func:`examples.skin.synthetic.random_scar` the chosen hypothesis (the true kind,
 started at the truth: the search is not measured here) is fitted as the diagnosis's final refit
 fits it (linear triangles, then quadratic ones remeshed at the fit, every guide point), on the
 bundle with its noise and on the same bundle without noise. Measured:
@@ -159,7 +159,7 @@ def noise_free_row(seed: int, setting=None, noisy: bool = False) -> dict:
     ``noisy``: on the bundle with its noise instead (what the diagnosis sees), with the z of the
     ratio and of Richardson's extrapolation (ratio less the signed estimate) against the total
     error (standard error and the estimate in quadrature)."""
-    from refine.synthetic.skin import SKIN, random_scar, skin_bundle
+    from examples.skin.synthetic import SKIN, random_scar, skin_bundle
 
     setting = setting or SKIN
     t0 = time.perf_counter()
@@ -244,7 +244,7 @@ def run_noise_free(seeds: list[int], name: str, noisy: bool = False):
 
 def main(argv=None) -> int:
     argv = quick(argv, ["--draws", "2", "--part-draws", "2", "--out", "quick/scar_error_budget"])
-    from refine.synthetic.skin import SKIN, random_scar, skin_bundle
+    from examples.skin.synthetic import SKIN, random_scar, skin_bundle
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seed", type=int, default=1)

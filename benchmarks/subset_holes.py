@@ -5,9 +5,9 @@
 A DIC code places no point whose subset (a square of side ``subset`` around it) meets the hole,
 so the points nearest a hole lie half a subset or more from its edge, and a hole fitted to the
 points alone grows into that empty ring (the CFRP coupon's hole came out +28 % in area). Each
-case draws a hole (:func:`refine.synthetic.random_truth`, place, axes and angle at random under
+case draws a hole (:func:`refine.demo_data.random_truth`, place, axes and angle at random under
 its seed) and a subset of 1.2-2.5 grid spacings, generates the sheet's data on a finer quadratic
-mesh with noise (:func:`refine.synthetic.synthetic_bundle`), removes every point whose square
+mesh with noise (:func:`refine.demo_data.synthetic_bundle`), removes every point whose square
 subset meets the hole, and fits the hole three ways from the same start (a circle over the
 points' gap, as a diagnosis's candidate from missing points starts):
 
@@ -57,7 +57,7 @@ def case_bundle(seed: int, spacing: float, noise: float):
     from refine.bundle.io import Bundle
     from refine.bundle.observations import Observations
     from refine.diagnosis.subsets import subset_distance
-    from refine.synthetic.sheet import random_truth, synthetic_bundle
+    from refine.demo_data import random_truth, synthetic_bundle
 
     rng = np.random.default_rng(seed)
     truth = random_truth(rng, "hole", ROI)
@@ -127,8 +127,8 @@ def image_case_bundle(seed: int, work: Path):
     import jaxfem as jf
     import tracking
     from refine.cli import track
-    from refine.synthetic.render import sheet_displacements
-    from refine.synthetic.sheet import Truth
+    from examples.synthetic.render import sheet_displacements
+    from refine.demo_data import Truth
 
     rng = np.random.default_rng(seed)
     x0, y0, x1, y1 = ROI

@@ -26,7 +26,7 @@ from refine.cli.main import main  # main(["simulate", B, "--out", S]) is `nonrig
 work = Path(tempfile.mkdtemp(prefix="nonrigid-"))"""
 
 SHEET = """from refine.bundle import write_bundle
-from refine.synthetic.sheet import random_truth, synthetic_bundle
+from refine.demo_data import random_truth, synthetic_bundle
 
 def sheet(cause, seed, spacing=10.0):
     \"\"\"A synthetic 100 x 60 mm sheet hiding ``cause``, solved on a finer mesh than any fit's, plus noise.\"\"\"
@@ -172,7 +172,7 @@ here hides a stiff inclusion."""),
         ("code", SETUP + """
 
 from refine.bundle import write_bundle
-from refine.synthetic.clouds import cloud_sequence, random_cloud_truth
+from examples.synthetic.clouds import cloud_sequence, random_cloud_truth
 
 seed, noise = 21, 0.015
 truth = random_cloud_truth(np.random.default_rng(seed), "stiffer-region", (0.0, 0.0, 100.0, 50.0))

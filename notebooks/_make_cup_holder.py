@@ -18,7 +18,7 @@ bottom move. The paper's two models: a **local model** of the observed bottom fi
 strain is abnormally high, cuts a hole there and varies its size and place; the found hole goes
 into the **global model** of the whole cup holder, which predicts the held-out points.
 
-The data here come from `refine.synthetic.cup`: the cup holder with a hole drawn at random under a
+The data here come from `examples.cup_holder.synthetic`: the cup holder with a hole drawn at random under a
 seed, solved on a finer tet10 mesh than the inversion uses, sampled at the crossings of a painted
 grid with noise 0.01 mm (the end-to-end path from rendered intensity + range images through
 `nonrigid track --range` is in `tests/test_solid_diagnosis.py` and `benchmarks/diagnose3d.py`).
@@ -30,7 +30,7 @@ import numpy as np
 import matplotlib.pyplot as plt
 import jaxfem as jf
 from refine.bundle.io import read_bundle
-from refine.synthetic.cup import CupGeometry, random_hole, write_cup_bundle
+from examples.cup_holder.synthetic import CupGeometry, random_hole, write_cup_bundle
 
 geometry, seed = CupGeometry(), 1
 truth = random_hole(geometry, seed)

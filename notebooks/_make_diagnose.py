@@ -24,7 +24,7 @@ discretisation. To diagnose your own measurements, read them with `refine.bundle
     ("code", """import numpy as np
 from IPython.display import Image, display
 import jaxfem as jf
-from refine.synthetic.sheet import Truth, Inclusion, random_truth, synthetic_bundle
+from refine.demo_data import Truth, Inclusion, random_truth, synthetic_bundle
 from refine.diagnosis import diagnose
 from refine.diagnosis import figures, html, report
 

@@ -12,7 +12,7 @@ from _nbgen import write
 CELLS = [
     ("md", """# The hand and the burn scar (the paper's Sec. 5)
 
-A box-like hand/wrist/forearm (`jaxfem.hand`): soft tissue (neo-Hookean, nu 0.49, locking-free
+A box-like hand/wrist/forearm (`examples.hand`): soft tissue (neo-Hookean, nu 0.49, locking-free
 `tet10`) around rigid bones that its joints turn (the wrist about two axes, each thumb phalanx about
 one). The scar found in skin data (the committed skin diagnosis of `benchmarks/scar.py`,
 `benchmarks/results/scar.json`: its shape and relative elasticity) placed on the palm side of the
@@ -32,7 +32,7 @@ import matplotlib.pyplot as plt
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from IPython.display import Image, display
 import jaxfem as jf
-from jaxfem.hand import (PAPER, Box, HandModel, Motion, Scar, default_body, hand_mesh, plot_curves, run_motion,
+from examples.hand import (PAPER, Box, HandModel, Motion, Scar, default_body, hand_mesh, plot_curves, run_motion,
                          scar_cells, skin_area, skin_strain_function)
 from refine.threshold import ThresholdRule
 
@@ -126,16 +126,16 @@ buf = io.BytesIO(); fig.savefig(buf, format="png", dpi=90); plt.close(fig)
 display(Image(buf.getvalue()))  # plot_curves switched matplotlib to Agg: show the PNG"""),
     ("md", """## Tracking the moving hand
 
-A synthetic range sequence (`refine.synthetic.hand_range`): joint angles and a global pose drawn
+A synthetic range sequence (`examples.hand.range`): joint angles and a global pose drawn
 at random under a seed, the hand solved on a **finer** mesh (h = 15 mm, not the tracker's), seen
 by one orthographic range camera from the back of the hand (depth noise 0.2 mm, a structured-light
 scanner's; the palm side never seen, the flexed thumb partly hidden, the forearm's end out of
-view), and 13 marked points with 0.1 mm noise. `refine.hand.HandTracker` fits the joint angles
+view), and 13 marked points with 0.1 mm noise. `examples.hand.HandTracker` fits the joint angles
 and the pose of the notebook's coarse model to each frame, (a) from the unlabelled cloud (point to
 deformed-surface distances) and (b) from the markers, by Levenberg-Marquardt with the exact
 Jacobian through the solve (the angles drive the bones' kinematic Dirichlet data)."""),
-    ("code", """from refine.hand import HandTracker, TrackConfig, angle_errors, skin_strain_on
-from refine.synthetic.hand_range import hand_range_sequence
+    ("code", """from examples.hand import HandTracker, TrackConfig, angle_errors, skin_strain_on
+from examples.hand.range import hand_range_sequence
 
 seq = hand_range_sequence(seed=0, frames=4, h=15.0, dims=dims)  # steps of <= 15 degrees
 tracker = HandTracker(model, TrackConfig(noise=seq.noise, marker_noise=seq.marker_noise))
@@ -151,7 +151,7 @@ for kind, f in fits.items():
     print(f"{kind:8s} largest angle error per frame (deg): {np.abs(err).max(axis=1).round(3)}; "
           f"skin-strain RMS over the area: {np.round(rms, 4)}; s per frame: {[round(x.seconds, 1) for x in f]}")"""),
     ("code", """# the last frame: its cloud (scanner frame, brought back by the fitted pose) on the fitted skin
-from refine.synthetic.hand_range import pose_matrix
+from examples.hand.range import pose_matrix
 f = fits["clouds"][-1]
 R, t = pose_matrix(f.pose)
 pts = (seq.clouds[-1] - t) @ R
@@ -164,7 +164,7 @@ ax.set_xlim(lo[0], hi[0]); ax.set_ylim(lo[1], hi[1]); ax.set_zlim(lo[2], hi[2]);
 ax.view_init(elev=50, azim=-70); ax.set_title("last frame: range points (red) on the tracked skin", fontsize=9)
 buf = io.BytesIO(); fig.savefig(buf, format="png", dpi=90); plt.close(fig)
 display(Image(buf.getvalue()))"""),
-    ("md", """`jaxfem.hand.write_motion_series(result, hand, folder)` writes the same frames as ParaView
+    ("md", """`examples.hand.write_motion_series(result, hand, folder)` writes the same frames as ParaView
 series (the volume and the skin surface), and `benchmarks/hand.py` the paper-size comparison in
 `benchmarks/results/hand.json`."""),
 ]

@@ -31,7 +31,7 @@ another mesh, so nothing can hit 837.61 exactly."""),
 import numpy as np
 import matplotlib.pyplot as plt
 import jaxfem as jf
-from refine.paper.experiment import (BACKGROUND, BRACKET, INCLUSION, MIDDLE_POINTS, NAME, EmbeddedRectangle, PaperExperiment, format_rows, solves_to_reach)
+from examples.paper.experiment import (BACKGROUND, BRACKET, INCLUSION, MIDDLE_POINTS, NAME, EmbeddedRectangle, PaperExperiment, format_rows, solves_to_reach)
 
 t0 = time.perf_counter()
 ex = PaperExperiment(EmbeddedRectangle())          # noise 0.02 mm, 2 frames, 10 mm grid

@@ -30,8 +30,8 @@ from refine.diagnosis import report
 from refine.bundle import ModelSkeleton
 from refine.cli import track
 from refine.diagnosis import diagnose
-from refine.synthetic.render import render_sheet_images
-from refine.synthetic.sheet import Inclusion, Truth
+from examples.synthetic.render import render_sheet_images
+from refine.demo_data import Inclusion, Truth
 import jaxfem as jf
 
 work = Path(tempfile.mkdtemp(prefix="nonrigid-tracking-"))

@@ -9,8 +9,7 @@ this package, which imports nothing so that ``import refine`` stays light):
 - :mod:`refine.optimize`: the optimisers, one method per module (LM / Gauss-Newton, L-BFGS-B,
   Pade steps, the tensor method, the paper's Brent and cubic searches);
 - :mod:`refine.diagnosis`: show / decide / name / extend / measure, and the report;
-- :mod:`refine.paper`: the paper's Sec. 3.1 experiment;
-- :mod:`refine.synthetic`: hidden-effect sheets from an independent solve, and their images;
+- :mod:`refine.demo_data`: the demo's data, a sheet with a hidden effect solved on a finer mesh;
 - :mod:`refine.cli`: the ``nonrigid`` command line, one module per command.
 
 :mod:`refine.exceptions` is the error hierarchy and :mod:`refine.measures` the error measures.

@@ -17,7 +17,7 @@ def fitted_ellipse(seed: int, noise: float, sigma: float):
     from refine.diagnosis.regions import regions_hypothesis
     from refine.diagnosis.shapes import RegionShape
     from refine.model.measured import MeasuredModel
-    from refine.synthetic.sheet import Inclusion, Truth, synthetic_bundle
+    from refine.demo_data import Inclusion, Truth, synthetic_bundle
 
     rng = np.random.default_rng(seed)
     cx, cy, angle = rng.uniform(17, 23), rng.uniform(13, 17), rng.uniform(0, 3)

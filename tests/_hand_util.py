@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from jaxfem.hand import PAPER, default_body, hand_mesh
+from examples.hand import PAPER, default_body, hand_mesh
 
 COARSE = replace(PAPER, forearm=(48.0, 20.0, 28.0), palm=(48.0, 40.0, 26.0), wrist=(48.0, 16.0, 28.0), fingers=0,
                  thumb_phalanges=(20.0, 20.0), thumb=(20.0, 22.0), thumb_at=10.0)
@@ -13,5 +13,5 @@ COARSE = replace(PAPER, forearm=(48.0, 20.0, 28.0), palm=(48.0, 40.0, 26.0), wri
 
 def coarse_hand(h: float = 30.0):
     """The coarse hand meshed with tet10 elements no longer than ``h`` (mm), box faces closer than
-    4.5 mm snapped to one grid plane (:func:`jaxfem.hand.hand_mesh`)."""
+    4.5 mm snapped to one grid plane (:func:`examples.hand.hand_mesh`)."""
     return hand_mesh(default_body(COARSE), h, 4.5)

@@ -2,7 +2,7 @@
 finer solve recovered within 1 %, and a standard error for every fitted quantity.
 
 Cases are drawn at random under a seed (place, size, ratio); data come from a larger sheet meshed
-with quadratic triangles that follow the hidden shape (refine.synthetic), never from the
+with quadratic triangles that follow the hidden shape (refine.demo_data), never from the
 inversion's own mesh. ``benchmarks/error_coverage.py`` measures the coverage of the errors over many
 cases and the noise-free accuracy over more rectangles.
 """
@@ -80,7 +80,7 @@ FULL = {"roi": (20.0, 10.0, 120.0, 70.0), "sheet": (0.0, 0.0, 140.0, 80.0), "sid
 def _rectangle_case(seed: int, size: dict):
     """A rectangle of random place, sides (in ``size["sides"]``, mm) and ratio (3-10) at least
     a third of its sides away from the region of interest's edges."""
-    from refine.synthetic.sheet import Inclusion, Truth
+    from refine.demo_data import Inclusion, Truth
 
     rng = np.random.default_rng(seed)
     (w0, w1), (h0, h1) = size["sides"]
@@ -106,7 +106,7 @@ def test_a_noise_free_rectangle_is_recovered_within_one_percent(size):
     from refine.diagnosis.fitted import refit
     from refine.diagnosis.regions import fit_regions
     from refine.model.measured import MeasuredModel
-    from refine.synthetic.sheet import synthetic_bundle
+    from refine.demo_data import synthetic_bundle
 
     truth = _rectangle_case(4101, size)
     rect, ratio = truth.inclusions[0].shape, truth.inclusions[0].ratio
@@ -137,7 +137,7 @@ def test_the_papers_rectangle_without_noise_is_named_a_rectangle():
     low; on a 10 mm grid the boundary points' linear interpolation alone moves it 1.7 % with the
     rectangle known), centre within 0.5 mm, area within 3 %."""
     from refine.diagnosis import diagnose
-    from refine.paper.experiment import BACKGROUND, INCLUSION, EmbeddedRectangle
+    from examples.paper.experiment import BACKGROUND, INCLUSION, EmbeddedRectangle
 
     cfg = EmbeddedRectangle(noise=0.0)
     d = diagnose(cfg.bundle(), log=lambda m: None)

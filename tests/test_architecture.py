@@ -17,8 +17,8 @@ REFINE_LAYERS = {
     "refine.bundle": 1,
     "refine.model": 2,
     "refine.optimize": 3,
-    "refine.diagnosis": 4, "refine.synthetic": 4, "refine.correspond": 4, "refine.solid": 4,
-    "refine.paper": 5, "refine.batch": 5, "refine.hand": 5,
+    "refine.diagnosis": 4, "refine.demo_data": 4, "refine.correspond": 4, "refine.solid": 4,
+    "refine.batch": 5,
     "refine.cli": 6,
 }
 MAX_LINES = 420  # "about 400 lines"
@@ -91,7 +91,22 @@ def test_every_refine_module_belongs_to_a_room():
     assert not loose
 
 
-@pytest.mark.parametrize("pkg", PACKAGES + ("benchmarks",))
+def test_the_library_imports_no_example_and_no_test():
+    """jaxfem, refine and tracking run after ``pip install .`` from a clone without examples/ or tests/."""
+    bad = [f"{path.relative_to(ROOT)}:{line} imports {name}" for path, module in _modules()
+           for line, name in _imports(path, module) if name.split(".")[0] in ("examples", "tests", "benchmarks")]
+    assert not bad, "\n".join(bad)
+
+
+def test_jaxfem_defines_no_particular_body():
+    """A body is data: no module or package of jaxfem is named after one of the paper's bodies."""
+    bodies = ("hand", "cup", "cup_holder", "skin", "block", "paper")
+    named = [module for _, module in _modules() if module.startswith("jaxfem")
+             and any(part in bodies for part in module.split(".")[1:])]
+    assert not named, f"move these bodies to examples/: {named}"
+
+
+@pytest.mark.parametrize("pkg", PACKAGES + ("benchmarks", "examples"))
 def test_no_module_is_much_over_400_lines(pkg):
     long = {str(p.relative_to(ROOT)): n for p in sorted((ROOT / pkg).rglob("*.py"))
             if (n := len(p.read_text().splitlines())) > MAX_LINES}

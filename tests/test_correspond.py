@@ -11,7 +11,7 @@ from refine.bundle.experiment import Experiment, PolygonDomain, RectangleDomain
 from refine.correspond import CloudModel, FitConfig, Fitter, Grips, HausdorffConfig, hausdorff_track, split_frames
 from refine.correspond.geometry import inside, split_outline
 from refine.exceptions import CorrespondenceError
-from refine.synthetic.clouds import cloud_sequence, outline_samples, random_cloud_truth
+from examples.synthetic.clouds import cloud_sequence, outline_samples, random_cloud_truth
 
 DOMAIN = (0.0, 0.0, 100.0, 50.0)
 

@@ -1,6 +1,6 @@
 """Tracking without correspondences in 3D (refine.correspond on a solid): a tet10 block clamped at
 its left face, its right face moved by a random 6-DOF rigid motion, solved on a finer tet10 mesh
-(refine.synthetic.solid_clouds) and seen by a range camera as unlabelled surface points with depth
+(examples.synthetic.solid_clouds) and seen by a range camera as unlabelled surface points with depth
 noise; the grips fit, the implicit gradients' Taylor test, the Hausdorff force method, a followed
 sequence, and bad input. The fast test fits one frame; the rest is slow (3D solves and their
 compilation): benchmarks/correspondence.py --dim 3 measures the same over more seeds."""
@@ -17,7 +17,7 @@ from refine.correspond import (CloudModel, FitConfig, FollowConfig, Grips, Hausd
 from refine.correspond.fit import Fitter
 from refine.correspond.geometry import triangle_distances
 from refine.exceptions import CorrespondenceError
-from refine.synthetic.solid_clouds import BLOCK, random_solid_truth, range_cloud, solid_cloud_sequence
+from examples.synthetic.solid_clouds import BLOCK, random_solid_truth, range_cloud, solid_cloud_sequence
 
 NOISE = 0.02
 SIZE = 40.0

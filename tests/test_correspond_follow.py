@@ -15,7 +15,7 @@ from refine.bundle import write_bundle
 from refine.bundle.io import Bundle
 from refine.cli.main import main
 from refine.correspond import CloudModel, FitConfig, FollowConfig, Grips, follow_clouds
-from refine.synthetic.clouds import cloud_sequence, random_cloud_truth
+from examples.synthetic.clouds import cloud_sequence, random_cloud_truth
 
 DOMAIN = (0.0, 0.0, 100.0, 50.0)
 NOISE = 0.015

@@ -9,7 +9,7 @@ import pytest
 import jaxfem as jf
 from refine.solid.edge import EdgeGeometry, NoLattice, evidence_near, grid_lattice
 from refine.solid.morph import ExtrudedMorph
-from refine.synthetic.cup import CupGeometry, _points, random_hole
+from examples.cup_holder.synthetic import CupGeometry, _points, random_hole
 
 G = CupGeometry()
 

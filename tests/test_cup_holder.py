@@ -132,7 +132,7 @@ def test_the_datas_hole_is_the_drawn_ellipse_to_a_fraction_of_a_percent():
     """The data's mesh cuts the hole as a polygon: at the data's h 0.8 alone it kept 97-98.5 % of the
     drawn ellipse (a bias of the size of the 2 % target); cut along the hole at
     ``data_hole_h`` it keeps more than 99.5 % (seeds drawn as the benchmark draws them)."""
-    from refine.synthetic.cup import CupGeometry, data_hole_h, random_hole
+    from examples.cup_holder.synthetic import CupGeometry, data_hole_h, random_hole
 
     g = CupGeometry()
 

@@ -15,9 +15,9 @@ import pytest
 import jaxfem as jf
 from refine.cli.track import track
 from refine.cli.track_range import RangeOptions
-from refine.synthetic.cup_views import (CupScene, compressed_cup, crossing_errors, cup_camera, painted_crossings,
+from examples.cup_holder.views import (CupScene, compressed_cup, crossing_errors, cup_camera, painted_crossings,
                                         render_cup, write_frames)
-from refine.synthetic.solid_render import surface_distance
+from examples.synthetic.solid_render import surface_distance
 from tests.test_cup_holder import random_hole
 
 NOISE = 0.05

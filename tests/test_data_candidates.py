@@ -9,7 +9,7 @@ import pytest
 from refine.diagnosis import DiagnoseConfig, diagnose
 from refine.diagnosis.candidates import strain_regions
 from refine.model.measured import MeasuredModel
-from refine.synthetic.sheet import random_truth, synthetic_bundle
+from refine.demo_data import random_truth, synthetic_bundle
 
 DIAGONAL = float(np.hypot(100.0, 60.0))
 

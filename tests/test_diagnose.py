@@ -15,7 +15,7 @@ import pytest
 
 from refine.diagnosis import report
 from refine.diagnosis import diagnose
-from refine.synthetic.sheet import random_truth, synthetic_bundle
+from refine.demo_data import random_truth, synthetic_bundle
 
 DIAGONAL = float(np.hypot(100.0, 60.0))
 
@@ -148,7 +148,7 @@ def test_a_soft_region_over_tracked_material_is_not_renamed_a_hole():
     from refine.diagnosis.final_fit import _hole_if_as_likely
     from refine.diagnosis.shapes import RegionShape
     from refine.bundle.experiment import Experiment, RectangleDomain
-    from refine.synthetic.sheet import grid_points
+    from refine.demo_data import grid_points
 
     rng = np.random.default_rng(41)
     cx, cy, a, b = rng.uniform(40, 100), rng.uniform(25, 55), *rng.uniform(6, 12, 2)

@@ -204,7 +204,7 @@ def test_a_write_that_fails_midway_leaves_the_old_file_and_no_partial_one(tmp_pa
 @pytest.fixture(scope="module")
 def homogeneous(tmp_path_factory):
     from refine.bundle import write_bundle
-    from refine.synthetic.sheet import Truth, synthetic_bundle
+    from refine.demo_data import Truth, synthetic_bundle
 
     root = tmp_path_factory.mktemp("robust") / "bundle"
     write_bundle(root, synthetic_bundle(Truth(), seed=31, spacing=10.0, noise=0.02, fractions=(1.0,), name="plain"))
@@ -253,7 +253,7 @@ def test_an_interrupt_after_the_initial_model_writes_what_it_has(homogeneous, tm
 @pytest.fixture(scope="module")
 def inclusion(tmp_path_factory):
     from refine.bundle import write_bundle
-    from refine.synthetic.sheet import Inclusion, Truth, synthetic_bundle
+    from refine.demo_data import Inclusion, Truth, synthetic_bundle
 
     rng = np.random.default_rng(8)
     truth = Truth(inclusions=(Inclusion(jf.Ellipse(rng.uniform(60, 80), 38.0, 14.0, 10.0, 0.4), ratio=6.0),))

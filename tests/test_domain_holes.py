@@ -53,7 +53,7 @@ def test_a_known_hole_in_the_model_predicts_a_holed_sheet_better(tmp_path):
     uniform model without the hole against the same model told of the hole (a polygon through the
     ellipse) in the bundle: the held-out error must drop severalfold."""
     from refine.measures import mean_position_error
-    from refine.synthetic import random_truth, synthetic_bundle
+    from refine.demo_data import random_truth, synthetic_bundle
 
     rng = np.random.default_rng(7)
     truth = random_truth(rng, "hole")

@@ -2,7 +2,7 @@
 ``diagnose`` names the cause and finds the disc.
 
 Nothing crosses from the simulation to the analysis but 8-bit PNG images: the images come from a
-fine quadratic solution of a larger sheet (refine.synthetic.render), the bundle from the grid tracker.
+fine quadratic solution of a larger sheet (examples.synthetic.render), the bundle from the grid tracker.
 
 The grid is 12 px at 0.25 mm/px, 3 mm on the 100 x 60 mm region (714 points). At 5-6 mm (pitch
 10-12 px at 0.5 mm/px) the diagnosis misses the ratio of a disc 12-16 mm across by 12-29 % even
@@ -20,12 +20,12 @@ import pytest
 from refine.cli import track
 from refine.bundle import ModelSkeleton
 from refine.diagnosis import diagnose
-from refine.synthetic.render import render_sheet_images
-from refine.synthetic.sheet import random_truth
+from examples.synthetic.render import render_sheet_images
+from refine.demo_data import random_truth
 
 
 def hidden_stiff_disc(seed: int):
-    """A random stiffer disc (place and size as refine.synthetic draws them, ratio in 4-8)."""
+    """A random stiffer disc (place and size as refine.demo_data draws them, ratio in 4-8)."""
     rng = np.random.default_rng(seed)
     truth = random_truth(rng, "stiffer-region")
     disc = dataclasses.replace(truth.inclusions[0], ratio=float(rng.uniform(4.0, 8.0)))

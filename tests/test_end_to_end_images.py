@@ -5,7 +5,7 @@ through ``nonrigid track`` (refine.cli.track) and ``nonrigid diagnose`` (refine.
 Nothing crosses from the simulation to the analysis but PNG files. The hole is seen as a hole (the
 dark background through it); ``--keep-holes`` (``cut_holes=False``) leaves it inside the bundle's
 domain, so that ``diagnose`` must find it. The displacement comes from a fine quadratic solution
-of a larger sheet (refine.synthetic.render.sheet_displacements); the grid is 3 mm (12 px at
+of a larger sheet (examples.synthetic.render.sheet_displacements); the grid is 3 mm (12 px at
 0.25 mm/px) on the 100 x 60 mm region, as in tests/test_end_to_end.py.
 
 Slow: deselected by default; run with ``-m slow``. Measured on 2 shared cores at load 21-35
@@ -29,8 +29,8 @@ import tracking
 from refine.bundle import ModelSkeleton
 from refine.cli.diagnose import diagnose
 from refine.cli.track import track
-from refine.synthetic.render import ROI, sheet_displacements
-from refine.synthetic.sheet import random_truth
+from examples.synthetic.render import ROI, sheet_displacements
+from refine.demo_data import random_truth
 from tracking._synthetic import Scene
 
 PITCH_PX = 12.0
@@ -41,7 +41,7 @@ FRAMES = (0.5, 1.0)           # load fractions after the reference
 
 
 def hidden_truth(cause: str, seed: int):
-    """A random hole (a circle, drawn as refine.synthetic draws holes) or a stiff disc (ratio 4-8)."""
+    """A random hole (a circle, drawn as refine.demo_data draws holes) or a stiff disc (ratio 4-8)."""
     rng = np.random.default_rng(seed)
     truth = random_truth(rng, cause)
     if cause == "hole":

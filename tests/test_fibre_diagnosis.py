@@ -17,7 +17,7 @@ from refine.diagnosis import diagnose
 from refine.diagnosis.fitted import refit
 from refine.diagnosis.laws import fit_law, law_parameters
 from refine.model.measured import MeasuredModel
-from refine.synthetic import Truth, random_truth, synthetic_bundle, with_fibres
+from refine.demo_data import Truth, random_truth, synthetic_bundle, with_fibres
 
 FEW_DEGREES = np.deg2rad(3.0)
 

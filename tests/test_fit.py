@@ -1,6 +1,6 @@
 """Gradient fits recover hidden regions from synthetic measurements made on another mesh.
 
-Data come from :func:`refine.synthetic.synthetic_bundle` (quadratic triangles on a larger sheet,
+Data come from :func:`refine.demo_data.synthetic_bundle` (quadratic triangles on a larger sheet,
 noise 0.02 mm); the inversions use linear triangles over the tracked region, so a few per cent of
 discretisation error is expected and 10 % is the tolerance. Every fit compiles the whole
 nonlinear solve and its derivatives once (tens of seconds), so the fixtures share bundles and
@@ -21,7 +21,7 @@ from refine.optimize.least_squares import least_squares
 from refine.diagnosis.forces import ForcedObjective, fit_region_moduli
 from refine.model.measured import MeasuredModel, domain_mesh
 from refine.model.parametrize import ModulusField, RegionModuli
-from refine.synthetic.sheet import random_truth, synthetic_bundle
+from refine.demo_data import random_truth, synthetic_bundle
 
 DATA = dict(spacing=5.0, noise=0.02, fractions=(0.5, 1.0), h=3.0)  # 10 mm leaves a small inclusion few points
 MODEL_H = 2.5
@@ -129,7 +129,7 @@ def test_lm_moves_a_hole_to_its_true_centre():
     import jaxfem as jf
     from refine.bundle.observations import Observations
     from refine.model.parametrize import ShapeGeometry
-    from refine.synthetic.sheet import Truth
+    from refine.demo_data import Truth
 
     hole, guess = jf.Ellipse(72.0, 40.0, 9.0, 7.0, 0.3), jf.Ellipse(69.0, 38.0, 9.0, 7.0, 0.3)
     bundle = synthetic_bundle(Truth(holes=(hole,)), seed=0, **DATA)
@@ -274,7 +274,7 @@ def test_hole_fit_finds_orientation_and_area_from_a_round_start():
     from refine.diagnosis.fitted import refit
     from refine.diagnosis.holes import fit_hole
     from refine.diagnosis.shapes import Hole
-    from refine.synthetic.sheet import Truth
+    from refine.demo_data import Truth
 
     rng = np.random.default_rng(int(np.random.default_rng(2611).integers(1 << 30)))
     a = rng.uniform(7.0, 9.0)

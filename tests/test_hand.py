@@ -1,4 +1,4 @@
-"""The articulated hand (jaxfem.hand, the paper's Sec. 5): mesh and named sets, joints that move
+"""The articulated hand (examples.hand, the paper's Sec. 5): mesh and named sets, joints that move
 only their own degrees of freedom (rigid motions checked against SciPy's rotations), the soft
 tissue's solve under a small thumb flexion, the strain threshold of a motion that changes speed at a
 fraction drawn at random (found by refine.threshold through run_motion's detector hook, with the
@@ -16,7 +16,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import jaxfem as jf
-from jaxfem.hand import (Body, Bone, Box, HandModel, Joint, Motion, Scar, Tissues, bone_displacements,
+from examples.hand import (Body, Bone, Box, HandModel, Joint, Motion, Scar, Tissues, bone_displacements,
                          default_body, hand_mesh, plot_curves, reachable, run_motion, scar_cells, skin_area,
                          write_motion_series)
 from jaxfem.io import read_pvd

@@ -1,7 +1,7 @@
-"""The hand tracker's temporal prior (refine.hand.smooth): the whole-sequence Gauss-Newton step
+"""The hand tracker's temporal prior (examples.hand.smooth): the whole-sequence Gauss-Newton step
 against an independent least-squares solve, its covariance (each frame's and the whole
 sequence's) against the spread of many noisy draws, the sequence's chi-square in that covariance
-(refine.hand.error_chi2: calibrated, and it flags an error the frames share), its bias at a
+(examples.hand.error_chi2: calibrated, and it flags an error the frames share), its bias at a
 sudden reversal (bounded by the Cauchy release, not by a Gaussian prior), and the smoother on a
 tracked sequence of the coarse hand from noisy markers (drawn angles, pose, noise)."""
 
@@ -10,11 +10,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from jaxfem.hand import HandModel
+from examples.hand import HandModel
 from refine.exceptions import CorrespondenceError, ExperimentError
-from refine.hand import HandTracker, MotionModel, TrackConfig, angle_errors, error_chi2, smooth
-from refine.hand.smooth import prior_cost, second_differences, sequence_covariance, smooth_quadratic
-from refine.synthetic.hand_range import STOP_REVERSE, hand_range_sequence, pose_matrix
+from examples.hand import HandTracker, MotionModel, TrackConfig, angle_errors, error_chi2, smooth
+from examples.hand.smooth import prior_cost, second_differences, sequence_covariance, smooth_quadratic
+from examples.hand.range import STOP_REVERSE, hand_range_sequence, pose_matrix
 from tests._hand_util import coarse_hand
 
 

@@ -1,11 +1,11 @@
-"""Tracking the hand (refine.hand, the paper's Sec. 5 with issue 25's item 5): the kinematic
+"""Tracking the hand (examples.hand, the paper's Sec. 5 with issue 25's item 5): the kinematic
 Dirichlet data differentiable in the joint angles, the tracker's exact Jacobian (Taylor test
 through the solve), a strain map carried between hand meshes, bad input (no data, an empty range
 frame, a cloud far from the hand, markers off it, unknown angles), restarts and the
 constant-velocity start, a hand mesh refined along the thumb, and (slow) joint angles recovered
 within a degree from range sequences and markers (from the markers alone: within the reported
-uncertainty) generated on a finer mesh with noise (refine.synthetic.hand_range) by the default
-tracking model (refined along the thumb) and smoothed over the sequence (refine.hand.smooth;
+uncertainty) generated on a finer mesh with noise (examples.hand.range) by the default
+tracking model (refined along the thumb) and smoothed over the sequence (examples.hand.smooth;
 tests/test_hand_track_smooth.py tests the smoother), angles and pose drawn under three seeds.
 
 A coarse hand (no fingers, ~900 tet10 elements, as tests/test_hand.py) keeps the fast tests at one
@@ -20,11 +20,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxfem.hand import HandModel, along, bone_displacements, default_body, hand_mesh
+from examples.hand import HandModel, along, bone_displacements, default_body, hand_mesh
 from refine.exceptions import CorrespondenceError
-from refine.hand import (FrameFit, HandTracker, TrackConfig, angle_errors, error_chi2, skin_strain_on, smooth,
+from examples.hand import (FrameFit, HandTracker, TrackConfig, angle_errors, error_chi2, skin_strain_on, smooth,
                          tracking_model)
-from refine.synthetic.hand_range import hand_range_sequence, pose_matrix
+from examples.hand.range import hand_range_sequence, pose_matrix
 from tests._hand_util import coarse_hand
 
 
@@ -240,11 +240,11 @@ def test_joint_angles_within_a_degree_from_range_clouds_markers_and_both(seed, k
     """The default tracking model (refined along the thumb, 2,682 tet10; ``thumb_h=None``: the
     paper-size model, 2,412) against sequences generated on a finer mesh (4,248) with noise, angles
     and pose drawn under each seed, tracked frame by frame and smoothed over the sequence
-    (:func:`refine.hand.smooth`): every angle of every frame within 1 degree from the clouds and the
+    (:func:`examples.hand.smooth`): every angle of every frame within 1 degree from the clouds and the
     markers together (the paper's set-up) and from the clouds alone; from the markers alone (13 at
     0.1 mm: noise-limited at 1 degree, a correct fit ends some angle beyond it in ~16 % of such
     sequences, benchmarks/_hand_marker_noise.py) the sequence's errors within the reported
-    uncertainty (:func:`refine.hand.error_chi2` over every angle of every frame, p >= 0.01; seed 2's
+    uncertainty (:func:`examples.hand.error_chi2` over every angle of every frame, p >= 0.01; seed 2's
     thumb tip, 1.22 degrees off, gives p = 0.40 in the benchmark's identical run). Seed 2's finger,
     lost in frame 1 from the rest frame's estimate, is found by the tracker's restarts; every later
     frame starts from the constant-velocity prediction. The paper-size model: seed 1 from the clouds

@@ -128,7 +128,7 @@ def test_a_hole_in_a_laminate_is_named_a_hole_with_the_laminates_law():
     is the hole, its area within 10 % and its centre within 2 % of the field's diagonal, and the
     law around it the fibre law."""
     from refine.diagnosis import diagnose
-    from refine.synthetic import random_truth, synthetic_bundle, with_fibres
+    from refine.demo_data import random_truth, synthetic_bundle, with_fibres
 
     rng = np.random.default_rng(24)
     truth = with_fibres(rng, random_truth(rng, "hole"))

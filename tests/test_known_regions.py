@@ -112,7 +112,7 @@ def test_the_model_follows_known_regions_and_holes():
     for hole in ex.domain.holes:
         shape = hole if hasattr(hole, "kind") else PolygonShape(hole)
         assert not shape.contains(mesh.centroids()).any()
-    from refine.synthetic.sheet import grid_points
+    from refine.demo_data import grid_points
     from refine.bundle import Observations
 
     pts = grid_points((0, 0, 100, 60), 10.0)

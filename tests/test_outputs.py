@@ -18,7 +18,7 @@ import pytest
 import jaxfem as jf
 from refine.bundle import write_bundle
 from refine.cli import diagnose
-from refine.synthetic.sheet import Inclusion, Truth, synthetic_bundle
+from refine.demo_data import Inclusion, Truth, synthetic_bundle
 
 FRAMES = 2
 
@@ -128,7 +128,7 @@ def test_model_series_on_quadratic_triangles(tmp_path):
     """The writers on their own: a tri6 model of a small bundle, two frames."""
     from refine.model.measured import MeasuredModel
     from refine.model.paraview import write_model_series, write_points_series
-    from refine.synthetic.sheet import grid_points
+    from refine.demo_data import grid_points
 
     from refine.bundle import Experiment, Observations, RectangleDomain
 

@@ -13,7 +13,7 @@ import pytest
 
 from refine.exceptions import IdentifiabilityError
 from refine.diagnosis.forces import ForcedObjective
-from refine.paper.experiment import (BRACKET, INCLUSION, MIDDLE_POINTS, NAME, EmbeddedRectangle, PaperExperiment, evaluations_to_reach, format_rows, solves_to_reach)
+from examples.paper.experiment import (BRACKET, INCLUSION, MIDDLE_POINTS, NAME, EmbeddedRectangle, PaperExperiment, evaluations_to_reach, format_rows, solves_to_reach)
 
 
 @pytest.fixture(scope="module")

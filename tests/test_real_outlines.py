@@ -2,7 +2,7 @@
 the points themselves, forces across named sides, noise-free data, and boundary motion that the
 sheet cannot follow (issue 22, items 1 and 5).
 
-Synthetic data come from :func:`refine.synthetic.synthetic_bundle` (a larger sheet solved on a
+Synthetic data come from :func:`refine.demo_data.synthetic_bundle` (a larger sheet solved on a
 finer quadratic mesh, sampled with noise); irregular outlines cut the tracked grid along a random
 smooth curve and move every point by random positional noise, all drawn under seeds.
 """
@@ -18,7 +18,7 @@ import pytest
 from refine.bundle.experiment import Experiment, RectangleDomain
 from refine.bundle.io import Bundle
 from refine.bundle.observations import Observations
-from refine.synthetic.sheet import grid_points
+from refine.demo_data import grid_points
 
 
 def _folding_bundle() -> Bundle:
@@ -110,7 +110,7 @@ def test_a_concave_outline_passes_through_every_boundary_point(seed):
 def pulled():
     """A homogeneous sheet with the force across the tracked region's right side (x = 120 mm),
     and an initial model whose modulus is off by a random factor (drawn under the seed)."""
-    from refine.synthetic.sheet import Truth, synthetic_bundle
+    from refine.demo_data import Truth, synthetic_bundle
 
     rng = np.random.default_rng(2207)
     truth = Truth()
@@ -219,7 +219,7 @@ def test_noise_std_zero_is_a_standard_deviation():
 
 # ------------------------------------------------------------------ noise-free data, the evidence line
 def _noise_free(cause: str, seed: int) -> tuple:
-    from refine.synthetic.sheet import random_truth, synthetic_bundle
+    from refine.demo_data import random_truth, synthetic_bundle
 
     truth = random_truth(np.random.default_rng(seed), cause)
     bundle = synthetic_bundle(truth, seed=seed, spacing=5.0, noise=0.0, fractions=(0.5, 1.0), h=3.0)

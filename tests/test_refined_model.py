@@ -30,7 +30,7 @@ from refine.model import MeasuredModel, UniformParameter
 from refine.model.known import region_cells
 from refine.model.objective import Compiled
 from refine.model.parametrize import Combined
-from refine.synthetic import random_truth, synthetic_bundle
+from refine.demo_data import random_truth, synthetic_bundle
 
 
 @pytest.fixture(scope="module")

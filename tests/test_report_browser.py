@@ -38,7 +38,7 @@ def report(tmp_path_factory):
     import jaxfem as jf
     from refine.bundle import write_bundle
     from refine.cli import diagnose
-    from refine.synthetic.sheet import Inclusion, Truth, synthetic_bundle
+    from refine.demo_data import Inclusion, Truth, synthetic_bundle
 
     root = tmp_path_factory.mktemp("browser")
     truth = Truth(inclusions=(Inclusion(jf.Ellipse(72.0, 38.0, 14.0, 10.0, 0.4), ratio=6.0),))

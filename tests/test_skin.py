@@ -1,4 +1,4 @@
-"""Skin with a burn scar (refine.synthetic.skin; issue 25 item 1): scars drawn at random under a
+"""Skin with a burn scar (examples.skin.synthetic; issue 25 item 1): scars drawn at random under a
 seed on skin of the paper's properties. That plane-stress skin does not lock at nu 0.49, and the
 diagnosis naming, rating and placing the scar, are measured over seeds by benchmarks/scar.py."""
 
@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 import jaxfem as jf
-from refine.synthetic.skin import SKIN, random_scar
+from examples.skin.synthetic import SKIN, random_scar
 
 
 def test_scars_are_drawn_at_random_inside_the_field_on_skin_of_the_papers_properties():

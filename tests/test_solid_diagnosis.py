@@ -1,8 +1,8 @@
 """The 3D diagnosis of a cup holder's bottom (refine.solid, the paper's Sec. 4): the bottom slab and
 its extruded hole morph, the cup's shape read off its mesh, bad input with clear errors, and (slow)
 a hidden hole drawn under a seed found, a sound cup holder left alone, on data solved on a finer
-mesh with noise (refine.synthetic.cup), and the whole path from rendered intensity + range images
-through ``nonrigid track --range`` to the diagnosis (refine.synthetic.cup_views)."""
+mesh with noise (examples.cup_holder.synthetic), and the whole path from rendered intensity + range images
+through ``nonrigid track --range`` to the diagnosis (examples.cup_holder.views)."""
 
 import numpy as np
 import pytest
@@ -103,7 +103,7 @@ def test_bad_input_is_named(tmp_path):
 
 def test_a_tracked_bundle_takes_the_load_cells_forces(tmp_path):
     from refine.bundle.io import read_bundle, write_bundle
-    from refine.synthetic.cup_views import add_squeeze_forces
+    from examples.cup_holder.views import add_squeeze_forces
 
     root = write_bundle(tmp_path / "B", hand_bundle(tmp_path, floor_points(), forces=False))
     add_squeeze_forces(root, (0.0, 2.5))
@@ -113,7 +113,7 @@ def test_a_tracked_bundle_takes_the_load_cells_forces(tmp_path):
 
 def run_cup(tmp_path, hole, seed):
     from refine.solid.write import diagnose_and_write
-    from refine.synthetic.cup import CupGeometry, write_cup_bundle
+    from examples.cup_holder.synthetic import CupGeometry, write_cup_bundle
 
     root = write_cup_bundle(tmp_path / "cup", geometry=CupGeometry(), hole=hole, h_data=1.2, h_model=2.0,
                             noise=0.01, seed=seed)
@@ -122,7 +122,7 @@ def run_cup(tmp_path, hole, seed):
 
 @pytest.mark.slow  # a finer 3D solve for the data and a 3D hole fit: minutes on 2 cores
 def test_hidden_hole_in_the_bottom_is_found(tmp_path):
-    from refine.synthetic.cup import CupGeometry, random_hole
+    from examples.cup_holder.synthetic import CupGeometry, random_hole
 
     hole = random_hole(CupGeometry(), 11)
     d, rep = run_cup(tmp_path, hole, 11)
@@ -154,7 +154,7 @@ def track_and_diagnose(frames, camera, out, noise: float, nu: float, seed: int):
     from refine.cli.track import track
     from refine.cli.track_range import RangeOptions
     from refine.solid.write import diagnose_and_write
-    from refine.synthetic.cup_views import add_squeeze_forces
+    from examples.cup_holder.views import add_squeeze_forces
 
     model = ModelSkeleton(law="neo-hookean", E=1.0, nu=nu, noise_std=noise)  # kind "solid" from --range
     track(frames.images, out / "B", ranges=RangeOptions(frames.ranges, camera, frames.mesh), model=model,
@@ -165,8 +165,8 @@ def track_and_diagnose(frames, camera, out, noise: float, nu: float, seed: int):
 
 @pytest.mark.slow  # a 3D solve, rendering, tracking and the 3D diagnosis: minutes on 2 cores
 def test_rendered_cup_holder_through_track_range_and_diagnose(tmp_path):
-    from refine.synthetic.cup import CupGeometry, random_hole
-    from refine.synthetic.cup_views import CupScene, cup_camera, write_cup_frames
+    from examples.cup_holder.synthetic import CupGeometry, random_hole
+    from examples.cup_holder.views import CupScene, cup_camera, write_cup_frames
 
     hole = random_hole(CupGeometry(), 2)
     camera = cup_camera("orthographic", centre_px=(130.2, 120.4))  # the whole bottom in view

@@ -13,7 +13,7 @@ from refine.bundle.observations import Forces, Observations
 from refine.solid.cup import CupShape
 from refine.solid.global_model import fixture_nodes, held_by_fixture
 from refine.solid.local import Whole
-from refine.synthetic.cup import CupGeometry, _points, random_hole, solve_cup
+from examples.cup_holder.synthetic import CupGeometry, _points, random_hole, solve_cup
 
 G = CupGeometry()
 SHAPE = CupShape((0.0, 0.0), 0.0, G.r_in, G.r_out, G.height, G.bottom)

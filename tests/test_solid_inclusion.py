@@ -19,7 +19,7 @@ TINY = dict(block=(0.0, 0.0, 0.0, 8.0, 4.0, 4.0), grip=(0.3, 0.6), h_data=4 / 3,
 
 
 def tiny_bundle(cause="stiffer-region", seed=0, **kw):
-    from refine.synthetic.block import BlockSetting, block_bundle
+    from examples.block.synthetic import BlockSetting, block_bundle
 
     return block_bundle(cause, seed, BlockSetting(**{**TINY, **kw}))
 
@@ -56,7 +56,7 @@ def test_block_bundle_names_bad_settings():
 
 
 def test_random_inclusions_differ_by_seed_and_stay_inside():
-    from refine.synthetic.block import random_inclusion
+    from examples.block.synthetic import random_inclusion
 
     block = (0.0, 0.0, 0.0, 40.0, 20.0, 20.0)
     drawn = [random_inclusion(np.random.default_rng(s), block, c) for c in ("stiffer-region", "softer-region")
@@ -70,7 +70,7 @@ def test_random_inclusions_differ_by_seed_and_stay_inside():
 
 
 def test_data_graded_over_the_inclusion_hold_its_volume_closer_than_the_uniform_staircase():
-    from refine.synthetic.block import BlockSetting, data_inclusion, random_inclusion
+    from examples.block.synthetic import BlockSetting, data_inclusion, random_inclusion
 
     rng = np.random.default_rng(7)
     s = BlockSetting()
@@ -301,7 +301,7 @@ def test_the_command_lines_solid_path_sends_a_block_to_the_inclusion_diagnosis(t
 def diagnosed(tmp_path, cause, seed):
     from refine.bundle.io import read_bundle
     from refine.solid import diagnose_solid, report
-    from refine.synthetic.block import write_block_bundle
+    from examples.block.synthetic import write_block_bundle
 
     root, truth = write_block_bundle(tmp_path / f"{cause}{seed}", cause=cause, seed=seed)
     d = diagnose_solid(read_bundle(root), log=lambda m: None)
@@ -313,7 +313,7 @@ def diagnosed(tmp_path, cause, seed):
 @pytest.fixture(scope="module")
 def stiffer(tmp_path_factory):
     """A block with a stiffer ellipsoid drawn under seed 11, diagnosed (the default settings of
-    refine.synthetic.block: data tet10 at 2.0 mm with 0.01 mm noise, the model tet10 at 4 mm, the
+    examples.block.synthetic: data tet10 at 2.0 mm with 0.01 mm noise, the model tet10 at 4 mm, the
     inclusion refitted and profiled on the box graded from 2.5 mm around it to 5 mm)."""
     return diagnosed(tmp_path_factory.mktemp("block"), "stiffer-region", 11)
 
@@ -363,7 +363,7 @@ def test_hidden_inclusion_profile_covers_the_truth_with_a_finer_fit_mesh(tmp_pat
 
     from refine.bundle.io import read_bundle
     from refine.solid.inclusion_diagnosis import InclusionConfig, diagnose_inclusion, inclusion_report
-    from refine.synthetic.block import BlockSetting, model_mesh, write_block_bundle
+    from examples.block.synthetic import BlockSetting, model_mesh, write_block_bundle
 
     setting = BlockSetting(h_data=2.5)  # as measured (benchmarks/README.md's inclusion3d, --h-fit 3)
     root, truth = write_block_bundle(tmp_path / "b", cause="stiffer-region", seed=11, setting=setting)

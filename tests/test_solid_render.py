@@ -1,4 +1,4 @@
-"""The z-buffer renderer of solids (refine.synthetic): depth, visibility and the per-pixel truth against
+"""The z-buffer renderer of solids (refine.demo_data): depth, visibility and the per-pixel truth against
 closed forms, through both cameras."""
 
 import numpy as np
@@ -6,8 +6,8 @@ import pytest
 
 import jaxfem as jf
 import tracking
-from refine.synthetic.rasterise import rasterise
-from refine.synthetic.solid_render import SurfaceGrid, render_solid, surface_distance
+from examples.synthetic.rasterise import rasterise
+from examples.synthetic.solid_render import SurfaceGrid, render_solid, surface_distance
 
 
 def turned_block():

@@ -74,7 +74,7 @@ def test_a_rule_that_cannot_be_met_is_a_clear_error(kwargs, words):
 
 def test_a_finding_reports_the_threshold_with_its_interval_or_none_with_why_and_keeps_the_hinge():
     """ThresholdRule.find, the one definition: the rising hinge judged by the rule; its JSON puts a
-    threshold's place and interval at the top (what jaxfem.hand.plot_curves draws) and says why
+    threshold's place and interval at the top (what examples.hand.plot_curves draws) and says why
     where there is none, the hinge's figures beside either answer."""
     rng = np.random.default_rng(11)
     rule = ThresholdRule()

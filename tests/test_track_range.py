@@ -15,8 +15,8 @@ import jaxfem as jf
 import tracking
 from refine.bundle.io import read_bundle
 from refine.cli.main import main
-from refine.synthetic.cup_views import CupScene, painted_crossings, render_cup
-from refine.synthetic.solid_render import surface_distance
+from examples.cup_holder.views import CupScene, painted_crossings, render_cup
+from examples.synthetic.solid_render import surface_distance
 
 NOISE = 0.05  # mm, range noise (structured light)
 

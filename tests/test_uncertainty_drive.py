@@ -17,7 +17,7 @@ def test_drive_covariance_is_the_first_order_motion_of_the_fit_under_drive_noise
     from refine.diagnosis.uncertainty import drive_covariance, drive_sensitivity
     from refine.measures import Residuals
     from refine.model.measured import MeasuredModel
-    from refine.synthetic.sheet import Inclusion, Truth, synthetic_bundle
+    from refine.demo_data import Inclusion, Truth, synthetic_bundle
 
     rng = np.random.default_rng(31)
     cx, cy = rng.uniform(17, 23), rng.uniform(13, 17)

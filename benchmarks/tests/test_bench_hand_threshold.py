@@ -60,7 +60,7 @@ def test_the_analysis_reruns_from_its_own_json_with_the_same_figures(bench, monk
     ht, _ = bench
     monkeypatch.setattr(ht, "DRAWS", 20)
     monkeypatch.setattr(ht, "ANGLE_SWEEP", (0.3,))
-    from jaxfem.hand import Box
+    from examples.hand import Box
     data, f0 = _data(np.random.default_rng(5), ht)
     first = ht.threshold_truth(data, {"m": Box((-2.0, -2.0, -2.0), (2.0, 2.0, 2.0))})
     assert first["m"]["truth_has_threshold"] and abs(first["m"]["truth_fraction"] - f0) < 0.03
@@ -146,7 +146,7 @@ def test_threshold_found_reports_each_motions_answer_and_passes_only_where_it_is
 
 def test_the_wrist_refinement_splits_only_the_slabs_where_the_maximum_sits(bench):
     _, tm = bench
-    from jaxfem.hand import PAPER, default_body, hand_mesh
+    from examples.hand import PAPER, default_body, hand_mesh
     assert tm.wrist_refined(None) == ()
     body = default_body(PAPER)
     plain, fine = hand_mesh(body, 24.0, tm.SNAP), hand_mesh(body, 24.0, tm.SNAP, tm.wrist_refined(6.0))

@@ -64,7 +64,7 @@ def test_std_interval_holds_the_true_std_95_percent_of_the_time(modules):
 def test_the_noise_split_adds_up_and_each_part_is_within_its_reported_error(modules):
     from dataclasses import replace
 
-    from refine.synthetic.skin import SKIN, random_scar, skin_bundle
+    from examples.skin.synthetic import SKIN, random_scar, skin_bundle
 
     _, budget = modules
     setting = replace(SKIN, spacing=4.0, h=1.6)  # a coarser grid and data mesh than the benchmark's

@@ -39,7 +39,7 @@ def demo(out: str | Path = "nonrigid-demo", seed: int | None = None):
     from refine.cli.diagnose import diagnose
     from refine.cli.simulate import simulate
     from refine.diagnosis import report
-    from refine.synthetic.sheet import random_truth, synthetic_bundle
+    from refine.demo_data import random_truth, synthetic_bundle
 
     seed = int(np.random.SeedSequence().entropy % 10_000) if seed is None else seed
     rng = np.random.default_rng(seed)

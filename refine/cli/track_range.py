@@ -165,13 +165,12 @@ def tracking_reasons(codes: np.ndarray) -> str:
 def _off_mesh(mesh: Path, points: np.ndarray) -> np.ndarray:
     """Each point's distance to the mesh's surface (a wrong camera pose shows here first), ``(n,)``."""
     import jaxfem as jf
-
-    from refine.synthetic.solid_render import surface_distance
+    from jaxfem.surface import project_to_surface
 
     body = jf.read_mesh(mesh)
     if body.nodes.shape[1] != 3:
         raise RangeCommandError(f"--mesh {mesh} is a {body.nodes.shape[1]}D mesh; a solid bundle needs a 3D one")
-    return surface_distance(points, body.nodes, body.boundary_facets())
+    return project_to_surface(body, points)[1]
 
 
 def _pose_hint(off: np.ndarray, points: np.ndarray) -> str:

@@ -75,7 +75,7 @@ def held_by_fixture(obs: Observations, shape: CupShape, tol: float) -> Observati
 def rim_fixture(obs: Observations, shape: CupShape) -> Observations:
     """``obs`` and the fixture's points (``boundary``, no motion in any frame, ids after the
     largest): three rings on the rim (z = height, mesh frame) at the point spacing of the bottom's
-    points. The fixture holds the rim as the synthetic data's solve does (:mod:`refine.synthetic.cup`)."""
+    points. The fixture holds the rim as the synthetic data's solve does (:mod:`examples.cup_holder.synthetic`)."""
     s = point_spacing(obs.reference)
     ring = []
     for r in shape.r_in + np.array([0.1, 0.5, 0.9]) * (shape.r_out - shape.r_in):

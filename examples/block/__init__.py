@@ -1,0 +1,1 @@
+"""The paper's block with an ellipsoidal inclusion: its data generator :mod:`examples.block.synthetic`."""
