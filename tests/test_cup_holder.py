@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import jaxfem as jf
-from jaxfem.cup import cup_bottom, cup_holder
+from examples.cup_holder import cup_bottom, cup_holder
 
 R_IN, R_OUT, HEIGHT, BOTTOM = 8.0, 11.0, 8.0, 3.0  # mm
 H = 3.0  # element size, mm

@@ -15,7 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 
 import jaxfem as jf
-from jaxfem.cup import CupBottom, cup_bottom
+from jaxfem.wall import ExtrudedWall, disc_wall, rimmed_wall
 
 from refine.bundle.experiment import Experiment
 from refine.bundle.observations import Observations
@@ -77,11 +77,11 @@ class Local:
         return replace(self, h=h, hole_ratio=None if self.hole_ratio is None else self.hole_ratio * k,
                        floor_h=None if self.floor_h is None else self.floor_h * k)
 
-    def model(self, hole: jf.Ellipse | None = None, headroom: float = 1.0) -> tuple[LoadedModel, CupBottom]:
+    def model(self, hole: jf.Ellipse | None = None, headroom: float = 1.0) -> tuple[LoadedModel, ExtrudedWall]:
         """The local model (``tet10``) with ``hole`` cut through it, and its slab mesh;
         ``headroom``: its solver padded as for a mesh that many times larger (:data:`HOLE_HEADROOM`)."""
         s = self.shape
-        slab = cup_bottom(s.r_in, s.r_out, s.bottom, self.h, hole, layers=self.layers, hole_h=self.hole_h(hole),
+        slab = disc_wall(s.r_in, s.r_out, s.bottom, self.h, hole, layers=self.layers, hole_h=self.hole_h(hole),
                           floor_h=self.floor_h)
         model = LoadedModel(self.experiment, self.obs, slab.mesh, slab.facets, self.force, h=self.h,
                             linear_solver=self.linear_solver, headroom=headroom)
@@ -129,12 +129,12 @@ class Whole(Local):
         whole = replace(local, obs=held) if h is None else replace(local.coarser(h), obs=held)
         return cls(**{f.name: getattr(whole, f.name) for f in fields(Local)}), on
 
-    def model(self, hole: jf.Ellipse | None = None, headroom: float = 1.0) -> tuple[LoadedModel, jf.CupHolder]:
+    def model(self, hole: jf.Ellipse | None = None, headroom: float = 1.0) -> tuple[LoadedModel, ExtrudedWall]:
         s = self.shape
-        cup = jf.cup_holder(s.r_in, s.r_out, s.height, s.bottom, self.h, hole=hole, layers=self.layers,
+        cup = rimmed_wall(s.r_in, s.r_out, s.bottom, s.height, self.h, hole=hole, layers=self.layers,
                             hole_h=self.hole_h(hole), floor_h=self.floor_h)
         driven = fixture_nodes(cup.mesh, self.obs, max(4 * (self.experiment.noise_std or 0.0), 0.05 * self.h))
-        model = LoadedModel(self.experiment, self.obs, cup.mesh, cup.bottom_outer_facets, self.force, h=self.h,
+        model = LoadedModel(self.experiment, self.obs, cup.mesh, cup.facets, self.force, h=self.h,
                             linear_solver=self.linear_solver, driven=driven, headroom=headroom)
         return model, cup
 
@@ -211,7 +211,7 @@ class SolidHole(HoleShape):
             E = float(self.local.experiment.E)
             start = float(np.clip(self.E_start or E, 0.55 * E, 1.9 * E))  # inside the bounds' sigmoid
             parts = (param, UniformParameter("E", start, 0.5 * E, 2.0 * E))
-            if self.wall_modulus and model.mesh.region_names.get(1) == "wall":
+            if self.wall_modulus and model.mesh.region_names.get(1) == "rim":
                 wall = (np.asarray(model.mesh.regions) == 1)[None].astype(float)
                 parts += (WallModulus(wall, E, ("wall",), start=float(self.wall_start or 1.0)),)
             param = WithModulus(parts)
