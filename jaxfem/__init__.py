@@ -31,7 +31,7 @@ from .postprocess import (cauchy_stress, deformation_gradient, equivalent_strain
                       green_lagrange_strain, principal_strains, second_piola_stress, strain_energy,
                       von_mises_stress)
 from .mesher import domain, plate
-from .cup import CupHolder, cup_holder
+from .wall import ExtrudedWall, disc_wall, rimmed_wall
 from .surface import surface_interpolation
 from .shapes import Ellipse, Polygon, Rect, curve_nodes, morph
 from .solver import Solution, Solver
@@ -50,6 +50,6 @@ __all__ = [
     "first_piola_stress", "green_lagrange_strain", "principal_strains", "second_piola_stress",
     "strain_energy", "von_mises_stress", "Ellipse", "Polygon", "Rect", "curve_nodes", "morph", "plate", "domain",
     "Solution", "Solver", "taylor_test", "batch_displacement", "stack_params", "check_geometry",
-    "with_geometry", "equilibrium_series", "CupHolder", "cup_holder", "surface_interpolation",
+    "with_geometry", "equilibrium_series", "ExtrudedWall", "disc_wall", "rimmed_wall", "surface_interpolation",
     "compilation_cache", "cache_info", "clear_cache", "compile_counts", "compiles_since",
 ]

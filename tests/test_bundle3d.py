@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import jaxfem as jf
+from examples.cup_holder import cup_holder
 from refine.bundle.experiment import Experiment, MeshDomain
 from refine.bundle.io import Bundle, read_bundle, write_bundle
 from refine.bundle.observations import Observations
@@ -125,7 +126,7 @@ def test_cup_holder_bundle_simulates(tmp_path):
     a mean wall displacement of 0.032 mm and noise 1e-3 mm per component; 41 s."""
     from tests.test_cup_holder import BOTTOM, HEIGHT, R_IN, R_OUT, facet_area
 
-    fine = jf.cup_holder(R_IN, R_OUT, HEIGHT, BOTTOM, 2.0)
+    fine = cup_holder(R_IN, R_OUT, HEIGHT, BOTTOM, 2.0)
     mesh, facets = fine.mesh, fine.bottom_outer_facets
     problem = jf.Problem(mesh, "neo-hookean", "solid", fixed=jf.dofs(mesh, fine.sets["rim"]), traction_facets=facets)
     solver = jf.Solver(problem)
@@ -144,7 +145,7 @@ def test_cup_holder_bundle_simulates(tmp_path):
     disp = np.stack([np.asarray(probe(u)) for u in U]) + rng.normal(0, 1e-3, (2, len(X), 3))
     root = tmp_path / "cup"
     root.mkdir()
-    jf.write_vtu(root / "mesh.vtu", jf.cup_holder(R_IN, R_OUT, HEIGHT, BOTTOM, 3.0).mesh)
+    jf.write_vtu(root / "mesh.vtu", cup_holder(R_IN, R_OUT, HEIGHT, BOTTOM, 3.0).mesh)
     obs = Observations(np.arange(1, len(X) + 1), X, roles, disp)
     write_bundle(root, Bundle(Experiment(name="cup", kind="solid", domain=MeshDomain("mesh.vtu"),
                                          law="neo-hookean", E=1.0, nu=0.45), obs))

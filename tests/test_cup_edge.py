@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import jaxfem as jf
+from examples.cup_holder import cup_bottom, cup_holder
 from refine.solid.edge import EdgeGeometry, NoLattice, evidence_near, grid_lattice
 from refine.solid.morph import ExtrudedMorph
 from examples.cup_holder.synthetic import CupGeometry, _points, random_hole
@@ -52,7 +53,7 @@ def test_the_missing_crossings_bracket_the_hidden_hole(seed):
     assert loose.violation(truth.params) == 0.0 and loose.area_range()[0] < lo
     # the fit's constraint: a hole moved off its gap by two steps is turned down before any solve
     e = jf.Ellipse(*ev.ellipse)
-    slab = jf.cup.cup_bottom(G.r_in, G.r_out, G.bottom, 2.5, e)
+    slab = cup_bottom(G.r_in, G.r_out, G.bottom, 2.5, e)
     geo = EdgeGeometry(ExtrudedMorph.of(slab), e.params[None], scale=1.0, rotate=True, edge=ev,
                        slack=max(ev.slack, ev.missing_outside(ev.ellipse) + 1e-9))  # as SolidHole.build sets it
     assert geo.infeasibility(np.zeros(5)) is None
@@ -86,7 +87,7 @@ def test_the_global_fit_starts_along_the_bracket_off_every_tracked_crossing(tmp_
 
     truth = random_hole(G, 41)
     X, roles = _points(G, truth, 1.2, np.random.default_rng(41))
-    jf.write_vtu(tmp_path / "mesh.vtu", jf.cup_holder(G.r_in, G.r_out, G.height, G.bottom, 3.0).mesh)
+    jf.write_vtu(tmp_path / "mesh.vtu", cup_holder(G.r_in, G.r_out, G.height, G.bottom, 3.0).mesh)
     F = Forces(("back",), np.tile([[[0.0, 0.0, 1.0]]], (2, 1, 1)))
     obs = Observations(np.arange(1, len(X) + 1), X, roles, np.zeros((2, len(X), 3)), forces=F)
     exp = Experiment(name="cup", kind="solid", domain=MeshDomain("mesh.vtu"), law="neo-hookean", E=1.0, nu=0.4)
@@ -146,7 +147,7 @@ def test_the_hole_geometry_constraints_agree_with_its_check():
     lat = grid_lattice(xy)
     ev = evidence_near(lat, (truth.cx, truth.cy), max(truth.rx, truth.ry) + 2 * lat.step, G.r_in, slack=0.75)
     e = jf.Ellipse(*ev.ellipse)
-    geo = EdgeGeometry(ExtrudedMorph.of(jf.cup.cup_bottom(G.r_in, G.r_out, G.bottom, 2.5, e)), e.params[None],
+    geo = EdgeGeometry(ExtrudedMorph.of(cup_bottom(G.r_in, G.r_out, G.bottom, 2.5, e)), e.params[None],
                        scale=0.6, rotate=True, outside=xy, edge=ev, slack=max(ev.slack, ev.missing_outside(e.params)))
     rng = np.random.default_rng(24)
     seen = set()

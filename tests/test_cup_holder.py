@@ -1,4 +1,4 @@
-"""The parametric 3D cup holder (jaxfem.cup): geometry, named sets, and a forward solve of the
+"""The parametric 3D cup holder (examples.cup_holder, on jaxfem.wall): geometry, named sets, and a forward solve of the
 compressed cup holder (rim held, a uniform dead load on the bottom's outer face), with and without
 a through-thickness elliptic hole in the bottom drawn at random under a seed."""
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import jaxfem as jf
-from jaxfem.cup import cup_bottom, cup_holder
+from examples.cup_holder import cup_bottom, cup_holder
 
 R_IN, R_OUT, HEIGHT, BOTTOM = 8.0, 11.0, 8.0, 3.0  # mm
 H = 3.0  # element size, mm

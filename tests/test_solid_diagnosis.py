@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import jaxfem as jf
-from jaxfem.cup import cup_bottom
+from examples.cup_holder import cup_bottom, cup_holder
 from refine.bundle.experiment import Experiment, MeshDomain
 from refine.bundle.io import Bundle
 from refine.bundle.observations import Forces, Observations
@@ -52,7 +52,7 @@ def test_extruded_hole_morph_moves_the_hole_through_the_thickness_and_the_probe_
 
 
 def test_cup_shape_is_read_off_the_mesh_and_a_mesh_that_does_not_close_is_named():
-    mesh = jf.cup_holder(R_IN, R_OUT, HEIGHT, BOTTOM, 3.0).mesh
+    mesh = cup_holder(R_IN, R_OUT, HEIGHT, BOTTOM, 3.0).mesh
     moved = jf.Mesh(mesh.nodes + [5.0, -2.0, 1.0], mesh.cells, mesh.element)
     s = cup_shape(moved)
     assert s.centre == pytest.approx((5.0, -2.0), abs=0.01) and s.z0 == pytest.approx(1.0)
@@ -68,7 +68,7 @@ def test_cup_shape_is_read_off_the_mesh_and_a_mesh_that_does_not_close_is_named(
 
 def hand_bundle(tmp_path, points, forces=True, nu=0.4):
     """A cup-holder bundle with zero displacements (no solve): bad-input checks stop before any."""
-    jf.write_vtu(tmp_path / "mesh.vtu", jf.cup_holder(R_IN, R_OUT, HEIGHT, BOTTOM, 3.0).mesh)
+    jf.write_vtu(tmp_path / "mesh.vtu", cup_holder(R_IN, R_OUT, HEIGHT, BOTTOM, 3.0).mesh)
     n = len(points)
     r = np.hypot(*points[:, :2].T)
     roles = np.where(r > 7, "boundary", np.where(np.arange(n) % 3 == 0, "validate", "guide"))

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import jaxfem as jf
+from examples.cup_holder import cup_holder
 
 from refine.bundle.experiment import Experiment, MeshDomain
 from refine.bundle.observations import Forces, Observations
@@ -93,5 +94,5 @@ def test_the_global_holes_coarser_refit_is_built_at_its_own_element_size():
     assert fine.h is None  # the recipe's size
     m_coarse = coarse.build()[0].model  # (one model built: the fine one is every fit's)
     assert m_coarse.h == pytest.approx(np.sqrt(2) * h) and w.h == pytest.approx(h)
-    n_fine = jf.cup_holder(G.r_in, G.r_out, G.height, G.bottom, h, hole=truth).mesh.n_cells
+    n_fine = cup_holder(G.r_in, G.r_out, G.height, G.bottom, h, hole=truth).mesh.n_cells
     assert m_coarse.mesh.n_cells < n_fine  # (few layers through the bottom at either size)

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import jaxfem as jf
+from examples.cup_holder import cup_holder
 
 from refine.exceptions import ExperimentError, ObservationError
 
@@ -272,7 +273,7 @@ def test_a_solid_body_without_a_cavity_is_diagnosed_for_an_inclusion(tmp_path, t
     from refine.solid.inclusion_diagnosis import InclusionConfig, body_model, fills_hull
 
     assert fills_hull(jf.box(0, 0, 0, 2, 1, 1, 2, 1, 1, element="tet4"))
-    assert not fills_hull(jf.cup_holder(8.0, 11.0, 8.0, 3.0, 4.0).mesh)
+    assert not fills_hull(cup_holder(8.0, 11.0, 8.0, 3.0, 4.0).mesh)
     (tmp_path / "b").mkdir()
     jf.write_vtu(tmp_path / "b" / "mesh.vtu", tiny[1])
     bundle = read_bundle(write_bundle(tmp_path / "b", tiny[0]))

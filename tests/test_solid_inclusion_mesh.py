@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import jaxfem as jf
+from examples.cup_holder import cup_holder
 from jaxfem.exceptions import MeshError
 from jaxfem.graded import graded_box, graded_ticks
 
@@ -69,7 +70,7 @@ def test_focused_mesh_is_fine_around_the_region_only_and_none_off_a_box():
     assert near.any() and size[near].max() <= 2.0 + 1e-9 and size.max() > 3.0
     assert np.isclose(m.volumes().sum(), 16000.0) and m.n_cells < 0.5 * 6 * 20 * 10 * 10
     assert focused_mesh(body, [], cfg) is None
-    assert focused_mesh(jf.cup_holder(8.0, 11.0, 8.0, 3.0, 4.0).mesh, [reg], cfg) is None
+    assert focused_mesh(cup_holder(8.0, 11.0, 8.0, 3.0, 4.0).mesh, [reg], cfg) is None
 
 
 def test_the_inclusions_share_holds_its_volume_on_a_graded_mesh():
@@ -106,7 +107,7 @@ def test_the_diagnosis_refits_on_a_graded_box_by_default_and_keeps_a_non_box_as_
 
     assert InclusionConfig().focus == FocusedMesh() and InclusionConfig().fit_mesh is None
     shape = EllipsoidShape((8.0, 0.0, 5.0), (2.0, 1.5, 1.0), tuple(map(tuple, np.eye(3))), 3.0)
-    cup = SimpleNamespace(model=SimpleNamespace(mesh=jf.cup_holder(8.0, 11.0, 8.0, 3.0, 4.0).mesh), shapes=[shape])
+    cup = SimpleNamespace(model=SimpleNamespace(mesh=cup_holder(8.0, 11.0, 8.0, 3.0, 4.0).mesh), shapes=[shape])
     assert refit_focused(cup, None, None, 0.01) == (None, None)  # no solve: nothing to grade
 
 

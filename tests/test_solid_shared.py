@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import jaxfem as jf
+from examples.cup_holder import cup_holder
 from refine.bundle.experiment import Experiment, MeshDomain
 from refine.bundle.io import Bundle
 from refine.bundle.observations import Forces, Observations
@@ -36,7 +37,7 @@ def hole_model(tmp_path_factory):
     frames' forces with the ring under the wall moved at random, a hole through it with a free
     modulus (the global fit's unknowns)."""
     tmp = tmp_path_factory.mktemp("shared")
-    jf.write_vtu(tmp / "mesh.vtu", jf.cup_holder(R_IN, R_OUT, HEIGHT, BOTTOM, 3.0).mesh)
+    jf.write_vtu(tmp / "mesh.vtu", cup_holder(R_IN, R_OUT, HEIGHT, BOTTOM, 3.0).mesh)
     g = np.arange(-9.5, 9.6, 1.5)
     xy = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2)
     hole = jf.Ellipse(0.2, -0.2, 2.6, 1.9, 0.4)

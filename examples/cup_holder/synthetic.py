@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 import jaxfem as jf
+from examples.cup_holder import cup_holder
 
 from refine.bundle.experiment import Experiment, MeshDomain
 from refine.bundle.io import Bundle, write_bundle
@@ -101,7 +102,7 @@ def solve_cup(g: CupGeometry, hole, forces, h: float, points) -> np.ndarray:
     """Displacements ``(frames, n, 3)`` at ``points (n, 3)`` of the cup holder with ``hole`` (an
     ``Ellipse`` or None) meshed with ``tet10`` at ``h`` (finer along the hole: :func:`data_hole_h`), rim held, each total force of
     ``forces`` (N, upwards) spread uniformly over the bottom's outer face."""
-    cup = jf.cup_holder(g.r_in, g.r_out, g.height, g.bottom, h, hole=hole, hole_h=data_hole_h(hole, h))
+    cup = cup_holder(g.r_in, g.r_out, g.height, g.bottom, h, hole=hole, hole_h=data_hole_h(hole, h))
     mesh, facets = cup.mesh, cup.bottom_outer_facets
     problem = jf.Problem(mesh, g.law, "solid", fixed=jf.dofs(mesh, cup.sets["rim"]), traction_facets=facets)
     solver = jf.Solver(problem)
@@ -143,7 +144,7 @@ def cup_bundle(geometry: CupGeometry = CupGeometry(), hole: jf.Ellipse | None = 
     g = geometry
     exp = Experiment(name="cup-holder", kind="solid", domain=MeshDomain("mesh.vtu"), law=g.law, E=g.E, nu=g.nu,
                      units={"length": "mm", "stress": "MPa", "force": "N"}, noise_std=noise)
-    return Bundle(exp, obs), jf.cup_holder(g.r_in, g.r_out, g.height, g.bottom, h_model).mesh
+    return Bundle(exp, obs), cup_holder(g.r_in, g.r_out, g.height, g.bottom, h_model).mesh
 
 
 def write_cup_bundle(root: str | Path, **kw) -> Path:

@@ -1,7 +1,7 @@
 """The paper's Sec. 4 experiment, synthesised: a foam cup holder compressed on its bottom, seen
 from below by a camera with a range scanner, frame by frame.
 
-The cup holder (:func:`jaxfem.cup_holder`, tet10, axis z, bottom face z = 0, rim z = height) is
+The cup holder (:func:`examples.cup_holder.cup_holder`, tet10, axis z, bottom face z = 0, rim z = height) is
 held at its rim and pushed up by a uniform dead load on its bottom's outer face; the solve runs on
 a fine mesh (``h`` 1.5 mm by default, never the inversion's). A grid is painted on the bottom in
 reference coordinates (lines x = k pitch and y = k pitch, a crossing at the axis); each frame is
@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import jaxfem as jf
+from examples.cup_holder import CupHolder, cup_holder
 import tracking
 
 from examples.cup_holder.synthetic import data_hole_h
@@ -54,10 +55,10 @@ class CupScene:
     depth_noise: float = 0.05
     noise_sigma: float = 2.0
 
-    def mesh(self, h: float, element: str = "tet10") -> jf.CupHolder:
+    def mesh(self, h: float, element: str = "tet10") -> CupHolder:
         """The cup holder meshed at element size ``h`` (mm), finer along the hole
         (:func:`examples.cup_holder.synthetic.data_hole_h`: the data's hole is the drawn ellipse to 0.2 %)."""
-        return jf.cup_holder(self.r_in, self.r_out, self.height, self.bottom, h, hole=self.hole, element=element,
+        return cup_holder(self.r_in, self.r_out, self.height, self.bottom, h, hole=self.hole, element=element,
                              hole_h=data_hole_h(self.hole, h))
 
 
@@ -75,7 +76,7 @@ def cup_camera(model: str = "orthographic", scale: float = 0.1, distance: float 
     return tracking.Camera("perspective", fx=f, fy=f, cx=cx, cy=cy, translation=[0.0, 0.0, -distance])
 
 
-def compressed_cup(scene: CupScene, forces=(1.0, 2.0), h: float = 1.5) -> tuple[jf.CupHolder, list[np.ndarray]]:
+def compressed_cup(scene: CupScene, forces=(1.0, 2.0), h: float = 1.5) -> tuple[CupHolder, list[np.ndarray]]:
     """Solve the cup holder held at its rim under total upward loads ``forces`` (N) spread uniformly on
     its bottom's outer face (a dead load), on a tet10 mesh of size ``h``: the mesh and the nodal
     displacements ``(n_nodes, 3)`` mm per load."""
@@ -88,7 +89,7 @@ def compressed_cup(scene: CupScene, forces=(1.0, 2.0), h: float = 1.5) -> tuple[
     return cup, [np.asarray(solver.solve(theta).u) for theta in loads]
 
 
-def render_cup(scene: CupScene, cup: jf.CupHolder, displacements, seed: int = 0) -> list[SolidView]:
+def render_cup(scene: CupScene, cup: CupHolder, displacements, seed: int = 0) -> list[SolidView]:
     """The reference frame and one frame per displacement, rendered (noise from ``seed + 2 k``)."""
     facets = cup.mesh.boundary_facets()
     return [render_solid(cup.mesh.nodes, facets, u, scene.camera, scene.shape, scene.paint,
@@ -96,7 +97,7 @@ def render_cup(scene: CupScene, cup: jf.CupHolder, displacements, seed: int = 0)
             for k, u in enumerate([None, *displacements])]
 
 
-def painted_crossings(scene: CupScene, cup: jf.CupHolder, displacements, margin: float = 0.6) -> np.ndarray:
+def painted_crossings(scene: CupScene, cup: CupHolder, displacements, margin: float = 0.6) -> np.ndarray:
     """The painted crossings on the bottom's face at least ``margin`` mm from its edge and from the
     hole: their positions ``(n_frames, n, 3)`` mm, frame 0 the reference (material points)."""
     p, (ox, oy, _) = scene.paint.pitch, scene.paint.origin
@@ -196,7 +197,7 @@ def write_cup_frames(directory, scene: CupScene, forces=(1.0, 2.0, 3.0), h: floa
     cup, U = compressed_cup(scene, forces, h)
     images, ranges = write_frames(render_cup(scene, cup, U, seed=seed), directory)
     mesh = Path(directory) / "mesh.vtu"
-    jf.write_vtu(mesh, jf.cup_holder(scene.r_in, scene.r_out, scene.height, scene.bottom, h_model).mesh)
+    jf.write_vtu(mesh, cup_holder(scene.r_in, scene.r_out, scene.height, scene.bottom, h_model).mesh)
     return CupFrames(images, ranges, mesh, tuple(float(f) for f in forces), painted_crossings(scene, cup, U))
 
 

@@ -44,7 +44,7 @@ def check_closed(mesh: jf.Mesh) -> None:
     if bad:
         raise MeshNotClosedError(f"the model mesh's surface does not close: {bad} of its edges belong to "
                                  f"{'one' if (count == 1).any() else 'more than two'} surface facets; mesh the "
-                                 "body as one conforming solid (e.g. jaxfem.cup_holder) and write it again")
+                                 "body as one conforming solid (e.g. examples.cup_holder.cup_holder) and write it again")
 
 
 def cup_shape(mesh: jf.Mesh) -> CupShape:

@@ -32,7 +32,7 @@ def global_mesh(shape: CupShape, hole: Hole | None, h: float) -> jf.Mesh:
     """The whole cup holder (``tet10``, element size ``h``) with ``hole`` (cup frame) through its
     bottom, in the frame of the bundle's mesh."""
     e = None if hole is None else jf.Ellipse(*hole.centre, *hole.axes, hole.angle)
-    mesh = jf.cup_holder(shape.r_in, shape.r_out, shape.height, shape.bottom, h, hole=e).mesh
+    mesh = jf.rimmed_wall(shape.r_in, shape.r_out, shape.bottom, shape.height, h, hole=e).mesh
     return replace(mesh, nodes=mesh.nodes + shape.offset)
 
 

@@ -35,7 +35,7 @@ def cut_fraction(local, hole: jf.Ellipse, h: float | None = None) -> float:
     """The share of ``hole``'s area (an ellipse in the cup's frame) that a model built by the
     recipe ``local`` (:class:`~refine.solid.local.Local` or ``Whole``) at element size ``h``
     (length unit; None: ``local.h``) cuts: the polygon through the hole's curve nodes on the
-    floor's plan (the plan :func:`jaxfem.cup.cup_holder` extrudes), by the shoelace formula."""
+    floor's plan (the plan :func:`jaxfem.wall.rimmed_wall` extrudes), by the shoelace formula."""
     r = local if h is None else local.coarser(h)
     plan = domain(jf.Ellipse(0.0, 0.0, r.shape.r_in, r.shape.r_in), r.floor_h or r.h, holes=(hole,),
                   curve_h=[r.hole_h(hole)])
@@ -45,7 +45,7 @@ def cut_fraction(local, hole: jf.Ellipse, h: float | None = None) -> float:
 
 def layers_of(local, h: float) -> int:
     """The elements through the floor a recipe ``local`` has at element size ``h``: its ``layers``,
-    or the bottom's thickness over ``h`` rounded (:func:`jaxfem.cup.cup_holder`'s rule)."""
+    or the bottom's thickness over ``h`` rounded (:func:`jaxfem.wall.rimmed_wall`'s rule)."""
     return int(local.layers or max(1, int(round(local.shape.bottom / h))))
 
 

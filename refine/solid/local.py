@@ -1,6 +1,6 @@
 """The paper's local model of a cup holder's observed bottom, and the hypothesis of a hole through it.
 
-The local model is the bottom slab alone (:func:`jaxfem.cup.cup_bottom`, the disk under the whole
+The local model is the bottom slab alone (:func:`jaxfem.wall.disc_wall`, the disk under the whole
 cup, ``0 <= z <= bottom``), in the cup's frame (origin at the bottom face's centre): its outer
 face's nodes under the ``boundary`` points (the ring under the wall) follow them, its face inside
 carries the measured squeeze force as a uniform pressure (:class:`~refine.solid.loaded.LoadedModel`),
@@ -15,7 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 
 import jaxfem as jf
-from jaxfem.cup import CupBottom, cup_bottom
+from jaxfem.wall import ExtrudedWall, disc_wall, rimmed_wall
 
 from refine.bundle.experiment import Experiment
 from refine.bundle.observations import Observations
@@ -48,7 +48,7 @@ class Local:
     """How to build the local model: the cup's ``shape``, the bundle's ``experiment``, the bottom
     face's points ``obs`` in the cup's frame, the squeeze ``force (n_frames, 3)``, the element
     size ``h`` (length unit), the linear solver, ``layers`` of elements through the bottom (None:
-    ``bottom / h`` rounded, :func:`jaxfem.cup.cup_holder`), ``hole_ratio``: elements along a hole's
+    ``bottom / h`` rounded, :func:`jaxfem.wall.rimmed_wall`), ``hole_ratio``: elements along a hole's
     curve of at most that many times its smallest radius of curvature (:meth:`hole_h`; None: ``h``
     there too), ``floor_h``: the element size inside the floor ``r < r_in`` (None: ``h``)."""
 
@@ -77,11 +77,11 @@ class Local:
         return replace(self, h=h, hole_ratio=None if self.hole_ratio is None else self.hole_ratio * k,
                        floor_h=None if self.floor_h is None else self.floor_h * k)
 
-    def model(self, hole: jf.Ellipse | None = None, headroom: float = 1.0) -> tuple[LoadedModel, CupBottom]:
+    def model(self, hole: jf.Ellipse | None = None, headroom: float = 1.0) -> tuple[LoadedModel, ExtrudedWall]:
         """The local model (``tet10``) with ``hole`` cut through it, and its slab mesh;
         ``headroom``: its solver padded as for a mesh that many times larger (:data:`HOLE_HEADROOM`)."""
         s = self.shape
-        slab = cup_bottom(s.r_in, s.r_out, s.bottom, self.h, hole, layers=self.layers, hole_h=self.hole_h(hole),
+        slab = disc_wall(s.r_in, s.r_out, s.bottom, self.h, hole, layers=self.layers, hole_h=self.hole_h(hole),
                           floor_h=self.floor_h)
         model = LoadedModel(self.experiment, self.obs, slab.mesh, slab.facets, self.force, h=self.h,
                             linear_solver=self.linear_solver, headroom=headroom)
@@ -129,12 +129,12 @@ class Whole(Local):
         whole = replace(local, obs=held) if h is None else replace(local.coarser(h), obs=held)
         return cls(**{f.name: getattr(whole, f.name) for f in fields(Local)}), on
 
-    def model(self, hole: jf.Ellipse | None = None, headroom: float = 1.0) -> tuple[LoadedModel, jf.CupHolder]:
+    def model(self, hole: jf.Ellipse | None = None, headroom: float = 1.0) -> tuple[LoadedModel, ExtrudedWall]:
         s = self.shape
-        cup = jf.cup_holder(s.r_in, s.r_out, s.height, s.bottom, self.h, hole=hole, layers=self.layers,
+        cup = rimmed_wall(s.r_in, s.r_out, s.bottom, s.height, self.h, hole=hole, layers=self.layers,
                             hole_h=self.hole_h(hole), floor_h=self.floor_h)
         driven = fixture_nodes(cup.mesh, self.obs, max(4 * (self.experiment.noise_std or 0.0), 0.05 * self.h))
-        model = LoadedModel(self.experiment, self.obs, cup.mesh, cup.bottom_outer_facets, self.force, h=self.h,
+        model = LoadedModel(self.experiment, self.obs, cup.mesh, cup.facets, self.force, h=self.h,
                             linear_solver=self.linear_solver, driven=driven, headroom=headroom)
         return model, cup
 
@@ -211,7 +211,7 @@ class SolidHole(HoleShape):
             E = float(self.local.experiment.E)
             start = float(np.clip(self.E_start or E, 0.55 * E, 1.9 * E))  # inside the bounds' sigmoid
             parts = (param, UniformParameter("E", start, 0.5 * E, 2.0 * E))
-            if self.wall_modulus and model.mesh.region_names.get(1) == "wall":
+            if self.wall_modulus and model.mesh.region_names.get(1) == "rim":
                 wall = (np.asarray(model.mesh.regions) == 1)[None].astype(float)
                 parts += (WallModulus(wall, E, ("wall",), start=float(self.wall_start or 1.0)),)
             param = WithModulus(parts)

@@ -1,5 +1,5 @@
 """A 2D morph of a plate's plan extruded through its thickness: the differentiable geometry of a
-through-thickness hole in an extruded ``tet4``/``tet10`` mesh (:func:`jaxfem.cup.cup_bottom`).
+through-thickness hole in an extruded ``tet4``/``tet10`` mesh (:mod:`jaxfem.wall`).
 
 Each vertex moves in (x, y) as the plan node under it does (:func:`jaxfem.morph` on the plan,
 whose hole curve is on its boundary) and keeps its z; each mid-edge node stays at its edge's
@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxfem as jf
-from jaxfem.cup import CupBottom, CupHolder
+from jaxfem.wall import ExtrudedWall
 from jaxfem.shapes import Morph
 
 from refine.solid.loaded import straight_tet10_pairs
@@ -44,9 +44,9 @@ class ExtrudedMorph:
     mids: np.ndarray  # (n_mid, 2)
 
     @classmethod
-    def of(cls, slab: CupBottom | CupHolder) -> ExtrudedMorph:
-        """The morph of the hole of ``slab`` (a cup holder's bottom or the whole cup holder, with a
-        hole; the plan's regions keep the wall's feet where they are)."""
+    def of(cls, slab: ExtrudedWall) -> ExtrudedMorph:
+        """The morph of the hole of ``slab`` (a disc wall, or a disc wall with a rim, with a hole;
+        the plan's regions keep the rim's feet where they are)."""
         n_v = len(slab.column)
         return cls(jf.morph(slab.plan, [slab.hole]), slab.column, slab.mesh.nodes[:n_v, 2], midpoint_pairs(slab.mesh))
 
