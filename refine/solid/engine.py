@@ -26,7 +26,8 @@ was done (its report has ``incomplete``).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+import dataclasses
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -98,8 +99,8 @@ class Search:
     n_fit: int
     log: Callable
     base: Fitted
-    fitted: list = field(default_factory=list)
-    failed: list = field(default_factory=list)
+    fitted: list = dataclasses.field(default_factory=list)
+    failed: list = dataclasses.field(default_factory=list)
     pool: object = None
 
     def explains(self, f: Fitted) -> bool:
@@ -234,7 +235,7 @@ def search_causes(search: Search, places: list) -> None:
 class BodyDiagnosis:
     """What a solid body's diagnosis found: the ``bundle``, its settings ``config``, the initial
     fit ``base`` (on the mesh the chosen fit is compared on) and ``null`` test, the
-    ``candidates`` and the ``field``, the fits (``tried``) and ``failed`` hypotheses, the
+    ``candidates`` and the modulus field (``modulus``), the fits (``tried``) and ``failed`` hypotheses, the
     ``chosen`` fit (``base`` where nothing was found) and the one ``selected`` before its refit,
     the ``profile``, ``starts`` and ``discretisation`` of a profiled region, ``seconds`` per stage;
     ``incomplete`` (stage, error) for a run that stopped."""
@@ -243,18 +244,18 @@ class BodyDiagnosis:
     config: EngineConfig
     base: Fitted
     null: NullTest
-    candidates: list = field(default_factory=list)
-    field: object = None
-    tried: list = field(default_factory=list)
-    failed: list = field(default_factory=list)
+    candidates: list = dataclasses.field(default_factory=list)
+    modulus: object = None
+    tried: list = dataclasses.field(default_factory=list)
+    failed: list = dataclasses.field(default_factory=list)
     chosen: Fitted | None = None
     selected: Fitted | None = None
     profile: object = None
-    starts: list = field(default_factory=list)
+    starts: list = dataclasses.field(default_factory=list)
     discretisation: object = None
     coarse: Fitted | None = None
     search_base: Fitted | None = None
-    seconds: dict = field(default_factory=dict)
+    seconds: dict = dataclasses.field(default_factory=dict)
     incomplete: tuple | None = None
 
     @property
@@ -296,7 +297,7 @@ def diagnose_body(bundle: Bundle, config: EngineConfig | None = None, log=print)
     stage = "the candidates"
     try:
         if null.p_value < cfg.alpha:
-            d.candidates, d.field = candidates(search)
+            d.candidates, d.modulus = candidates(search)
             d.seconds["candidates"] = time.perf_counter() - t0 - sum(d.seconds.values())
             stage = "the hypotheses"
             search_causes(search, d.candidates)

@@ -39,10 +39,10 @@ def body_report(d) -> dict:
     if d.found:
         details["validate_rms"]["refined"] = _rms(d, chosen)
         details["held_out_gain"] = details["validate_rms"]["initial"] / max(details["validate_rms"]["refined"], 1e-300)
-    if d.field is not None:
-        details["field"] = {"gradients": d.field.gradients, "regions": [
+    if d.modulus is not None:
+        details["field"] = {"gradients": d.modulus.gradients, "regions": [
             {"sign": b.sign, "centroid": b.centroid.tolist(), "axes": b.axes.tolist(), "volume": b.volume,
-             "peak_ratio": b.ratio} for b in d.field.blobs]}
+             "peak_ratio": b.ratio} for b in d.modulus.blobs]}
     out = {"schema": 2, "bundle": d.bundle.experiment.name, "dim": 3, "cause": chosen.cause if d.found else "none",
            "findings": [finding] if finding else [], "baseline": eb, "refined": er,
            "gain": {"validation_error": gain},
