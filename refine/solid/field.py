@@ -33,6 +33,8 @@ class Blob:
         volume: its cells' volume (length unit cubed).
         strength: integrated |log modulus deviation| x volume (ranks blobs).
         peak: its largest |log modulus deviation|; ratio: exp(sign x peak), a starting ratio.
+        source: what proposed it (``"field"``: the modulus field; ``"gap"``: a gap in the points
+            inside the volume).
     """
 
     sign: int
@@ -43,6 +45,7 @@ class Blob:
     volume: float
     strength: float
     peak: float
+    source: str = "field"
 
     @property
     def ratio(self) -> float:

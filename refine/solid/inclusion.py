@@ -256,9 +256,16 @@ class Inclusion:
     def at(self, shapes, element):
         return None
 
+    def on(self, model: MeasuredModel, shapes) -> Inclusion:
+        """The same hypothesis in another ``model`` of the body (e.g. a finer mesh), started at
+        the fitted ``shapes``."""
+        s = shapes[0]
+        return type(self)(model, tuple(s.centre), tuple(s.axes), tuple(map(tuple, np.asarray(s.rotation))), float(s.ratio))
+
 
 def ellipsoid_errors(fitted, step: float = 1e-6) -> dict | None:
-    """Standard errors of the fitted ellipsoid's centre, axes, volume and ratio (the delta method
+    """Standard errors of the fitted region's centre, axes, volume and ratio (any parametrisation
+    whose ``shape(z)`` has ``centre``, ``axes``, ``volume`` and ``ratio``: an ellipsoid, a box, a cavity; (the delta method
     on ``fitted.z_cov`` through :meth:`EllipsoidModulus.shape`, central differences), as
     report.json lists them; None without a covariance."""
     cov = getattr(fitted, "z_cov", None)

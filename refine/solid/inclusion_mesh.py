@@ -20,7 +20,6 @@ import jaxfem as jf
 from jaxfem.graded import graded_box, graded_ticks
 from refine.diagnosis.fitted import baseline, fit_compiled
 from refine.model.measured import MeasuredModel
-from refine.solid.inclusion import Inclusion
 
 
 @dataclass(frozen=True)
@@ -88,8 +87,7 @@ def refit_focused(f, fit_mask, hold_mask, sigma: float, cfg: FocusedMesh = Focus
     if mesh is None:
         return None, None
     model = MeasuredModel(coarse.experiment, coarse.obs, mesh=mesh, linear_solver=coarse.linear_solver)
-    s = f.shapes[0]
-    hyp = Inclusion(model, s.centre, s.axes, tuple(map(tuple, np.asarray(s.rotation))), s.ratio)
+    hyp = f.hypothesis.on(model, f.shapes)  # the same kind of region, started at the fit
     compiled, z0 = hyp.build()
     g = fit_compiled(hyp, compiled, fit_mask, hold_mask, sigma, z0=z0, max_steps=cfg.max_steps)
     return (baseline(model, fit_mask, hold_mask, sigma) if with_base else None), g

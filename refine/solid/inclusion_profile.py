@@ -47,15 +47,18 @@ def strength(volume, ratio, nu: float):
 
 @dataclass(frozen=True, eq=False)
 class RatioHeld:
-    """``base`` (an :class:`~refine.solid.inclusion.EllipsoidModulus`) with its log ratio held at
-    ``log_ratio``: the unknowns ``z (9,)`` are the base's centre and matrix entries, started at
-    ``start (9,)``."""
+    """``base`` (an :class:`~refine.solid.inclusion.EllipsoidModulus`, or any region's
+    parametrisation whose first unknown is the log ratio) with its log ratio held at
+    ``log_ratio``: the unknowns ``z`` are the base's others (the centre and shape), started at
+    ``start``."""
 
     base: EllipsoidModulus
     log_ratio: float
     start: np.ndarray
 
-    size = 9
+    @property
+    def size(self) -> int:
+        return self.base.size - 1
 
     def full(self, z, xp=jnp):
         """The base's unknowns ``(10,)`` at ``z (9,)``."""

@@ -1,0 +1,404 @@
+"""The 3D diagnosis of any solid body: one engine for every mesh, looping over the registry's 3D
+causes (:func:`refine.causes.causes`), so that a cause added as one file is tried without a word
+here.
+
+1. The initial model (the bundle's mesh as it is, driven by its boundary points:
+   :func:`refine.solid.inclusion_diagnosis.body_model`) fitted on the guide points, its null test
+   (:func:`refine.solid.initial.checked_baseline`).
+2. Where it fails, candidate places (:func:`candidates`): the regions of the regularised modulus
+   field (:mod:`refine.solid.field`) and, where points lie inside the volume, the gaps among them
+   (softer candidates: cavities).
+3. For each candidate every ``"place"`` cause's jobs, then every ``"reshape"`` cause's from each
+   fit; then every ``"global"`` cause's (other material laws). A job that raises is a row of the
+   hypotheses table with its reason (:class:`~refine.diagnosis.fitted.Failed`).
+4. The choice as the 2D search makes it (:func:`refine.diagnosis.search._choose`: the lowest BIC
+   plus held-out misfit among the fits that beat the initial model's BIC by ``bic_margin`` and
+   lower its held-out misfit), only where the null test rejects the initial model.
+5. The chosen region refitted on the body's box graded fine around it where the body is a box
+   (:func:`refine.solid.inclusion_mesh.refit_focused`; another body keeps its mesh), standard
+   errors, its ratio's profile and the graded mesh's discretisation error where its ratio is
+   fitted (:mod:`refine.solid.inclusion_profile`, :mod:`refine.solid.inclusion_total`).
+
+A failure after the initial model raises with ``e.incomplete``: a :class:`BodyDiagnosis` of what
+was done (its report has ``incomplete``).
+"""
+
+from __future__ import annotations
+
+import time
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from refine.bundle.io import Bundle
+from refine.causes import causes
+from refine.diagnosis.fitted import Failed, Fitted, NotApplicable, baseline, fit_compiled, hypothesis_rows
+from refine.diagnosis.noise import NullTest, estimate_noise
+from refine.diagnosis.search import _choose, _score
+from refine.model.measured import MeasuredModel
+from refine.solid.field import Blob, modulus_field, moment_ellipsoid
+from refine.solid.inclusion import MAX_LOG_RATIO, ellipsoid_errors
+from refine.solid.inclusion_diagnosis import body_model, with_errors
+from refine.solid.inclusion_mesh import FocusedMesh, focus_of, refit_focused
+from refine.solid.inclusion_profile import profile_ratio, profiled_fit, strength
+from refine.solid.inclusion_total import discretisation_refit, total_intervals, values_of
+from refine.solid.initial import checked_baseline
+
+
+@dataclass(frozen=True)
+class EngineConfig:
+    """Settings of a solid body's diagnosis: the null test's ``alpha``; ``bic_margin`` (how much
+    lower than the initial model's BIC a hypothesis must score); ``max_candidates`` places tried;
+    the field's ``field_weight`` and ``field_iterations``; ``gaps``: whether gaps in the points
+    inside the volume are candidates, a gap where no point lies within ``gap_factor`` times their
+    median spacing; ``try_laws``: whether the ``"global"`` causes are tried; ``linear_solver``;
+    ``focus`` (the graded refit of a box-shaped body, None: not), ``profile`` (the ratio's
+    profile: ``profile_threshold``, ``profile_steps``, ``restart_tol``, ``restart_profiles``,
+    ``refit_steps``), ``discretisation`` (the graded fit's coarser refit factor, None: not): as
+    :class:`refine.solid.inclusion_diagnosis.InclusionConfig`."""
+
+    alpha: float = 0.01
+    bic_margin: float = 0.0
+    max_candidates: int = 2
+    field_weight: float = 2.0
+    field_iterations: int = 45
+    gaps: bool = True
+    gap_factor: float = 1.5
+    try_laws: bool = True
+    linear_solver: str = "auto"
+    focus: FocusedMesh | None = FocusedMesh()
+    profile: bool = True
+    profile_threshold: float = 4.0
+    profile_steps: int = 4
+    restart_tol: float = 0.5
+    restart_profiles: int = 1
+    refit_steps: int = 10
+    discretisation: float | None = float(np.sqrt(2.0))
+
+    def settings(self) -> dict:
+        return {k: (v if isinstance(v, (int, float, str, bool, type(None))) else repr(v))
+                for k, v in self.__dict__.items()}
+
+
+@dataclass
+class Search:
+    """What a cause's jobs see (the 3D counterpart of :class:`refine.diagnosis.search.Trials`):
+    the initial ``model``, the ``fit`` (guide) and ``hold`` (validate) masks, the noise ``sigma``,
+    the settings ``cfg``, the ``null`` test, ``n_fit`` residuals, ``log``, the ``fitted`` and
+    ``failed`` hypotheses so far, the initial fit ``base``."""
+
+    model: MeasuredModel
+    fit: np.ndarray
+    hold: np.ndarray
+    sigma: float
+    cfg: EngineConfig
+    null: NullTest
+    n_fit: int
+    log: Callable
+    base: Fitted
+    fitted: list = dataclasses.field(default_factory=list)
+    failed: list = dataclasses.field(default_factory=list)
+    pool: object = None
+
+    def explains(self, f: Fitted) -> bool:
+        return f.chi2_fit / max(self.n_fit, 1) < 1.5 * (1.0 + self.null.propagation)
+
+    def attempt(self, cause, name: str, job) -> Fitted | None:
+        """Run one job of ``cause``: its fit (kept in ``fitted``), or None where it does not apply or
+        fails (a row in ``failed`` with its reason)."""
+        try:
+            f = job()
+        except NotApplicable as e:
+            self.log(f"  not tried: {name}: {e}")
+            return None
+        except Exception as e:  # noqa: BLE001 - a hypothesis that cannot be fitted is a row with its reason
+            self.failed.append(Failed.of(name, cause.names[0] if cause.names else cause.name, e))
+            self.log(f"  could not fit {name}: {type(e).__name__}: {e}")
+            return None
+        if not np.isfinite(f.chi2_fit):
+            self.failed.append(Failed(name, f.cause, "NotFinite", "the fit's misfit is not a finite number"))
+            self.log(f"  {name}: no finite misfit")
+            return None
+        self.fitted.append(f)
+        self.log(f"  tried {name}: {f.describe()}")
+        return f
+
+    def jobs_of(self, cause, start) -> dict:
+        """``cause``'s jobs from ``start``; a cause whose ``applies`` or ``jobs`` refuses is a row."""
+        try:
+            why = cause.applies(self)
+            if why:
+                self.log(f"  {cause.name} not tried: {why}")
+                return {}
+            return cause.jobs(self, start) or {}
+        except Exception as e:  # noqa: BLE001
+            self.failed.append(Failed.of(cause.name, cause.names[0] if cause.names else cause.name, e))
+            return {}
+
+
+def interior_points(model: MeasuredModel, tol: float | None = None) -> np.ndarray:
+    """``(n_points,)`` bool: the points lying inside the volume, farther than ``tol`` (default a
+    tenth of a cell) from every boundary facet of the model's mesh (sampled densely)."""
+    from scipy.spatial import cKDTree
+
+    from refine.solid.inclusion import cell_size
+
+    mesh = model.mesh
+    f = mesh.boundary_facets()[:, :3]
+    n = 6
+    lam = np.array([(i, j, n - i - j) for i in range(n + 1) for j in range(n + 1 - i)], float) / n
+    samples = np.einsum("qc,fcd->fqd", lam, mesh.nodes[f]).reshape(-1, 3)
+    h = cell_size(mesh)
+    d, _ = cKDTree(samples).query(model.obs.reference)
+    return d > (tol if tol is not None else 0.25 * h)
+
+
+def gap_candidates(model: MeasuredModel, factor: float = 1.5, max_regions: int = 2) -> list[Blob]:
+    """Softer candidates where points lie inside the volume: the connected groups of cells (at
+    least four) whose centroid lies farther than ``factor`` times the interior points' median
+    spacing from every point and inside their bounding box, not on the surface; none with fewer
+    than 20 interior points."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    inside = interior_points(model)
+    X = model.obs.reference
+    if inside.sum() < 20:
+        return []
+    P = X[inside]
+    tree = cKDTree(P)
+    spacing = float(np.median(tree.query(P, k=2)[0][:, 1]))
+    mesh = model.mesh
+    cent, vol = mesh.centroids(), mesh.volumes()
+    d, _ = cKDTree(X).query(cent)
+    surface = np.zeros(mesh.n_nodes, bool)
+    surface[mesh.boundary_nodes()] = True
+    corners = mesh.cells[:, :4]
+    gap = (d > factor * spacing) & (cent >= P.min(0)).all(1) & (cent <= P.max(0)).all(1) & ~surface[corners].any(1)
+    idx = np.flatnonzero(gap)
+    if idx.size < 4:
+        return []
+    # cells sharing a corner node are neighbours
+    rows = np.repeat(np.arange(idx.size), 4)
+    A = coo_matrix((np.ones(rows.size), (rows, corners[idx].ravel())), shape=(idx.size, mesh.n_nodes)).tocsr()
+    _, labels = connected_components(A @ A.T, directed=False)
+    out = []
+    for k in np.unique(labels):
+        cells = idx[labels == k]
+        if cells.size < 4:
+            continue
+        c, axes, rot = moment_ellipsoid(cent[cells], vol[cells])
+        out.append(Blob(-1, cells, c, axes, rot, float(vol[cells].sum()), float(vol[cells].sum()), 1.6, "gap"))
+    return sorted(out, key=lambda b: -b.volume)[:max_regions]
+
+
+def candidates(search: Search) -> tuple[list[Blob], object]:
+    """The candidate places: the gaps among the points inside the volume first (where there are
+    any), then the modulus field's regions; at most ``max_candidates`` of the field's. Returns
+    them and the field."""
+    cfg, found = search.cfg, []
+    if cfg.gaps:
+        found += gap_candidates(search.model, cfg.gap_factor)
+        if found:
+            search.log(f"  gaps in the interior points: {len(found)} regions")
+    fld = modulus_field(search.model, search.sigma, search.fit, cfg.field_weight, cfg.field_iterations,
+                        cfg.max_candidates)
+    search.log(f"  modulus field: {len(fld.blobs)} regions ({fld.gradients} gradients, {fld.seconds:.0f} s)")
+    return found + list(fld.blobs), fld
+
+
+def search_causes(search: Search, places: list) -> None:
+    """Every place cause from each candidate, every reshape cause from each fit, every global
+    cause (see the module); the fits go to ``search.fitted``, the failures to ``search.failed``."""
+    for c in places:
+        search.log(f"candidate ({c.source}, {'stiffer' if c.sign > 0 else 'softer'}) at "
+                   f"{np.round(c.centroid, 2).tolist()}")
+        placed = []
+        for cause in causes(3, "place"):
+            for name, job in search.jobs_of(cause, c).items():
+                placed.append(search.attempt(cause, name, job))
+        for f in [p for p in placed if p is not None]:
+            for cause in causes(3, "reshape"):
+                for name, job in search.jobs_of(cause, f).items():
+                    search.attempt(cause, name, job)
+    if search.cfg.try_laws:
+        for cause in causes(3, "global"):
+            for name, job in search.jobs_of(cause, None).items():
+                search.attempt(cause, name, job)
+
+
+@dataclass(eq=False)
+class BodyDiagnosis:
+    """What a solid body's diagnosis found: the ``bundle``, its settings ``config``, the initial
+    fit ``base`` (on the mesh the chosen fit is compared on) and ``null`` test, the
+    ``candidates`` and the modulus field (``modulus``), the fits (``tried``) and ``failed`` hypotheses, the
+    ``chosen`` fit (``base`` where nothing was found) and the one ``selected`` before its refit,
+    the ``profile``, ``starts`` and ``discretisation`` of a profiled region, ``seconds`` per stage;
+    ``incomplete`` (stage, error) for a run that stopped."""
+
+    bundle: Bundle
+    config: EngineConfig
+    base: Fitted
+    null: NullTest
+    candidates: list = dataclasses.field(default_factory=list)
+    modulus: object = None
+    tried: list = dataclasses.field(default_factory=list)
+    failed: list = dataclasses.field(default_factory=list)
+    chosen: Fitted | None = None
+    selected: Fitted | None = None
+    profile: object = None
+    starts: list = dataclasses.field(default_factory=list)
+    discretisation: object = None
+    coarse: Fitted | None = None
+    search_base: Fitted | None = None
+    seconds: dict = dataclasses.field(default_factory=dict)
+    incomplete: tuple | None = None
+
+    @property
+    def found(self) -> bool:
+        return self.chosen is not None and self.chosen is not self.base
+
+    def report(self) -> dict:
+        """report.json's content, schema 2 (:func:`refine.solid.engine_report.body_report`)."""
+        from refine.solid.engine_report import body_report
+
+        return body_report(self)
+
+    def summary(self) -> str:
+        from refine.solid.engine_report import body_summary
+
+        return body_summary(self)
+
+    def write(self, out) -> Path:
+        """Write OUT/report.json (atomically), summary.txt and report.html; returns report.json's path."""
+        from refine.solid.engine_report import write_body
+
+        return write_body(self, out)
+
+
+def diagnose_body(bundle: Bundle, config: EngineConfig | None = None, log=print) -> BodyDiagnosis:
+    """Diagnose a solid bundle (see the module)."""
+    cfg = config or EngineConfig()
+    t0 = time.perf_counter()
+    model = body_model(bundle, cfg)
+    obs = model.obs
+    guide, validate = obs.roles == "guide", obs.roles == "validate"
+    sigma = bundle.experiment.noise_std or estimate_noise(obs)
+    base, null = checked_baseline(model, obs, sigma)
+    d = BodyDiagnosis(bundle, cfg, base, null, search_base=base, seconds={"initial": time.perf_counter() - t0})
+    log(f"model: {model.mesh.n_cells} {model.mesh.element} cells, {len(obs.ids)} points; misfit {null.ratio:.2f} x "
+        f"the noise's (p = {null.p_value:.2g})")
+    search = Search(model, guide, validate, sigma, cfg, null, 3 * obs.n_frames * int(guide.sum()), log, base,
+                    failed=d.failed)
+    stage = "the candidates"
+    try:
+        if null.p_value < cfg.alpha:
+            d.candidates, d.modulus = candidates(search)
+            d.seconds["candidates"] = time.perf_counter() - t0 - sum(d.seconds.values())
+            stage = "the hypotheses"
+            search_causes(search, d.candidates)
+        elif cfg.try_laws:  # tried all the same (never chosen where the null test passes)
+            stage = "the material laws"
+            search_causes(search, [])
+        d.tried = list(search.fitted)
+        d.seconds["hypotheses"] = time.perf_counter() - t0 - sum(d.seconds.values())
+        chosen = _choose(base, [base] + d.tried, cfg) if null.p_value < cfg.alpha else base
+        d.chosen = d.selected = chosen
+        if chosen is not base:
+            log(f"chosen: {chosen.describe()}")
+            stage = "the chosen fit's refit"
+            _refine(d, search, log)
+    except BaseException as e:
+        d.tried = list(search.fitted)
+        d.chosen = d.chosen or base
+        d.incomplete = (stage, e)
+        d.seconds["total"] = time.perf_counter() - t0
+        e.incomplete = d
+        raise
+    d.seconds["total"] = time.perf_counter() - t0
+    return d
+
+
+def _refine(d: BodyDiagnosis, search: Search, log) -> None:
+    """The chosen fit refitted (graded box, errors, profile, discretisation) where it has a region."""
+    cfg, best = d.config, d.chosen
+    guide, validate, sigma = search.fit, search.hold, search.sigma
+    t1 = time.perf_counter()
+    focused, region = False, None
+    shaped = bool(best.shapes) and hasattr(best.hypothesis, "on")
+    if shaped and cfg.focus is not None:
+        region = focus_of(best.shapes[0])
+        fine_base, g = refit_focused(best, guide, validate, sigma, cfg.focus, region=region)
+        if g is not None and np.isfinite(g.chi2_fit):
+            d.coarse, d.base, best, focused = best, fine_base, g, True
+            log(f"  on a graded mesh ({g.model.mesh.n_cells} cells): {g.describe()}")
+        d.seconds["focus"] = time.perf_counter() - t1
+    best = with_errors(best, guide, sigma)
+    if shaped and cfg.profile and getattr(best.hypothesis, "ratio_fitted", True):
+        t1 = time.perf_counter()
+
+        def profile(g):
+            return profile_ratio(g, guide, sigma, cfg.profile_threshold, cfg.profile_steps, log=log)
+
+        def refit(g, z):
+            h = fit_compiled(g.hypothesis, g.compiled, guide, validate, sigma, z0=z, max_steps=cfg.refit_steps)
+            return with_errors(h, guide, sigma)
+
+        best, d.profile, d.starts = profiled_fit(best, profile, refit, cfg.restart_tol, cfg.restart_profiles, log=log)
+        d.starts[0]["start"] = "graded refit" if focused else "fit"
+        d.seconds["profile"] = time.perf_counter() - t1
+    d.chosen = best
+    if focused and cfg.discretisation and d.profile is not None:
+        t1 = time.perf_counter()
+        d.discretisation = discretisation_refit(best, guide, validate, sigma, cfg.focus, region, cfg.discretisation)
+        d.seconds["discretisation"] = time.perf_counter() - t1
+
+
+def finding_of(d: BodyDiagnosis) -> dict | None:
+    """The chosen fit's finding (schema 2), None where nothing was found."""
+    if not d.found:
+        return None
+    f, nu = d.chosen, float(d.base.model.experiment.nu)
+    if not f.shapes:  # another material law
+        from refine.diagnosis.laws import law_parameters
+
+        params = law_parameters(f)
+        return {"kind": "material-law", "cause": f.cause, "centroid": None, "axes": None, "law": f.law,
+                "parameters": params, "std": {k: v["std"] for k, v in params.items()}, "details": {}}
+    s = f.shapes[0]
+    out = {"kind": s.kind, "cause": s.cause, "centroid": list(s.centre), "axes": list(s.axes),
+           "directions": [list(c) for c in np.asarray(s.rotation).T], "relative_elasticity": s.ratio,
+           "volume": s.volume, "std": ellipsoid_errors(f)}
+    det = {"ratio_at_bound": bool(abs(np.log(s.ratio)) > 0.95 * MAX_LOG_RATIO) and s.kind != "cavity",
+           "strength": float(strength(s.volume, s.ratio, nu))}
+    if d.profile is not None:
+        det["profile"] = d.profile.as_dict()
+        det["total"] = total_intervals(values_of(s, nu), det["profile"], d.discretisation)
+    if d.discretisation is not None:
+        det["discretisation"] = d.discretisation.as_dict()
+    if d.coarse is not None and d.coarse.shapes:
+        c = d.coarse.shapes[0]
+        det["coarse_fit"] = {"cells": int(d.coarse.model.mesh.n_cells), "centroid": list(c.centre),
+                             "volume": c.volume, "relative_elasticity": c.ratio,
+                             "strength": float(strength(c.volume, c.ratio, nu))}
+    if d.starts:
+        det["fit_start"], det["starts"] = d.starts[-1]["start"], d.starts
+    out["details"] = det
+    return out
+
+
+def rows(d: BodyDiagnosis) -> list[dict]:
+    """The hypotheses table: the initial model the search compared with, each fit (its kind and
+    score: BIC + held-out misfit), each failure (its reason)."""
+    fits = [d.search_base or d.base] + d.tried
+    out = hypothesis_rows(fits, d.failed)
+    for r, f in zip(out, fits):
+        r["kind"] = f.shapes[0].kind if f.shapes else ("material-law" if f.cause == "material-law" else "none")
+        r["score"] = float(_score(f))
+    for r in out[len(fits):]:
+        r["kind"] = None
+    return out

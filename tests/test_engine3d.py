@@ -1,0 +1,150 @@
+"""The 3D engine (refine.solid.engine): one diagnosis for any solid body, looping over the
+registry's 3D causes. Fast tests on tiny blocks (tests/test_solid_inclusion.py's TINY setting):
+the engine asks the registry (a toy cause registered here is tried, its failure is a row with its
+reason), a sound block gives no finding, the report is schema 2; the 3D causes' files are swept;
+marked slow, the real diagnosis of a tiny block with an inclusion."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import jaxfem as jf
+
+from refine.causes import Cause, causes, register
+from refine.causes import registry as reg
+
+
+def _bundle(tmp_path, cause="stiffer-region", seed=1, **kw):
+    from test_solid_inclusion import tiny_bundle
+
+    from refine.bundle.io import read_bundle, write_bundle
+
+    b, mesh, truth = tiny_bundle(cause, seed=seed, **kw)
+    root = tmp_path / f"{cause}{seed}"
+    root.mkdir()
+    jf.write_vtu(root / "mesh.vtu", mesh)
+    return read_bundle(write_bundle(root, b)), mesh, truth
+
+
+@pytest.fixture()
+def toys():
+    """Toy causes of every stage registered for the test (and removed after): what they were
+    asked, a place job that fits nothing new, one that raises, a global one that raises."""
+    from refine.diagnosis.fitted import baseline
+
+    asked = []
+
+    def place(search, start):
+        asked.append(("place", start))
+        return {"toy copy": lambda: baseline(search.model, search.fit, search.hold, search.sigma),
+                "toy broken": lambda: (_ for _ in ()).throw(RuntimeError("the toy cannot be fitted"))}
+
+    def reshape(search, start):
+        asked.append(("reshape", start))
+        return {}
+
+    def glob(search, start):
+        asked.append(("global", start))
+        return {"toy law": lambda: (_ for _ in ()).throw(ValueError("no such law"))}
+
+    made = [register(Cause(f"toy-{s}", {3}, s, ("stiffer-region",), j, order=1))
+            for s, j in (("place", place), ("reshape", reshape), ("global", glob))]
+    yield asked
+    for c in made:
+        reg._REGISTRY.pop(c.name)
+
+
+def test_the_3d_causes_are_one_file_each_and_registered():
+    names = {c.name: c for c in causes(3)}
+    assert {"ellipsoid", "cavity", "box"} <= set(names)
+    for c in causes(3):
+        assert 3 in c.dims and c.doc
+    assert names["box"].stage == "reshape" and names["cavity"].names == ("cavity",)
+
+
+def test_the_engine_tries_every_registered_cause_and_failures_are_rows(tmp_path, toys, monkeypatch):
+    from refine.solid import engine
+    from refine.solid.field import Blob
+
+    bundle, mesh, truth = _bundle(tmp_path)
+    blob = Blob(1, np.arange(3), np.array(truth.centre), np.array(truth.axes), np.asarray(truth.rotation), 1.0, 1.0,
+                0.5)
+    monkeypatch.setattr(engine, "candidates", lambda search: ([blob], None))
+    real = engine.causes
+    monkeypatch.setattr(engine, "causes", lambda dim, stage: [c for c in real(dim, stage) if c.name.startswith("toy")])
+    d = engine.diagnose_body(bundle, engine.EngineConfig(alpha=1.0), log=lambda m: None)
+    assert [a[0] for a in toys] == ["place", "reshape", "global"] and toys[0][1] is blob
+    rep = d.report()
+    assert rep["schema"] == 2 and rep["dim"] == 3 and rep["cause"] == "none" and rep["findings"] == []
+    hyp = rep["decision"]["hypotheses"]
+    failed = [h for h in hyp if h.get("failed")]
+    assert {h["tried"] for h in failed} == {"toy broken", "toy law"}
+    assert "cannot be fitted" in " ".join(h["failed"]["message"] for h in failed)
+    assert rep["decision"]["candidates"][0]["source"] == "field"
+    path = d.write(tmp_path / "out")
+    assert json.loads(path.read_text())["schema"] == 2
+    assert (tmp_path / "out" / "summary.txt").read_text().count("failed") >= 1
+    assert (tmp_path / "out" / "report.html").exists()
+
+
+def test_a_sound_tiny_block_gives_no_finding(tmp_path, toys):
+    from refine.solid.engine import diagnose_body
+
+    bundle, _, truth = _bundle(tmp_path, "none", seed=2)
+    d = diagnose_body(bundle, log=lambda m: None)
+    rep = d.report()
+    assert truth is None and rep["cause"] == "none" and rep["findings"] == [] and not d.found
+    assert ("global", None) in toys  # the laws are tried all the same, never chosen where the null test passes
+
+
+def test_a_failure_after_the_initial_model_carries_what_was_done(tmp_path, monkeypatch):
+    from refine.solid import engine
+
+    bundle, _, _ = _bundle(tmp_path)
+
+    def boom(search):
+        raise RuntimeError("the field broke")
+
+    monkeypatch.setattr(engine, "candidates", boom)
+    with pytest.raises(RuntimeError, match="the field broke") as e:
+        engine.diagnose_body(bundle, engine.EngineConfig(alpha=1.0), log=lambda m: None)
+    rep = e.value.incomplete.report()
+    assert rep["incomplete"]["stage"] == "the candidates" and rep["cause"] == "none"
+    assert rep["decision"]["hypotheses"][0]["cause"] == "none"
+
+
+def test_gaps_among_interior_points_are_softer_candidates():
+    from types import SimpleNamespace
+
+    from refine.solid.engine import gap_candidates, interior_points
+
+    mesh = jf.box(0, 0, 0, 10, 10, 10, 10, 10, 10, element="tet4")
+    rng = np.random.default_rng(5)
+    g = np.arange(0.5, 10, 1.0)
+    X = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    c = rng.uniform(4.0, 6.0, 3)
+    X = X[np.linalg.norm(X - c, axis=1) > 2.0]  # a ball of radius 2 with no point
+    X = np.r_[X, [[0.0, 5.0, 5.0], [10.0, 3.0, 3.0]]]  # two on the surface
+    model = SimpleNamespace(mesh=mesh, obs=SimpleNamespace(reference=X))
+    inside = interior_points(model)
+    assert inside[:-2].all() and not inside[-2:].any()
+    found = gap_candidates(model)
+    assert len(found) == 1 and found[0].sign == -1 and found[0].source == "gap"
+    assert np.linalg.norm(found[0].centroid - c) < 0.7
+
+
+@pytest.mark.slow  # a tiny block's field and the 3D causes' fits, refit, profile: minutes on a loaded core
+def test_a_tiny_block_s_inclusion_is_found_through_the_registry(tmp_path):
+    from refine.solid.engine import diagnose_body
+
+    bundle, _, truth = _bundle(tmp_path)
+    d = diagnose_body(bundle, log=lambda m: None)
+    rep = d.report()
+    assert rep["cause"] == "stiffer-region"
+    f = rep["findings"][0]
+    assert np.linalg.norm(np.subtract(f["centroid"], truth.centre)) < 0.1 * np.sqrt(8**2 + 4**2 + 4**2)
+    kinds = {h["kind"] for h in rep["decision"]["hypotheses"]}
+    assert {"ellipsoid", "box"} <= kinds
