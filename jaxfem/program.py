@@ -39,7 +39,7 @@ import jax.numpy as jnp
 from . import padding
 from .assembly import Assembler, matvec
 from .kinematics import reduce
-from .newton import NewtonOptions, external_force, newton_solve
+from .newton import NewtonOptions, external_force, loads_at, newton_solve
 
 #: a mesh reuses a padded size already compiled for where it has at most this many times its own
 #: cells (its own bucket is up to 19 % above it); padding cells cost their share of the
@@ -81,6 +81,16 @@ class Program:
         self.displacement = jax.jit(self._equilibrium)
         self.tangents = jax.jit(self._tangents)
         self.adjoint = jax.jit(self._adjoint)
+        # the kernels of the loop on the host (jaxfem.newton_host): nothing in them calls back into
+        # Python, so the persistent compilation cache keeps them
+        self.finite, self.n_qp = finite, asm.el.weights.shape[0]
+        self.evaluate = jax.jit(self._evaluate)
+        self.external = jax.jit(self._external)
+        self.min_det = jax.jit(self._min_det)
+        self.tangent_rhs = jax.jit(jax.vmap(self._tangent_rhs, in_axes=(None, None, 0, None)))
+        self.adjoint_rhs = jax.jit(self._adjoint_rhs)
+        self.linear = jax.jit(lin)  # for a solver that runs in XLA (a host solver's is never called so)
+        self.linear_many = jax.jit(jax.vmap(lin, in_axes=(None, 1, None), out_axes=1))
 
     def sizes_for(self, own: padding.Sizes, reuse: float = REUSE) -> padding.Sizes:
         """The padded sizes a new solver of real sizes ``own`` (padded to its own bucket) is given:
@@ -155,8 +165,9 @@ class Program:
 
         return implicit
 
-    def _solve_tangent(self, theta, u, M, dtheta, arrays):
-        """du with K du = -dG/dtheta dtheta on the free dofs and du = du_D on the prescribed ones."""
+    def _tangent_rhs(self, theta, u, dtheta, arrays):
+        """The right-hand side of :meth:`_solve_tangent`: -dG/dtheta dtheta on the free dofs and
+        du_D on the prescribed ones (linear in ``dtheta``)."""
         free, fixed = arrays["free"], arrays["fixed"]
 
         def free_residual(th):
@@ -164,10 +175,36 @@ class Program:
             return self.residual(uu, th, arrays) * free
 
         _, dG = jax.jvp(free_residual, (theta,), (dtheta,))
-        rhs = -dG + jnp.zeros_like(u).at[fixed].set(dtheta["u_D"], unique_indices=True)
+        return -dG + jnp.zeros_like(u).at[fixed].set(dtheta["u_D"], unique_indices=True)
+
+    def _adjoint_rhs(self, theta, u, w, arrays):
+        """The parameters' cotangent (a pytree like ``theta``) of the adjoint solution ``w``: the
+        transpose of :meth:`_tangent_rhs` applied to ``w``."""
+        zero = jax.tree.map(jnp.zeros_like, theta)
+        return jax.vjp(lambda d: self._tangent_rhs(theta, u, d, arrays), zero)[1](w)[0]
+
+    def _solve_tangent(self, theta, u, M, dtheta, arrays):
+        """du with K du = -dG/dtheta dtheta on the free dofs and du = du_D on the prescribed ones."""
+        rhs = self._tangent_rhs(theta, u, dtheta, arrays)
         mv = lambda x: matvec(M, arrays["rows"], arrays["cols"], x)  # noqa: E731
         return jax.lax.custom_linear_solve(mv, rhs, lambda _, b: self.lin(jax.lax.stop_gradient(M), b, arrays),
                                            symmetric=True)
+
+    # ------------------------------------------------------------------ the host loop's kernels
+    def _evaluate(self, theta, u, lam, arrays):
+        """``(R_int, vals, lam)``: internal forces, tangent values on the pattern and the
+        material state at ``u`` (the state's iteration started from ``lam``)."""
+        p, X, t = split(theta)
+        return self.asm.residual_and_tangent(u.reshape(-1, X.shape[1]), X, p, t, arrays, arrays["rows"].shape[0], lam)
+
+    def _external(self, theta, loads0, s, arrays):
+        """The external force a fraction ``s`` of the way from ``loads0`` to ``theta``'s loads."""
+        return external_force(theta, loads_at(theta, loads0, s), arrays, self.facet_element, theta["X"].size)
+
+    def _min_det(self, theta, u, arrays):
+        """The smallest det F at ``u``."""
+        X = theta["X"]
+        return self.asm.min_jacobian(u.reshape(-1, X.shape[1]), X, arrays["cells"], arrays.get("cell_mask"))
 
     def _equilibrium(self, theta, u0, loads0, arrays):
         u, _, vals = self._newton(jax.lax.stop_gradient(theta), u0, loads0, arrays)

@@ -21,6 +21,7 @@ final loads, so the load path does not enter the derivative.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import jax
 import jax.numpy as jnp
@@ -31,8 +32,9 @@ from . import padding
 from .assembly import make_pattern
 from .exceptions import SolverError
 from .linsolve import HostSolver, make_linear_solver
-from .linsolve._base import csr
+from .linsolve._base import _host_solve, csr
 from .newton import REASONS, NewtonOptions
+from .newton_host import host_newton, loop_on_host
 from .problem import LOAD_KEYS, Problem
 from .program import program
 
@@ -119,6 +121,11 @@ class Solver:
         if isinstance(self._lin, HostSolver):
             padded["host"] = np.int32(self._lin.host_id)
         self.padded_arrays = jax.device_put(padded)
+        self._host_of = (None, None)  # (padded arrays, their host copies: _host)
+        self.on_host = loop_on_host()
+        prog = self.program
+        self._kernels = SimpleNamespace(evaluate=prog.evaluate, external=prog.external, min_det=prog.min_det,
+                                        n_qp=prog.n_qp, solve=self._host_solve)
 
     # ------------------------------------------------------------------ parameters
     def params(self, **kw) -> dict:
@@ -140,6 +147,33 @@ class Solver:
 
     def _constrained(self, vals):
         return self.program.constrained(vals, self.arrays)
+
+    # ------------------------------------------------------------------ the solves on the host
+    @property
+    def _host(self) -> dict:
+        """What the loop on the host reads of :attr:`padded_arrays` (host numpy, copied once)."""
+        arrays, host = self._host_of
+        if arrays is not self.padded_arrays:
+            host = {k: np.asarray(self.padded_arrays[k]) for k in ("rows", "cols", "fixed", "free", "keep", "diag_fixed")}
+            host["n_cells"] = self.padded_arrays["cells"].shape[0]
+            self._host_of = (self.padded_arrays, host)
+        return host
+
+    def _host_solve(self, K, rhs):
+        """x with K x = rhs for the constrained padded matrix values ``K (nnz_p,)`` and ``rhs``
+        ``(n_dofs_p,)`` or ``(n_dofs_p, k)``, host numpy."""
+        if isinstance(self._lin, HostSolver):
+            return _host_solve(self._lin.host_id, K, rhs)
+        run = self.program.linear if np.ndim(rhs) == 1 else self.program.linear_many
+        return np.asarray(run(K, rhs, self.padded_arrays))
+
+    def _newton(self, theta_p, u0, loads0):
+        """Newton on the padded problem: ``(u, info, vals)`` (:func:`jaxfem.newton.newton_solve`)."""
+        if self.on_host:
+            return host_newton(self._kernels, theta_p, u0, loads0, self.padded_arrays, self._host, self.options,
+                               self.program.finite)
+        with self.program.lock:  # wait inside the lock: a later np.asarray would wait holding the GIL
+            return jax.block_until_ready(self.program.newton(theta_p, u0, loads0, self.padded_arrays))
 
     # ------------------------------------------------------------------ padding
     def _pad(self, theta, u0, loads0):
@@ -178,10 +212,8 @@ class Solver:
         Returns NaN where the solve failed (use :meth:`solve` for the error message).
         """
         u0, loads0 = self._start(theta, start)
-        if not _traced((theta, u0, loads0)):  # nothing to differentiate: Newton's program alone
-            with self.program.lock:  # wait inside the lock: a later np.asarray would wait holding the GIL
-                u = jax.block_until_ready(self.program.newton(*self._pad(theta, u0, loads0), self.padded_arrays)[0])
-            return self._unpad(u)
+        if not _traced((theta, u0, loads0)):  # nothing to differentiate: Newton alone
+            return self._unpad(self._newton(*self._pad(theta, u0, loads0))[0])
         u0, loads0 = jax.lax.stop_gradient((u0, loads0))
         theta, u0, loads0 = self._pad(theta, u0, loads0)
         return self._unpad(self.program.displacement(theta, u0, loads0, self.padded_arrays))
@@ -211,8 +243,7 @@ class Solver:
 
     def _solve_padded(self, theta, start):
         u0, loads0 = self._start(theta, start)
-        with self.program.lock:
-            return jax.block_until_ready(self.program.newton(*self._pad(theta, u0, loads0), self.padded_arrays))
+        return self._newton(*self._pad(theta, u0, loads0))
 
     def solve_with_tangents(self, theta, directions, start=None):
         """The equilibrium and its derivatives along ``k`` parameter directions, by the implicit
@@ -238,9 +269,13 @@ class Solver:
         th, u, vals = state
         k = np.shape(jax.tree.leaves(directions)[0])[0]
         dirs = padding.pad_theta(padding.pad_batch(directions, k), self.sizes, tangent=True, axis=1)
+        chunks = [jax.tree.map(lambda v: v[i: i + padding.BATCH], dirs) for i in range(0, k, padding.BATCH)]
+        if self.on_host:  # the right-hand sides by a kernel, every direction a back-substitution here
+            rhs = np.concatenate([np.asarray(self.program.tangent_rhs(th, u, d, self.padded_arrays)) for d in chunks])
+            K = np.asarray(vals) * self._host["keep"] + self._host["diag_fixed"]
+            return self._unpad(np.asarray(self._host_solve(K, rhs[:k].T)).T)
         with self.program.lock:
-            du = [np.asarray(self.program.tangents(th, u, vals, jax.tree.map(lambda v: v[i: i + padding.BATCH], dirs),
-                                                   self.padded_arrays)) for i in range(0, k, padding.BATCH)]
+            du = [np.asarray(self.program.tangents(th, u, vals, d, self.padded_arrays)) for d in chunks]
         return self._unpad(np.concatenate(du)[:k])
 
     def solve_with_prescribed_tangents(self, theta, du_D, start=None):
@@ -279,8 +314,7 @@ class Solver:
         """The equilibrium ``u (n_nodes, dim)`` (NaN where the solve failed; no error raised) and
         what :meth:`adjoint` needs to differentiate a function of it (the converged state)."""
         theta_p, u0, loads0 = self._pad(theta, *self._start(theta, start))
-        with self.program.lock:
-            u, _, vals = jax.block_until_ready(self.program.newton(theta_p, u0, loads0, self.padded_arrays))
+        u, _, vals = self._newton(theta_p, u0, loads0)
         return self._unpad(u), (theta_p, u, vals)
 
     def adjoint(self, state, g) -> dict:
@@ -291,6 +325,10 @@ class Solver:
         theta_p, u, vals = state
         s = self.sizes
         g = np.pad(np.asarray(g, np.float64).reshape(-1), (0, s.n_dofs_p - s.n_dofs))
+        if self.on_host:  # the adjoint solve here (the matrix is symmetric), its transpose by a kernel
+            K = np.asarray(vals) * self._host["keep"] + self._host["diag_fixed"]
+            w = self._host_solve(K, g)
+            return padding.unpad_theta(jax.device_get(self.program.adjoint_rhs(theta_p, u, w, self.padded_arrays)), s)
         with self.program.lock:
             grad = jax.block_until_ready(self.program.adjoint(theta_p, u, vals, g, self.padded_arrays))
         return padding.unpad_theta(grad, s)

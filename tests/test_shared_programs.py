@@ -218,8 +218,9 @@ def test_field_gradient_and_drive_jacobian_on_the_shared_programs():
     np.testing.assert_allclose(np.einsum("fpdgm,gm->fpd", got, dB), fd, atol=1e-5 * np.abs(fd).max())
 
 
-def test_host_solves_run_inside_their_programs_lock():
-    """Every host solve (PARDISO here: a Python callback that needs the GIL) of what the
+def test_host_solves_run_inside_their_programs_lock(monkeypatch):
+    """With Newton's loop in one jitted program (``NONRIGID_NEWTON=jit``; on the host, the default,
+    no program calls back into Python), every host solve (PARDISO here: a Python callback that needs the GIL) of what the
     diagnosis runs in its thread pool (a hypothesis's prediction and Jacobian, a model's
     prediction, the drive's Jacobian) runs inside its shared program's lock, where the caller
     waits for the result with the GIL released (jaxfem.program.Program.lock): no program of the
@@ -229,6 +230,7 @@ def test_host_solves_run_inside_their_programs_lock():
     from refine.model.objective import Compiled
 
     rng = np.random.default_rng(13)
+    monkeypatch.setenv("NONRIGID_NEWTON", "jit")
     (model, param), _ = _region_models(rng)
     if "host" not in model.solver.padded_arrays:
         pytest.skip("no host linear solver installed (PARDISO, SuperLU): no callback to guard")

@@ -7,6 +7,7 @@ import itertools
 from abc import ABC, abstractmethod
 import queue
 import threading
+import time
 import weakref
 from concurrent.futures import Future
 from typing import Callable, ClassVar
@@ -172,11 +173,36 @@ class _FactorCache:
         if not np.isfinite(v).all():
             # A state that does not solve has no factorisation; Newton reads NaN as a failed solve
             return np.full(np.shape(rhs), np.nan)
-        if self.vals is None or not np.array_equal(v, self.vals):
+        t0 = time.perf_counter()
+        factored = self.vals is None or not np.array_equal(v, self.vals)
+        if factored:
             self.vals, self._slot[0] = None, None
             self._slot[0] = self.factor(v)
             self.vals = v.copy()
-        return self._slot[0](np.asarray(rhs, dtype=np.float64))
+        t1 = time.perf_counter()
+        x = self._slot[0](np.asarray(rhs, dtype=np.float64))
+        _count(factored, t1 - t0, time.perf_counter() - t1)
+        return x
+
+
+_times_lock = threading.Lock()
+_times = {"factorisations": 0, "factor_seconds": 0.0, "solves": 0, "solve_seconds": 0.0}
+
+
+def _count(factored: bool, factor_s: float, solve_s: float) -> None:
+    with _times_lock:
+        _times["factorisations"] += factored
+        _times["factor_seconds"] += factor_s if factored else 0.0
+        _times["solves"] += 1
+        _times["solve_seconds"] += solve_s
+
+
+def host_solve_times() -> dict:
+    """What the host solvers of this process did so far: ``factorisations`` and ``solves``
+    (calls, a call's right-hand sides together) and their wall seconds, ``factor_seconds`` and
+    ``solve_seconds`` (a solve's floor: the least its linear algebra costs)."""
+    with _times_lock:
+        return dict(_times)
 
 
 def _serve(jobs: queue.SimpleQueue) -> None:
