@@ -17,7 +17,7 @@ REFINE_LAYERS = {
     "refine.bundle": 1,
     "refine.model": 2,
     "refine.optimize": 3,
-    "refine.diagnosis": 4, "refine.demo_data": 4, "refine.correspond": 4, "refine.solid": 4,
+    "refine.diagnosis": 4, "refine.causes": 4, "refine.demo_data": 4, "refine.correspond": 4, "refine.solid": 4,
     "refine.batch": 5,
     "refine.cli": 6,
 }

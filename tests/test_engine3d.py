@@ -148,3 +148,16 @@ def test_a_tiny_block_s_inclusion_is_found_through_the_registry(tmp_path):
     assert np.linalg.norm(np.subtract(f["centroid"], truth.centre)) < 0.1 * np.sqrt(8**2 + 4**2 + 4**2)
     kinds = {h["kind"] for h in rep["decision"]["hypotheses"]}
     assert {"ellipsoid", "box"} <= kinds
+
+
+def test_nonrigid_diagnose_sends_any_body_but_an_observed_thin_wall_to_the_engine(tmp_path, capsys):
+    from refine.cli.main import main
+
+    bundle, _, _ = _bundle(tmp_path, "none", seed=2)
+    out = tmp_path / "out"
+    assert main(["diagnose", str(bundle.root), "--out", str(out), "--alpha", "0.01", "--max-cells", "50"]) == 0
+    printed = capsys.readouterr().out
+    assert "3D engine" in printed and "ignored for a solid bundle" in printed and "max_cells" in printed
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["schema"] == 2 and rep["dim"] == 3 and rep["cause"] == "none" and rep["findings"] == []
+    assert (out / "summary.txt").exists() and (out / "report.html").exists()

@@ -286,17 +286,31 @@ def test_a_solid_body_without_a_cavity_is_diagnosed_for_an_inclusion(tmp_path, t
         body_model(no_validate, InclusionConfig())
 
 
-def test_the_command_lines_solid_path_sends_a_block_to_the_inclusion_diagnosis(tmp_path, tiny, monkeypatch):
+def test_the_command_lines_solid_path_sends_a_block_to_the_engine_and_a_cup_holder_to_its_wall(tmp_path, tiny,
+                                                                                                monkeypatch):
     from refine.bundle.io import read_bundle, write_bundle
-    from refine.solid import inclusion_diagnosis, write
+    from refine.solid import engine, write
+    from refine.solid.diagnose import thin_wall_reason
 
     (tmp_path / "b").mkdir()
     jf.write_vtu(tmp_path / "b" / "mesh.vtu", tiny[1])
     bundle = read_bundle(write_bundle(tmp_path / "b", tiny[0]))
+    assert "thin wall" in thin_wall_reason(bundle)  # a block is no wall inside a rim
     calls = []
-    monkeypatch.setattr(inclusion_diagnosis, "diagnose_and_write", lambda b, out, quiet=False: calls.append(out) or ("d", {}))
-    assert write.diagnose_and_write(bundle, tmp_path / "out", quiet=True) == ("d", {})
-    assert calls == [tmp_path / "out"]
+
+    class Done:
+        def write(self, out):
+            calls.append(out)
+
+        def summary(self):
+            return ""
+
+        def report(self):
+            return {"schema": 2}
+
+    monkeypatch.setattr(engine, "diagnose_body", lambda b, cfg=None, log=print: Done())
+    d, rep = write.diagnose_and_write(bundle, tmp_path / "out", quiet=True)
+    assert calls == [tmp_path / "out"] and rep == {"schema": 2}
 
 
 def diagnosed(tmp_path, cause, seed):

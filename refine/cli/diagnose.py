@@ -120,10 +120,10 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
 
         raise ObservationError("the bundle holds unlabelled clouds only (clouds.csv, no points.csv); diagnose needs "
                                "tracked points: follow the clouds with `nonrigid follow BUNDLE --out DIR`")
-    if bundle.experiment.kind == "solid":  # a 3D cup holder: the local model of its bottom (refine.solid)
+    if bundle.experiment.kind == "solid":  # 3D: an observed thin wall's local model, else the 3D engine
         from refine.solid.write import diagnose_and_write
 
-        return diagnose_and_write(bundle, out, quiet=quiet)[0]
+        return diagnose_and_write(bundle, out, quiet=quiet, engine_config=engine_settings(config, quiet))[0]
     if not isinstance(config, DiagnoseConfig):
         config = settings_of(bundle, config)
     try:
@@ -146,6 +146,22 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
         print(f"wrote {path}, {Path(out) / 'report.html'} and figures in {Path(out)}; "
               f"ParaView: open {Path(out) / 'paraview'}/*.pvd" + (f"; the refined model as a bundle in {again}" if again else ""))
     return d
+
+
+def engine_settings(given, quiet: bool = False):
+    """The 3D engine's settings (:class:`refine.solid.engine.EngineConfig`) from the settings
+    ``given`` (a dict, e.g. the command line's; None: the defaults): those the engine has are
+    taken, the others are named in one printed line as ignored for a solid bundle."""
+    import dataclasses
+
+    from refine.solid.engine import EngineConfig
+
+    given = dict(given or {}) if not dataclasses.is_dataclass(given) else {}
+    names = {f.name for f in dataclasses.fields(EngineConfig)}
+    ignored = sorted(k for k in given if k not in names)
+    if ignored and not quiet:
+        print(f"ignored for a solid bundle (no such setting of the 3D engine): {', '.join(ignored)}")
+    return EngineConfig(**{k: v for k, v in given.items() if k in names})
 
 
 def _write_incomplete(inc, out, quiet: bool) -> None:

@@ -205,7 +205,7 @@ def diagnose_solid(bundle: Bundle, cfg: SolidConfig = SolidConfig(), log=print) 
     """Diagnose a cup holder's bottom (see the module); a body without a cavity (its mesh fills its
     convex hull: a block) for an ellipsoidal inclusion instead
     (:func:`refine.solid.inclusion_diagnosis.diagnose_inclusion`)."""
-    if without_cavity(bundle):
+    if thin_wall_reason(bundle) is not None:
         return diagnose_inclusion(bundle, log=log)
     t0 = time.perf_counter()
     shape, local, _ = local_recipe(bundle, cfg)
@@ -281,13 +281,33 @@ def grid_edge(local: Local, start: Hole, cfg: SolidConfig, log=print) -> EdgeEvi
     return evidence_near(lattice, start.centre, reach, local.shape.r_in, cfg.edge_slack)
 
 
-def without_cavity(bundle: Bundle) -> bool:
-    """Whether a solid bundle's mesh file fills its convex hull (no cavity; False where the bundle
-    is not a solid one with a mesh: :func:`local_recipe` names what is wrong)."""
+def thin_wall_reason(bundle: Bundle, share: float = 0.8) -> str | None:
+    """Why the local model of an observed thin wall (this module's strategy: a through-hole in
+    the wall, refitted in the whole body) does not apply to a solid bundle; None where it does.
+
+    It applies where the body has a floor (a wall thinner than half the body's height, standing
+    inside a rim: an inner wall well inside the outer one, as :func:`refine.solid.cup.cup_shape`
+    measures them with the axis along z) and at least ``share`` of the guide points lie on that
+    floor's outer face (the face the camera sees). Any other body (a block, a bracket, a tube, a
+    body seen on several faces) goes to the engine of :mod:`refine.solid.engine`."""
     domain, root = bundle.experiment.domain, "" if bundle.root is None else f"{bundle.root}/"
-    if bundle.experiment.kind != "solid" or not hasattr(domain, "path"):
-        return False
-    return fills_hull(jf.read_mesh(f"{root}{domain.path}"))
+    if bundle.experiment.kind != "solid" or not hasattr(domain, "path") or bundle.observations is None:
+        return "not a solid bundle with a mesh and tracked points"
+    try:
+        shape = cup_shape(jf.read_mesh(f"{root}{domain.path}"))
+    except ObservationError as e:
+        return str(e)
+    if not (shape.bottom < 0.5 * shape.height and shape.r_in <= 0.9 * shape.r_out):
+        return (f"no thin wall inside a rim (floor {shape.bottom:.3g} of height {shape.height:.3g}, inner radius "
+                f"{shape.r_in:.3g} of {shape.r_out:.3g})")
+    obs = bundle.observations
+    guide = obs.roles == "guide"
+    tol = max(3 * (bundle.experiment.noise_std or 0.0), 0.05 * point_spacing(obs.reference))
+    on = bottom_points(shape, obs.reference, tol)
+    seen = float((on & guide).sum()) / max(int(guide.sum()), 1)
+    if seen < share:
+        return f"{100 * seen:.0f} % of the guide points lie on the floor's outer face (the strategy needs {100 * share:.0f} %)"
+    return None
 
 
 def refit_whole(bundle: Bundle, local: Local, hole: Hole, sigma: float, cfg: SolidConfig,

@@ -8,23 +8,32 @@ from pathlib import Path
 
 from refine.bundle.io import Bundle, read_bundle
 from refine.diagnosis.atomic import write_text
-from refine.solid.diagnose import SolidConfig, SolidDiagnosis, without_cavity, diagnose_solid, report, squeeze_force
+from refine.solid.diagnose import SolidConfig, SolidDiagnosis, thin_wall_reason, diagnose_solid, report, squeeze_force
 from refine.solid.global_model import global_check, global_mesh, write_global
-from refine.solid import inclusion_diagnosis
 
 
 def diagnose_and_write(bundle: Bundle | str | Path, out: str | Path, cfg: SolidConfig = SolidConfig(),
-                       quiet: bool = False, global_h: float | None = None) -> tuple[SolidDiagnosis, dict]:
+                       quiet: bool = False, global_h: float | None = None, engine_config=None) -> tuple[SolidDiagnosis, dict]:
     """Diagnose a cup holder's bundle (:func:`refine.solid.diagnose_solid`) and write ``OUT/report.json``
     (with ``global``: the global models' held-out errors, initial and refined) and ``OUT/global/``
     (the global model with the finding as a bundle, :func:`refine.solid.global_model.write_global`).
     ``global_h``: the global model's element size (default: the local model's). Returns the
-    diagnosis and the report."""
+    diagnosis and the report. A body without an observed thin wall
+    (:func:`refine.solid.diagnose.thin_wall_reason`) is diagnosed by the 3D engine instead
+    (:func:`refine.solid.engine.diagnose_body` with ``engine_config``) and written by it."""
     if isinstance(bundle, (str, Path)):
         bundle = read_bundle(bundle)
-    if without_cavity(bundle):  # a body without a cavity: the inclusion diagnosis writes its own report
-        return inclusion_diagnosis.diagnose_and_write(bundle, out, quiet=quiet)
     log = (lambda m: None) if quiet else print
+    reason = thin_wall_reason(bundle)
+    if reason is not None:  # any other body: the one 3D engine, over the registry's 3D causes
+        from refine.solid.engine import diagnose_body
+
+        log(f"the body's diagnosis by the 3D engine ({reason}: no observed thin wall)")
+        d = diagnose_body(bundle, engine_config, log=log)
+        d.write(out)
+        if not quiet:
+            print(d.summary())
+        return d, d.report()
     d = diagnose_solid(bundle, cfg, log=log)
     rep = report(d)
     h = global_h or d.local.h
