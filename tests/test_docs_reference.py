@@ -59,7 +59,7 @@ def test_every_public_name_is_in_the_reference_with_a_docstring(reference):
     shown = {f"{m}.{n}" for p in PACKAGES for m in reference.documented_modules(p)
              for n in reference.public_names(importlib.import_module(m)) if reference.target(m, n) in directives}
     expected = _expected()
-    assert len(expected) > 300  # the three packages' exports, not an empty walk
+    assert len(expected) > 200  # the three packages' exports (259 once the paper's bodies left for examples/), not an empty walk
     missing = sorted(expected - shown)
     assert not missing, f"public names missing from the API reference: {missing}"
     undocumented = []
