@@ -35,15 +35,15 @@ import numpy as np
 
 from refine.bundle.io import Bundle
 from refine.causes import causes
-from refine.diagnosis.fitted import Failed, Fitted, NotApplicable, baseline, fit_compiled, hypothesis_rows
+from refine.diagnosis.fitted import Failed, Fitted, NotApplicable, hypothesis_rows
 from refine.diagnosis.noise import NullTest, estimate_noise
 from refine.diagnosis.search import _choose, _score
 from refine.model.measured import MeasuredModel
 from refine.solid.field import Blob, modulus_field, moment_ellipsoid
 from refine.solid.inclusion import MAX_LOG_RATIO, ellipsoid_errors
-from refine.solid.inclusion_diagnosis import body_model, with_errors
+from refine.solid.inclusion_diagnosis import body_model, profiled, with_errors
 from refine.solid.inclusion_mesh import FocusedMesh, focus_of, refit_focused
-from refine.solid.inclusion_profile import profile_ratio, profiled_fit, strength
+from refine.solid.inclusion_profile import strength
 from refine.solid.inclusion_total import discretisation_refit, total_intervals, values_of
 from refine.solid.initial import checked_baseline
 
@@ -340,16 +340,7 @@ def _refine(d: BodyDiagnosis, search: Search, log) -> None:
     best = with_errors(best, guide, sigma)
     if shaped and cfg.profile and getattr(best.hypothesis, "ratio_fitted", True):
         t1 = time.perf_counter()
-
-        def profile(g):
-            return profile_ratio(g, guide, sigma, cfg.profile_threshold, cfg.profile_steps, log=log)
-
-        def refit(g, z):
-            h = fit_compiled(g.hypothesis, g.compiled, guide, validate, sigma, z0=z, max_steps=cfg.refit_steps)
-            return with_errors(h, guide, sigma)
-
-        best, d.profile, d.starts = profiled_fit(best, profile, refit, cfg.restart_tol, cfg.restart_profiles, log=log)
-        d.starts[0]["start"] = "graded refit" if focused else "fit"
+        best, d.profile, d.starts = profiled(best, guide, validate, sigma, cfg, focused, log)
         d.seconds["profile"] = time.perf_counter() - t1
     d.chosen = best
     if focused and cfg.discretisation and d.profile is not None:

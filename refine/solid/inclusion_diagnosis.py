@@ -128,6 +128,25 @@ def with_errors(f: Fitted, points, sigma: float) -> Fitted:
     return replace(f, z_std=np.sqrt(np.clip(np.diag(cov), 0, None)), z_cov=cov)
 
 
+def profiled(f: Fitted, guide, validate, sigma: float, cfg, focused: bool, log=print):
+    """``f``'s ratio profiled and the fit restarted from a lower profile point
+    (:func:`refine.solid.inclusion_profile.profiled_fit`) with ``cfg``'s ``profile_threshold``,
+    ``profile_steps``, ``refit_steps``, ``restart_tol`` and ``restart_profiles``; the first
+    start is named ``"graded refit"`` where ``focused``, else ``"fit"``. Returns the fit
+    reported, the profile and the starts."""
+
+    def profile(g):
+        return profile_ratio(g, guide, sigma, cfg.profile_threshold, cfg.profile_steps, log=log)
+
+    def refit(g, z):
+        h = fit_compiled(g.hypothesis, g.compiled, guide, validate, sigma, z0=z, max_steps=cfg.refit_steps)
+        return with_errors(h, guide, sigma)
+
+    best, prof, starts = profiled_fit(f, profile, refit, cfg.restart_tol, cfg.restart_profiles, log=log)
+    starts[0]["start"] = "graded refit" if focused else "fit"
+    return best, prof, starts
+
+
 def diagnose_inclusion(bundle: Bundle, cfg: InclusionConfig = InclusionConfig(), log=print) -> InclusionDiagnosis:
     """Diagnose a solid body for an ellipsoidal inclusion (see the module)."""
     t0 = time.perf_counter()
@@ -168,16 +187,7 @@ def diagnose_inclusion(bundle: Bundle, cfg: InclusionConfig = InclusionConfig(),
     prof, starts = None, []
     if chosen is not base and cfg.profile:
         t1 = time.perf_counter()
-
-        def profile(g):
-            return profile_ratio(g, guide, sigma, cfg.profile_threshold, cfg.profile_steps, log=log)
-
-        def refit(g, z):
-            h = fit_compiled(g.hypothesis, g.compiled, guide, validate, sigma, z0=z, max_steps=cfg.refit_steps)
-            return with_errors(h, guide, sigma)
-
-        best, prof, starts = profiled_fit(chosen, profile, refit, cfg.restart_tol, cfg.restart_profiles, log=log)
-        starts[0]["start"] = "graded refit" if focused else "fit"
+        best, prof, starts = profiled(chosen, guide, validate, sigma, cfg, focused, log)
         chosen = best
         seconds["profile"] = time.perf_counter() - t1
         log(f"  ratio {prof.ratio[0]:.3g}-{prof.ratio[1]:.3g}, volume {prof.volume[0]:.0f}-{prof.volume[1]:.0f} "
