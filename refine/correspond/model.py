@@ -212,10 +212,10 @@ class CloudModel:
 
 
 def _side(mesh, name: str) -> np.ndarray:
-    """The nodes of a named side of the mesh's bounding box, with a clear error for a wrong name."""
+    """The nodes of a named face of the mesh (``mesh.faces``: the mesh file's or experiment.toml's
+    ``domain.faces``) or of a side of its bounding box, with a clear error for a wrong name."""
     try:
         return mesh.side(name)
     except jf.MeshError:
-        names = ["left", "right", "bottom", "top", "back", "front"][: 2 * mesh.dim]
-        raise CorrespondenceError(f"unknown side {name!r} for a {mesh.dim}D model; name sides of its bounding box: "
-                                  f"{', '.join(names)}") from None
+        raise CorrespondenceError(f"unknown side {name!r} for a {mesh.dim}D model; name one of its faces or its "
+                                  f"bounding box's sides: {', '.join(mesh.side_names())}") from None
