@@ -165,14 +165,16 @@ def with_domain_faces(mesh, faces):
             n = np.asarray(v[:d]) / np.linalg.norm(v[:d])
             off = v[d] / np.linalg.norm(v[:d])
             facets = mesh.facets_where(lambda x: np.abs(x @ n - off) <= (1e-9 * size if tol is None else tol))
-        if not len(facets):
-            named = [*mesh.faces, *found]
-            raise ExperimentError(
-                f"domain.faces.{name} ({kind} {list(v)}) selects no boundary facet of the mesh (its bounds "
-                f"{lo.round(6).tolist()} to {hi.round(6).tolist()}); faces that exist: "
-                f"{named if named else 'none named'}, and the bounding box's sides "
-                f"{[n for n in mesh.side_names() if n not in mesh.faces]}")
         found[name] = facets
+    empty = [n for n, f in found.items() if not len(f)]
+    if empty:
+        name, kind, v, _ = next(f for f in faces if f[0] == empty[0])
+        named = [*mesh.faces, *(n for n, f in found.items() if len(f))]
+        raise ExperimentError(
+            f"domain.faces.{name} ({kind} {list(v)}) selects no boundary facet of the mesh (its bounds "
+            f"{lo.round(6).tolist()} to {hi.round(6).tolist()}); faces that exist: "
+            f"{named if named else 'none named'}, and the bounding box's sides "
+            f"{[n for n in mesh.side_names() if n not in named]}")
     return mesh.with_faces(found)
 
 
