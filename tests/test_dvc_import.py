@@ -94,13 +94,29 @@ def test_dvc_points_inside_a_tet10_box_import_and_interior_points_compare_where_
     np.testing.assert_array_equal(model.positions[inside], obs.reference[inside])  # compared where they are
     bx = model.positions[~inside, 0]
     assert np.all(np.isclose(bx, 0.0, atol=1e-9) | np.isclose(bx, L, atol=1e-9))  # on the faces
+    # every node of the two faces is driven (the faces carry the load), nothing else
+    faces = np.union1d(model.mesh.side("fixed"), model.mesh.side("loaded"))
+    np.testing.assert_array_equal(np.sort(model.loop), faces)
+
+
+def test_a_dvc_bundle_predicts_a_homogeneous_stretch_inside_the_body(tmp_path, box_mesh):
+    from refine.model.measured import MeasuredModel
+
+    X, U, end = dvc_points(seed=8)
+    write_csv(tmp_path / "dvc.csv", X, U)
+    assert main(["import", "--dvc", str(tmp_path / "dvc.csv"), "--mesh", str(box_mesh), "--out", str(tmp_path / "b"),
+                 "--E", str(E), "--nu", str(NU), "--boundary-faces", "fixed,loaded"]) == 0
+    b = read_bundle(tmp_path / "b")
+    obs = b.observations
+    model = MeasuredModel(b.experiment, obs, root=b.root)
+    inside = obs.roles != "boundary"
     pred = np.asarray(model.predict(model.params()))
     err = np.linalg.norm(pred - obs.displacements, axis=2)[:, inside]
     scale = np.linalg.norm(obs.displacements[:, inside], axis=2)
-    ok = np.isfinite(err)
     # homogeneous stretch: the interior points' predictions match to the noise and the drive's
-    # projection of the faces' points (offset ~0.02 mm times a strain of a few per cent)
-    assert np.nanmax(err[ok]) < 0.01 * np.nanmean(scale), (np.nanmax(err[ok]), np.nanmean(scale))
+    # projection of the faces' points (offset ~0.02 mm times a strain of a few per cent); with only
+    # the face nodes near the points driven (not every node of the faces), this was 6 % of the mean
+    assert err.max() < 0.01 * scale.mean(), (err.max(), scale.mean())
 
 
 def test_dvc_import_refuses_points_outside_the_mesh_and_unknown_faces(tmp_path, box_mesh, capsys):
