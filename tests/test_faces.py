@@ -156,3 +156,18 @@ def test_solid_points_inside_stay_where_they_are_and_surface_points_go_onto_the_
     pts[3] = [L / 2, W / 2, H + 0.5]  # an "interior" point half a unit above the body
     with pytest.raises(ObservationError, match=r"1 points lie outside the mesh.*point 103"):
         place_surface_points(mesh, pts, boundary, ids, tolerance=0.05)
+
+
+def test_a_cloud_model_holds_and_grips_the_faces_experiment_toml_names(tmp_path):
+    from refine.correspond.model import CloudModel, Grips
+
+    mesh, (L, W, H) = _box(7)
+    jf.write_vtu(tmp_path / "m.vtu", mesh)
+    exp = Experiment(name="x", kind="solid", law="neo-hookean", E=1.0, nu=0.3, domain=MeshDomain(
+        "m.vtu", faces={"base": {"plane": [0, 1, 0, 0]}, "jaw": {"box": [L / 2, -1, -1, L + 1, W + 1, H + 1]}}))
+    model = CloudModel(exp, Grips(clamped=("base",), gripped=("jaw",)), root=tmp_path)
+    X = model.mesh.nodes
+    np.testing.assert_array_equal(model.clamp, mesh.side("bottom"))
+    jaw = np.unique(model.mesh.faces["jaw"])
+    assert np.all(X[jaw, 0] >= L / 2 - 1e-12) and len(jaw) > len(mesh.side("right"))
+    np.testing.assert_array_equal(model.grip_nodes[0], np.setdiff1d(jaw, model.clamp))

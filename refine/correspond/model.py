@@ -66,8 +66,9 @@ class CloudModel:
 
     Args:
         experiment: the bundle's experiment: a rectangle domain (2D; kind, law, E, nu, thickness)
-            or a solid with a mesh domain (3D; sides are those of the mesh's bounding box: left,
-            right, bottom, top, back, front).
+            or a solid with a mesh domain (3D; sides are the mesh's named faces, the file's or
+            experiment.toml's ``domain.faces``, and its bounding box's: left, right, bottom, top,
+            back, front).
         grips: clamped and gripped sides.
         h: element size (length unit; 2D, where the domain is meshed).
         element: element type (2D).
