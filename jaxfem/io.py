@@ -114,22 +114,18 @@ def _facet_groups(m: meshio.Mesh, el, key) -> dict[str, np.ndarray]:
 
 def _on_boundary(mesh: Mesh, groups: dict) -> dict[str, np.ndarray]:
     """Each group's facets as the mesh's boundary facets with the same corners (see :func:`read_mesh`)."""
-    bf = mesh.boundary_facets()
-    corners = get_element(mesh.el.facet).corners
-    index = {tuple(k): i for i, k in enumerate(np.sort(bf[:, :corners], axis=1).tolist())}
     faces = {}
     for name, f in groups.items():
         if f is None:
             warnings.warn(f"read_mesh: face {name!r} uses nodes no {mesh.element} cell uses; it is left out",
                           stacklevel=3)
             continue
-        rows = [index.get(tuple(k)) for k in np.sort(f, axis=1).tolist()]
-        hit = [r for r in rows if r is not None]
-        if len(hit) < len(rows):
-            warnings.warn(f"read_mesh: {len(rows) - len(hit)} of {len(rows)} facets of face {name!r} are not on the "
-                          "mesh's boundary (an interface inside the body?); they are left out", stacklevel=3)
-        if hit:
-            faces[name] = bf[np.unique(hit)]
+        facets, missed = mesh.facets_with_corners(f)
+        if missed:
+            warnings.warn(f"read_mesh: {missed} of {len(f)} facets of face {name!r} are not on the mesh's boundary "
+                          "(an interface inside the body?); they are left out", stacklevel=3)
+        if len(facets):
+            faces[name] = facets
     return faces
 
 

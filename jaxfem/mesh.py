@@ -130,6 +130,17 @@ class Mesh:
         """Indices of the nodes on the boundary, sorted."""
         return np.unique(self.boundary_facets())
 
+    def facets_with_corners(self, corners) -> tuple[np.ndarray, int]:
+        """The boundary facets whose corner nodes are the rows of ``corners`` ``(k, n_corners)`` (in any
+        order within a row), as rows of :meth:`boundary_facets` (the mesh's own node order), and how
+        many rows match no boundary facet (e.g. facets inside the body)."""
+        bf = self.boundary_facets()
+        c = get_element(self.el.facet).corners
+        index = {tuple(k): i for i, k in enumerate(np.sort(bf[:, :c], axis=1).tolist())}
+        rows = [index.get(tuple(k)) for k in np.sort(np.asarray(corners)[:, :c], axis=1).tolist()]
+        hit = [r for r in rows if r is not None]
+        return bf[np.unique(np.asarray(hit, np.int64))], len(rows) - len(hit)
+
     def nodes_where(self, predicate: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
         """Indices of the nodes whose coordinates satisfy ``predicate(x) -> bool (n,)``."""
         return np.flatnonzero(predicate(self.nodes))
@@ -267,7 +278,7 @@ _EDGES = {"tri3": ("tri6", [(0, 1), (1, 2), (2, 0)]),
 
 
 def to_quadratic(mesh: Mesh) -> Mesh:
-    """Add straight mid-edge nodes: ``tri3 -> tri6``, ``tet4 -> tet10``; regions are kept."""
+    """Add straight mid-edge nodes: ``tri3 -> tri6``, ``tet4 -> tet10``; regions and named faces are kept."""
     if mesh.element not in _EDGES:
         raise MeshError(f"to_quadratic() takes tri3 or tet4 meshes, not {mesh.element!r}")
     name, edges = _EDGES[mesh.element]
@@ -276,5 +287,6 @@ def to_quadratic(mesh: Mesh) -> Mesh:
     uniq, inv = np.unique(key, axis=0, return_inverse=True)
     mid = 0.5 * (mesh.nodes[uniq[:, 0]] + mesh.nodes[uniq[:, 1]])
     new = mesh.n_nodes + inv.reshape(len(mesh.cells), len(edges))
-    return Mesh(np.vstack([mesh.nodes, mid]), np.hstack([mesh.cells, new]), name, mesh.regions,
-                dict(mesh.region_names))
+    out = Mesh(np.vstack([mesh.nodes, mid]), np.hstack([mesh.cells, new]), name, mesh.regions,
+               dict(mesh.region_names))
+    return out.with_faces({n: out.facets_with_corners(f)[0] for n, f in mesh.faces.items()}) if mesh.faces else out

@@ -171,3 +171,13 @@ def test_a_cloud_model_holds_and_grips_the_faces_experiment_toml_names(tmp_path)
     jaw = np.unique(model.mesh.faces["jaw"])
     assert np.all(X[jaw, 0] >= L / 2 - 1e-12) and len(jaw) > len(mesh.side("right"))
     np.testing.assert_array_equal(model.grip_nodes[0], np.setdiff1d(jaw, model.clamp))
+
+
+def test_a_tet4_file_keeps_its_faces_through_to_quadratic(tmp_path):
+    mesh, _ = _box(8, "tet4")
+    _write_msh(tmp_path / "t.msh", mesh, {"end": mesh.side_facets("front")}, 2)
+    back = jf.read_mesh(tmp_path / "t.msh")
+    assert _rows(back.faces["end"]) == _rows(mesh.side_facets("front"))
+    quad = jf.to_quadratic(back)
+    assert quad.element == "tet10" and quad.faces["end"].shape == (len(mesh.side_facets("front")), 6)
+    assert _rows(quad.faces["end"]) == _rows(quad.side_facets("front"))
