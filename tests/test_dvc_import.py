@@ -134,7 +134,8 @@ def test_dvc_import_refuses_points_outside_the_mesh_and_unknown_faces(tmp_path, 
     err = capsys.readouterr().err
     assert "unknown face 'grip'" in err and "'loaded'" in err, err
     (tmp_path / "bad.csv").write_text("x,y,ux,uy\n1,2,0,0\n")
-    assert main(["import", "--dvc", str(tmp_path / "bad.csv"), "--mesh", str(box_mesh), "--out", str(tmp_path / "d")]) == 2
+    assert main(["import", "--dvc", str(tmp_path / "bad.csv"), "--mesh", str(box_mesh), "--out",
+                 str(tmp_path / "d")]) == 2
     assert "missing column(s) ['z', 'uz']" in capsys.readouterr().err
 
 

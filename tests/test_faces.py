@@ -35,7 +35,8 @@ def _write_msh(path, mesh, groups, dim_names):
     """``mesh`` as gmsh 2.2 with facet groups ``{name: facets}`` (corners rotated, as another code would)."""
     facet = jf.elements.get_element(mesh.el.facet)
     rot = {"triangle6": [1, 2, 0, 4, 5, 3], "triangle": [1, 2, 0], "line3": [1, 0, 2], "line": [1, 0]}[facet.meshio]
-    blocks, tags, field = [(mesh.el.meshio, mesh.cells)], [np.full(mesh.n_cells, 100)], {"body": np.array([100, mesh.dim])}
+    blocks, tags = [(mesh.el.meshio, mesh.cells)], [np.full(mesh.n_cells, 100)]
+    field = {"body": np.array([100, mesh.dim])}
     for k, (name, f) in enumerate(groups.items(), start=1):
         blocks.append((facet.meshio, np.asarray(f)[:, rot]))
         tags.append(np.full(len(f), k))

@@ -95,7 +95,8 @@ def undefined_side(name: str, known) -> str:
 
 
 Face = tuple  # (name, "box" | "plane", numbers, tol or None)
-FACE_EXAMPLE = "faces = { NAME = { box = [x0, y0, z0, x1, y1, z1] } } or { NAME = { plane = [nx, ny, nz, d], tol = t } }"
+FACE_EXAMPLE = ("faces = { NAME = { box = [x0, y0, z0, x1, y1, z1] } } or "
+                "{ NAME = { plane = [nx, ny, nz, d], tol = t } }")
 _FACE_SIZES = {"box": (4, 6), "plane": (3, 4)}
 
 

@@ -34,7 +34,7 @@ def read_dvc_csv(path: str | Path, scale: float = 1.0) -> tuple[np.ndarray, np.n
         scale: length units (mm) per unit of the file, applied to positions and displacements.
 
     With a ``frame`` column, frames are taken in increasing order of its values and points are
-    matched across them by their reference position ``x, y, z`` as written; a point missing from a
+    matched across them by their reference position ``x, y, z`` (the same numbers); a point missing from a
     frame, or with an empty or non-finite displacement there, is lost in it (NaN).
 
     Raises:
@@ -59,19 +59,21 @@ def read_dvc_csv(path: str | Path, scale: float = 1.0) -> tuple[np.ndarray, np.n
     frames = [_number(r.get("frame", "1"), path, i, "frame") for i, r in enumerate(rows)]
     if not all(f == int(f) for f in frames):
         raise ObservationError(f"{path}: the frame column must hold whole numbers")
-    keys, index = [], {}
+    keys, index, point = [], {}, []
     for i, r in enumerate(rows):
-        key = tuple(r[c] for c in COLUMNS[:3])
+        key = tuple(_number(r[c], path, i, c) for c in COLUMNS[:3])
         if key not in index:
             index[key] = len(keys)
-            keys.append(tuple(_number(v, path, i, c) for v, c in zip(key, COLUMNS)))
+            keys.append(key)
+        point.append(index[key])
     order = sorted(set(frames))
     U = np.full((len(order), len(keys), 3), np.nan)
     seen = np.zeros(U.shape[:2], bool)
-    for i, (r, f) in enumerate(zip(rows, frames)):
-        k, p = order.index(f), index[tuple(r[c] for c in COLUMNS[:3])]
+    for i, (r, f, p) in enumerate(zip(rows, frames, point)):
+        k = order.index(f)
         if seen[k, p]:
-            raise ObservationError(f"{path}: the point at {list(keys[p])} is listed twice in frame {int(f)} (row {i + 2})")
+            raise ObservationError(f"{path}: the point at {list(keys[p])} is listed twice in frame {int(f)} "
+                                   f"(row {i + 2})")
         seen[k, p] = True
         U[k, p] = [_number(r[c], path, i, c, empty=np.nan) for c in COLUMNS[3:]]
     U[~np.isfinite(U).all(axis=2)] = np.nan
@@ -138,8 +140,9 @@ def bundle_from_dvc(reference, displacements, mesh_path: str | Path, name: str, 
     if (off > tol).any():
         worst = int(np.argmax(off))
         raise ObservationError(
-            f"{int((off > tol).sum())} of {len(X)} DVC points lie outside the mesh {mesh_path.name}: the farthest, at "
-            f"{X[worst].round(6).tolist()} (row {worst + 1} of the points), is {off[worst]:.3g} from its surface "
+            f"{int((off > tol).sum())} of {len(X)} DVC points lie outside the mesh {mesh_path.name}: the farthest, "
+            f"point {worst + 1} at {X[worst].round(6).tolist()} (ids follow the file's order), is {off[worst]:.3g} "
+            f"from its surface "
             f"(allowed: {tol:.3g}). Check that the points and the mesh share their axes and units (--scale)")
     if faces is None:
         faces = tuple(mesh.faces)

@@ -78,6 +78,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         if args.dvc is not None or args.format is None:
             return _run_dvc(args, model_from_arguments(args))
+        if not args.sources:
+            raise ImportCommandError(f"--format {args.format} needs the export's files or folder")
         import_export(args.sources, args.out, format=args.format, scale=args.scale,
                       origin=_numbers(args.origin, 2, "--origin X,Y"), name=args.name,
                       model=model_from_arguments(args), validate_fraction=args.validate_fraction, seed=args.seed)
@@ -96,7 +98,8 @@ def _run_dvc(args: argparse.Namespace, model: ModelSkeleton) -> int:
         raise ImportCommandError("--dvc reads one CSV file; give no --format and no other files with it")
     if args.mesh is None:
         raise ImportCommandError("--dvc needs the body's mesh: --mesh FILE (any meshio format, in the points' axes)")
-    faces = None if args.boundary_faces is None else tuple(f.strip() for f in args.boundary_faces.split(",") if f.strip())
+    faces = None if args.boundary_faces is None else tuple(
+        f.strip() for f in args.boundary_faces.split(",") if f.strip())
     import_dvc(args.dvc, args.mesh, args.out, scale=1.0 if args.scale is None else args.scale, faces=faces,
                tolerance=args.face_tolerance, name=args.name, model=model,
                validate_fraction=args.validate_fraction, seed=args.seed)

@@ -127,8 +127,9 @@ def place_surface_points(mesh: jf.Mesh, reference, boundary, ids, tolerance: flo
 def side_nodes(mesh: jf.Mesh, domain, name: str) -> np.ndarray:
     """The nodes of the side ``name`` of ``domain`` on ``mesh`` (whose reactions sum to the force
     across it), ``(k,)``: a rectangle's ``left``/``right``/``bottom``/``top``, a mesh domain's
-    named faces (:func:`face_facets`) and bounding-box sides, or a side the domain names (:mod:`refine.bundle.sides`): the outer
-    boundary nodes from the first end's projection counter-clockwise to the second's.
+    named faces (:func:`face_facets`) and bounding-box sides, or a side the domain names
+    (:mod:`refine.bundle.sides`): the outer boundary nodes from the first end's projection
+    counter-clockwise to the second's.
 
     Raises:
         ObservationError: the domain does not define the side (no guess is made).
