@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from refine.bundle import Observations, read_bundle
+from refine.bundle import Forces, Observations, read_bundle
 from refine.cli.main import main
 from refine.exceptions import ObservationError
 from tests._verify_util import lame, uniaxial_neo_hookean
@@ -89,7 +89,11 @@ def test_dvc_points_inside_a_tet10_box_import_and_interior_points_compare_where_
     assert np.isnan(obs.displacements[1, match.index(5)]).all() and np.isfinite(obs.displacements[0]).all()
     np.testing.assert_allclose(obs.displacements[0], U[0][match], atol=1e-12)
 
-    model = MeasuredModel(exp, obs, root=b.root)
+    # a force measured across the face "loaded" (forces.csv's edge names a face of the mesh)
+    force = Forces(("loaded",), np.random.default_rng(9).normal(0.0, 1.0, (2, 1, 3)))
+    model = MeasuredModel(exp, replace(obs, forces=force), root=b.root)
+    np.testing.assert_array_equal(model.sides["loaded"], model.mesh.side("loaded"))
+    assert np.allclose(model.mesh.nodes[model.sides["loaded"], 0], L)
     inside = obs.roles != "boundary"
     np.testing.assert_array_equal(model.positions[inside], obs.reference[inside])  # compared where they are
     bx = model.positions[~inside, 0]

@@ -171,8 +171,9 @@ class MeshDomain:
     Attributes:
         faces: faces named in experiment.toml beside the mesh file's own (``domain.faces``,
             :func:`refine.bundle.sides.checked_faces`: a box or a plane each).
-        boundary_faces: the faces (or bounding-box sides) the ``boundary`` points lie on; the model
-            refuses a boundary point off them (empty: anywhere on the surface).
+        boundary_faces: the faces (or bounding-box sides) the ``boundary`` points lie on (a solid):
+            the model refuses a boundary point off them and drives every node of them (empty:
+            anywhere on the surface, driving the nodes near the points).
     """
 
     path: str

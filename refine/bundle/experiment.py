@@ -193,7 +193,8 @@ def _domain_from_toml(table: Any) -> Domain:
         raise ExperimentError(
             "model.domain must hold exactly one of rectangle = [xmin, ymin, xmax, ymax], "
             "polygon = [[x, y], ...], from_points = \"concave\" or mesh = \"FILE\" (and optionally "
-            f"holes = [[[x, y], ...], ...] and sides = {{ NAME = [[x0, y0], [x1, y1]] }}); got {table!r}"
+            f"holes = [[[x, y], ...], ...] and sides = {{ NAME = [[x0, y0], [x1, y1]] }}; a mesh may name faces = "
+            f"{{ NAME = {{ box = [...] }} }} and boundary_faces = [NAME, ...]); got {table!r}"
         )
     if not isinstance(holes, list):
         raise ExperimentError(f"domain.holes must be a list of polygons [[[x, y], ...], ...] or shapes "
