@@ -109,9 +109,14 @@ def test_a_dvc_bundle_predicts_a_homogeneous_stretch_inside_the_body(tmp_path, b
     X, U, end = dvc_points(seed=8)
     write_csv(tmp_path / "dvc.csv", X, U)
     assert main(["import", "--dvc", str(tmp_path / "dvc.csv"), "--mesh", str(box_mesh), "--out", str(tmp_path / "b"),
-                 "--E", str(E), "--nu", str(NU), "--boundary-faces", "fixed,loaded"]) == 0
+                 "--E", str(E), "--nu", str(NU)]) == 0
     b = read_bundle(tmp_path / "b")
     obs = b.observations
+    # by default every face the mesh names (gmsh names the other four face_3 ... face_6); only the
+    # two that hold points are the bundle's boundary faces (every node of them is driven)
+    assert b.experiment.domain.boundary_faces == ("fixed", "loaded")
+    match = [int(np.argmin(np.linalg.norm(X - x, axis=1))) for x in obs.reference]
+    np.testing.assert_array_equal(obs.roles == "boundary", end[match])
     model = MeasuredModel(b.experiment, obs, root=b.root)
     inside = obs.roles != "boundary"
     pred = np.asarray(model.predict(model.params()))
@@ -158,6 +163,9 @@ def test_a_boundary_point_off_the_named_faces_is_refused(tmp_path, box_mesh):
     moved = Observations(obs.ids, X, roles, obs.displacements)
     with pytest.raises(ObservationError, match=rf"not on the faces \['fixed', 'loaded'\].*point {obs.ids[k]}\b"):
         MeasuredModel(b.experiment, moved, root=b.root)
+    top = replace(b.experiment, domain=replace(b.experiment.domain, boundary_faces=("fixed", "loaded", "top")))
+    with pytest.raises(ObservationError, match=r"no boundary point lies on the face\(s\) \['top'\]"):
+        MeasuredModel(top, obs, root=b.root)
     # the bounding box's side "bottom" (y = 0) named too: the point is on a boundary face and drives
     exp = replace(b.experiment, domain=replace(b.experiment.domain, boundary_faces=("fixed", "loaded", "bottom")))
     model = MeasuredModel(exp, moved, root=b.root)

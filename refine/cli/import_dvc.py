@@ -104,8 +104,9 @@ def bundle_from_dvc(reference, displacements, mesh_path: str | Path, name: str, 
         name: the experiment's name; model: a :class:`refine.bundle.from_tracks.ModelSkeleton`
             (law, E, nu, noise_std; the kind is ``"solid"``).
         faces: the faces whose points become ``boundary``: named faces of the mesh or sides of its
-            bounding box (``left`` ... ``front``); None: every face the mesh names. They are written
-            as ``domain.boundary_faces``, so the model checks the boundary points against them.
+            bounding box (``left`` ... ``front``); None: every face the mesh names. Those holding
+            points are written as ``domain.boundary_faces``: the model checks the boundary points
+            against them and drives every node of them.
         tolerance: how far from a face a point may lie and count as on it, and how far outside the
             mesh any point may lie (length unit); None: a quarter of the points' spacing, as the
             model allows (:func:`refine.model.boundary.outline_tolerance`).
@@ -151,12 +152,15 @@ def bundle_from_dvc(reference, displacements, mesh_path: str | Path, name: str, 
                                    "the faces the boundary points lie on, e.g. --boundary-faces left,right (the "
                                    "bounding box's sides)")
     domain = MeshDomain(mesh_path.name, boundary_faces=tuple(faces))
-    on = face_distance(mesh, domain, domain.boundary_faces, X) <= tol
+    near = face_distance(mesh, domain, domain.boundary_faces, X) <= tol  # (faces, points)
+    on = near.any(axis=0)
     if on.sum() < 3:
         raise ObservationError(
             f"only {int(on.sum())} DVC points lie on the faces {list(domain.boundary_faces)} (within {tol:.3g}); at "
             "least 3 are needed to drive the model. A DVC code's subvolumes keep clear of the surface: add surface "
             "points (e.g. stereo DIC), name other faces, or widen the tolerance (--face-tolerance)")
+    # the faces that hold points: the model drives every node of its boundary faces
+    domain = MeshDomain(mesh_path.name, boundary_faces=tuple(f for f, hit in zip(faces, near.any(axis=1)) if hit))
     roles = np.where(on, "boundary", "guide").astype("<U8")
     interior = np.flatnonzero(~on)
     held = np.random.default_rng(seed).choice(interior, size=int(round(validate_fraction * len(interior))),
@@ -202,5 +206,8 @@ def import_dvc(path: str | Path, mesh: str | Path, out: str | Path, *, scale: fl
         print(f"imported {len(X)} DVC points x {len(U)} frames: "
               + ", ".join(f"{int((roles == r).sum())} {r}" for r in ROLES)
               + f"; boundary on {list(bundle.experiment.domain.boundary_faces)}")
+        bare = [f for f in (faces or ()) if f not in bundle.experiment.domain.boundary_faces]
+        if bare:
+            print(f"  no points on {bare}: left free")
         print(f"wrote {out}; check the [model] and [material] sections of experiment.toml before `nonrigid diagnose`")
     return read_bundle(out)

@@ -113,7 +113,13 @@ def place_surface_points(mesh: jf.Mesh, reference, boundary, ids, tolerance: flo
                 "or give such points another role")
     names = getattr(domain, "boundary_faces", ())
     if names and boundary.any():
-        off = face_distance(mesh, domain, names, pts[boundary])
+        per_face = face_distance(mesh, domain, names, pts[boundary])
+        empty = [n for n, d in zip(names, per_face) if not (d <= tolerance).any()]
+        if empty:
+            raise ObservationError(f"no boundary point lies on the face(s) {empty} of domain.boundary_faces (within "
+                                   f"{tolerance:.3g}), whose every node the points would drive; name only the faces "
+                                   "the boundary points lie on")
+        off = per_face.min(axis=0)
         if (off > tolerance).any():
             worst = np.argmax(off)
             raise ObservationError(
@@ -188,11 +194,11 @@ def face_facets(mesh: jf.Mesh, domain, name: str) -> np.ndarray:
 
 
 def face_distance(mesh: jf.Mesh, domain, names, points) -> np.ndarray:
-    """Each 3D point's distance to the nearest of the faces ``names`` (:func:`face_facets`), ``(n,)``."""
+    """Each 3D point's distance to each of the faces ``names`` (:func:`face_facets`), ``(len(names), n)``."""
     from jaxfem.surface import project_to_surface
 
-    facets = np.concatenate([face_facets(mesh, domain, n) for n in names])
-    return project_to_surface(mesh, np.asarray(points, np.float64), facets=facets)[1]
+    pts = np.asarray(points, np.float64)
+    return np.array([project_to_surface(mesh, pts, facets=face_facets(mesh, domain, n))[1] for n in names])
 
 
 def boundary_face_nodes(mesh: jf.Mesh, domain) -> np.ndarray | None:
