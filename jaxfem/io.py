@@ -1,8 +1,9 @@
 """Meshes and results in and out through meshio: read any mesh meshio reads, write VTU for ParaView.
 
-:func:`read_mesh` keeps the highest-dimensional cells of a file (a gmsh file also holds its boundary
-lines or faces), carries region tags such as ``gmsh:physical`` into ``Mesh.regions`` with their
-names, and drops nodes no cell uses (with a warning). :func:`write_vtu` writes a mesh with nodal and
+:func:`read_mesh` keeps the highest-dimensional cells of a file, carries region tags such as
+``gmsh:physical`` into ``Mesh.regions`` with their names, keeps the file's named groups of boundary
+facets (a gmsh file's physical surfaces of a tet mesh, physical curves of a triangle mesh) as
+``Mesh.faces``, and drops nodes no cell uses (with a warning). :func:`write_vtu` writes a mesh with nodal and
 cell results, 2D vectors and tensors padded to 3D so that ParaView can warp and display them;
 :func:`write_points_vtu` writes a point cloud (e.g. measured points) and :func:`write_pvd` a time
 series of VTU files that ParaView opens as one animated dataset.
@@ -40,7 +41,11 @@ def read_mesh(source: str | PathLike | meshio.Mesh, element: str | None = None,
 
     Returns:
         A :class:`Mesh` with ``dim``-component nodes (a 2D mesh's z = const is dropped); ``tri3``
-        and ``tet4`` cells are reordered counter-clockwise where needed.
+        and ``tet4`` cells are reordered counter-clockwise where needed. Cells one dimension lower
+        of the cells' facet type (``triangle6`` of ``tet10``, ``line`` of ``tri3``...) tagged by the
+        region key with a name of that dimension in ``field_data`` become ``Mesh.faces[name]``: the
+        mesh's boundary facets they cover, in the mesh's own node order (a group's facets inside the
+        body are dropped with a warning; a group with none on the boundary is left out).
 
     Raises:
         MeshError: no cells of a supported type, mixed types without ``element``, a 2D mesh that is
@@ -79,9 +84,49 @@ def read_mesh(source: str | PathLike | meshio.Mesh, element: str | None = None,
         points, cells = points[used], (np.cumsum(used) - 1)[cells]
     mesh = Mesh(points, cells, name, regions, region_names)
     if name in ("tri3", "tet4"):
-        return fix_orientation(mesh)
-    check_orientation(mesh)
-    return mesh
+        mesh = fix_orientation(mesh)
+    else:
+        check_orientation(mesh)
+    groups = _facet_groups(m, el, region_key)
+    if groups and not used.all():
+        groups = {n: (np.cumsum(used) - 1)[f] if used[f].all() else None for n, f in groups.items()}
+    return mesh.with_faces(_on_boundary(mesh, groups)) if groups else mesh
+
+
+def _facet_groups(m: meshio.Mesh, el, key) -> dict[str, np.ndarray]:
+    """``{name: (k, corners) node indices}``: the file's named facet groups (cells of ``el``'s facet
+    type tagged by the region key, names from gmsh-style ``field_data`` of dimension ``el.dim - 1``)."""
+    facet = get_element(el.facet) if el.facet else None
+    key = key or next((k for k in REGION_KEYS if k in m.cell_data), None)
+    if facet is None or key is None or key not in m.cell_data:
+        return {}
+    names = {int(np.ravel(v)[0]): n for n, v in m.field_data.items()
+             if np.size(v) == 2 and int(np.ravel(v)[1]) == el.dim - 1}
+    out: dict[str, list] = {}
+    for block, tags in zip(m.cells, m.cell_data[key]):
+        if block.type != facet.meshio:
+            continue
+        tags = np.asarray(tags).reshape(len(block.data), -1)[:, 0].astype(np.int64)
+        for tag, name in names.items():
+            out.setdefault(name, []).append(np.asarray(block.data)[tags == tag, : facet.corners])
+    return {n: np.concatenate(f).astype(np.int64) for n, f in out.items() if sum(len(a) for a in f)}
+
+
+def _on_boundary(mesh: Mesh, groups: dict) -> dict[str, np.ndarray]:
+    """Each group's facets as the mesh's boundary facets with the same corners (see :func:`read_mesh`)."""
+    faces = {}
+    for name, f in groups.items():
+        if f is None:
+            warnings.warn(f"read_mesh: face {name!r} uses nodes no {mesh.element} cell uses; it is left out",
+                          stacklevel=3)
+            continue
+        facets, missed = mesh.facets_with_corners(f)
+        if missed:
+            warnings.warn(f"read_mesh: {missed} of {len(f)} facets of face {name!r} are not on the mesh's boundary "
+                          "(an interface inside the body?); they are left out", stacklevel=3)
+        if len(facets):
+            faces[name] = facets
+    return faces
 
 
 def _regions(m: meshio.Mesh, blocks, dim, key):

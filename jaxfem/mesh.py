@@ -26,6 +26,9 @@ class Mesh:
         element: element name, see :mod:`jaxfem.elements`.
         regions: integer tag per cell, ``(n_cells,)``; 0 is the background.
         region_names: optional names of the tags, e.g. ``{1: "inclusion"}``.
+        faces: named sets of boundary facets, ``{name: (k, nodes_per_facet) int64}`` in the order
+            of :meth:`boundary_facets` (outward-oriented), e.g. a gmsh file's physical surfaces
+            (:func:`jaxfem.read_mesh`); :meth:`side` and :meth:`side_facets` accept their names.
     """
 
     nodes: np.ndarray
@@ -33,6 +36,7 @@ class Mesh:
     element: str
     regions: np.ndarray | None = None
     region_names: dict = field(default_factory=dict)
+    faces: dict = field(default_factory=dict)
 
     def __post_init__(self):
         nodes = np.ascontiguousarray(self.nodes, dtype=np.float64)
@@ -55,6 +59,7 @@ class Mesh:
         object.__setattr__(self, "nodes", nodes)
         object.__setattr__(self, "cells", cells)
         object.__setattr__(self, "regions", regions)
+        object.__setattr__(self, "faces", {str(n): _facet_array(f, n, el, len(nodes)) for n, f in self.faces.items()})
 
     # ------------------------------------------------------------------ basic properties
     @property
@@ -80,6 +85,10 @@ class Mesh:
     def with_regions(self, regions: np.ndarray, names: dict | None = None) -> "Mesh":
         """The same mesh with new region tags."""
         return replace(self, regions=np.asarray(regions), region_names=dict(names or self.region_names))
+
+    def with_faces(self, faces: dict) -> "Mesh":
+        """The same mesh with further named faces ``{name: facets}`` (a name already there is replaced)."""
+        return replace(self, faces={**self.faces, **faces})
 
     def with_nodes(self, nodes: np.ndarray) -> "Mesh":
         """The same topology on moved nodes (checked for inverted cells)."""
@@ -121,6 +130,17 @@ class Mesh:
         """Indices of the nodes on the boundary, sorted."""
         return np.unique(self.boundary_facets())
 
+    def facets_with_corners(self, corners) -> tuple[np.ndarray, int]:
+        """The boundary facets whose corner nodes are the rows of ``corners`` ``(k, n_corners)`` (in any
+        order within a row), as rows of :meth:`boundary_facets` (the mesh's own node order), and how
+        many rows match no boundary facet (e.g. facets inside the body)."""
+        bf = self.boundary_facets()
+        c = get_element(self.el.facet).corners
+        index = {tuple(k): i for i, k in enumerate(np.sort(bf[:, :c], axis=1).tolist())}
+        rows = [index.get(tuple(k)) for k in np.sort(np.asarray(corners)[:, :c], axis=1).tolist()]
+        hit = [r for r in rows if r is not None]
+        return bf[np.unique(np.asarray(hit, np.int64))], len(rows) - len(hit)
+
     def nodes_where(self, predicate: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
         """Indices of the nodes whose coordinates satisfy ``predicate(x) -> bool (n,)``."""
         return np.flatnonzero(predicate(self.nodes))
@@ -132,23 +152,48 @@ class Mesh:
         return f[ok.all(axis=1)]
 
     def side(self, name: str, tol: float | None = None) -> np.ndarray:
-        """Nodes on a side of the bounding box: ``left``, ``right``, ``bottom``, ``top``
-        (and ``back``, ``front`` in 3D)."""
+        """Nodes of a named face (:attr:`faces`), sorted, or of a side of the bounding box: ``left``,
+        ``right``, ``bottom``, ``top`` (and ``back``, ``front`` in 3D). A face the mesh names wins
+        over the bounding-box side of the same name."""
+        if name in self.faces:
+            return np.unique(self.faces[name])
         return self.nodes_where(self._side_predicate(name, tol))
 
     def side_facets(self, name: str, tol: float | None = None) -> np.ndarray:
-        """Boundary facets on a side of the bounding box (see :meth:`side`)."""
+        """Boundary facets of a named face or on a side of the bounding box (see :meth:`side`)."""
+        if name in self.faces:
+            return self.faces[name]
         return self.facets_where(self._side_predicate(name, tol))
+
+    def side_names(self) -> list[str]:
+        """The names :meth:`side` takes: the named faces, then the bounding box's sides."""
+        return list(dict.fromkeys([*self.faces, *BOX_SIDES[: 2 * self.dim]]))
 
     def _side_predicate(self, name, tol):
         lo, hi = self.bounds()
         tol = 1e-9 * float(np.max(hi - lo)) if tol is None else tol
-        axes = {"left": (0, lo), "right": (0, hi), "bottom": (1, lo), "top": (1, hi),
-                "back": (2, lo), "front": (2, hi)}
-        if name not in axes or axes[name][0] >= self.dim:
-            raise MeshError(f"unknown side {name!r} for a {self.dim}D mesh")
-        ax, ref = axes[name]
+        if name not in BOX_SIDES[: 2 * self.dim]:
+            raise MeshError(f"unknown side {name!r} for a {self.dim}D mesh; it has {self.side_names()}"
+                            + ("" if self.faces else " (no named faces: a gmsh file's physical groups of "
+                               "boundary facets name them)"))
+        ax = BOX_SIDES.index(name) // 2
+        ref = lo if BOX_SIDES.index(name) % 2 == 0 else hi
         return lambda x: np.abs(x[:, ax] - ref[ax]) <= tol
+
+
+#: the bounding box's sides, low then high along x, y, z
+BOX_SIDES = ("left", "right", "bottom", "top", "back", "front")
+
+
+def _facet_array(facets, name, el: Element, n_nodes: int) -> np.ndarray:
+    """A named face's facets checked: ``(k, nodes_per_facet)`` node indices of the mesh."""
+    f = np.asarray(facets)
+    width = el.facets.shape[1]
+    if f.ndim != 2 or f.shape[1] != width or not np.issubdtype(f.dtype, np.integer):
+        raise MeshError(f"face {name!r} must be an integer array (k, {width}) of {el.facet} facets, got {f.shape}")
+    if f.size and (f.min() < 0 or f.max() >= n_nodes):
+        raise MeshError(f"face {name!r} refers to node {f.max()} but the mesh has {n_nodes} nodes")
+    return np.ascontiguousarray(f, dtype=np.int64)
 
 
 def check_orientation(mesh: Mesh, nodes: np.ndarray | None = None) -> None:
@@ -233,7 +278,7 @@ _EDGES = {"tri3": ("tri6", [(0, 1), (1, 2), (2, 0)]),
 
 
 def to_quadratic(mesh: Mesh) -> Mesh:
-    """Add straight mid-edge nodes: ``tri3 -> tri6``, ``tet4 -> tet10``; regions are kept."""
+    """Add straight mid-edge nodes: ``tri3 -> tri6``, ``tet4 -> tet10``; regions and named faces are kept."""
     if mesh.element not in _EDGES:
         raise MeshError(f"to_quadratic() takes tri3 or tet4 meshes, not {mesh.element!r}")
     name, edges = _EDGES[mesh.element]
@@ -242,5 +287,6 @@ def to_quadratic(mesh: Mesh) -> Mesh:
     uniq, inv = np.unique(key, axis=0, return_inverse=True)
     mid = 0.5 * (mesh.nodes[uniq[:, 0]] + mesh.nodes[uniq[:, 1]])
     new = mesh.n_nodes + inv.reshape(len(mesh.cells), len(edges))
-    return Mesh(np.vstack([mesh.nodes, mid]), np.hstack([mesh.cells, new]), name, mesh.regions,
-                dict(mesh.region_names))
+    out = Mesh(np.vstack([mesh.nodes, mid]), np.hstack([mesh.cells, new]), name, mesh.regions,
+               dict(mesh.region_names))
+    return out.with_faces({n: out.facets_with_corners(f)[0] for n, f in mesh.faces.items()}) if mesh.faces else out

@@ -88,17 +88,19 @@ FACE_TRIANGLES = {"tri3": [[0, 1, 2]], "tri6": [[0, 3, 5], [3, 1, 4], [5, 4, 2],
                   "quad4": [[0, 1, 2], [0, 2, 3]]}
 
 
-def surface_triangles(mesh: Mesh) -> np.ndarray:
-    """A 3D mesh's boundary as flat triangles ``(n, 3)`` of node indices (see :data:`FACE_TRIANGLES`)."""
+def surface_triangles(mesh: Mesh, facets=None) -> np.ndarray:
+    """A 3D mesh's boundary (or the boundary ``facets`` given, e.g. ``mesh.faces[name]``) as flat
+    triangles ``(n, 3)`` of node indices (see :data:`FACE_TRIANGLES`)."""
     if mesh.dim != 3:
         raise MeshError("surface_triangles() takes a 3D mesh")
     local = FACE_TRIANGLES.get(mesh.el.facet)
     if local is None:
         raise MeshError(f"no triangles for a boundary face of type {mesh.el.facet!r}")
-    return np.ascontiguousarray(mesh.boundary_facets()[:, np.asarray(local)].reshape(-1, 3))
+    facets = mesh.boundary_facets() if facets is None else np.asarray(facets)
+    return np.ascontiguousarray(facets[:, np.asarray(local)].reshape(-1, 3))
 
 
-def project_to_surface(mesh: Mesh, points, k: int = 16):
+def project_to_surface(mesh: Mesh, points, k: int = 16, facets=None):
     """The nearest point of a 3D mesh's surface to each point, and its distance.
 
     Each point is tested against the ``k`` surface triangles whose centroids are nearest to it
@@ -106,11 +108,12 @@ def project_to_surface(mesh: Mesh, points, k: int = 16):
     edge or corner).
 
     Args:
-        mesh: a 3D mesh; points: ``(n, 3)``; k: candidate triangles per point.
+        mesh: a 3D mesh; points: ``(n, 3)``; k: candidate triangles per point; facets: the
+            boundary facets to project onto (default: the whole surface).
     Returns:
         ``(foot (n, 3), distance (n,))``.
     """
-    tri = surface_triangles(mesh)
+    tri = surface_triangles(mesh, facets)
     P = np.asarray(points, np.float64).reshape(-1, 3)
     X = mesh.nodes[tri]  # (m, 3, 3)
     k = min(k, len(tri))

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Any, Union
 
 from refine.bundle.shapes import PolygonShape, shape_from_toml
-from refine.bundle.sides import checked_sides, sides_to_toml
+from refine.bundle.sides import checked_faces, checked_sides, faces_to_toml, sides_to_toml
 from refine.exceptions import ExperimentError
 
 
@@ -166,18 +166,35 @@ def _outline(domain) -> list:
 
 @dataclass(frozen=True)
 class MeshDomain:
-    """Domain given by a mesh file (any meshio format), ``path`` relative to the bundle directory."""
+    """Domain given by a mesh file (any meshio format), ``path`` relative to the bundle directory.
+
+    Attributes:
+        faces: faces named in experiment.toml beside the mesh file's own (``domain.faces``,
+            :func:`refine.bundle.sides.checked_faces`: a box or a plane each).
+        boundary_faces: the faces (or bounding-box sides) the ``boundary`` points lie on (a solid):
+            the model refuses a boundary point off them and drives every node of them (empty:
+            anywhere on the surface, driving the nodes near the points).
+    """
 
     path: str
+    faces: tuple = ()
+    boundary_faces: tuple = ()
 
     def __post_init__(self):
         if not isinstance(self.path, str) or not self.path:
             raise ExperimentError(f"domain.mesh must be a file name, got {self.path!r}")
+        object.__setattr__(self, "faces", checked_faces(self.faces))
+        names = self.boundary_faces
+        if isinstance(names, str) or not all(isinstance(n, str) and n for n in names):
+            raise ExperimentError(f'domain.boundary_faces must be a list of face names, e.g. ["fixed", "loaded"]; '
+                                  f"got {names!r}")
+        object.__setattr__(self, "boundary_faces", tuple(names))
 
-    side_names = None  # forces may name the mesh's bounding-box sides (left, right, ..., back, front)
+    side_names = None  # forces may name the mesh's faces and bounding-box sides (left, right, ..., back, front)
 
     def to_toml(self) -> dict:
-        return {"mesh": self.path}
+        return {"mesh": self.path, **faces_to_toml(self.faces),
+                **({"boundary_faces": list(self.boundary_faces)} if self.boundary_faces else {})}
 
 
 Domain = Union[RectangleDomain, PolygonDomain, MeshDomain, FromPointsDomain]

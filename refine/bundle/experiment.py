@@ -188,11 +188,13 @@ def _domain_from_toml(table: Any) -> Domain:
     holes = table.pop("holes", [])
     sides = table.pop("sides", {})
     max_edge = table.pop("max_edge", None)
+    faces, boundary_faces = table.pop("faces", {}), table.pop("boundary_faces", [])
     if len(table) != 1:
         raise ExperimentError(
             "model.domain must hold exactly one of rectangle = [xmin, ymin, xmax, ymax], "
             "polygon = [[x, y], ...], from_points = \"concave\" or mesh = \"FILE\" (and optionally "
-            f"holes = [[[x, y], ...], ...] and sides = {{ NAME = [[x0, y0], [x1, y1]] }}); got {table!r}"
+            f"holes = [[[x, y], ...], ...] and sides = {{ NAME = [[x0, y0], [x1, y1]] }}; a mesh may name faces = "
+            f"{{ NAME = {{ box = [...] }} }} and boundary_faces = [NAME, ...]); got {table!r}"
         )
     if not isinstance(holes, list):
         raise ExperimentError(f"domain.holes must be a list of polygons [[[x, y], ...], ...] or shapes "
@@ -203,7 +205,11 @@ def _domain_from_toml(table: Any) -> Domain:
     if kind == "from_points":
         return FromPointsDomain(value, max_edge, holes=holes, sides=sides)
     if sides and kind == "mesh":
-        raise ExperimentError("domain.sides goes with a rectangle, a polygon or from_points")
+        raise ExperimentError("domain.sides goes with a rectangle, a polygon or from_points; a mesh domain names "
+                              "faces: domain = { mesh = ..., faces = { NAME = { box = [...] } } }")
+    if (faces or boundary_faces) and kind != "mesh":
+        raise ExperimentError("domain.faces and domain.boundary_faces go with a mesh domain (domain = { mesh = ... }); "
+                              "a rectangle, polygon or from_points domain names sides = { ... }")
     if kind == "rectangle":
         if not isinstance(value, list) or len(value) != 4:
             raise ExperimentError(f"domain.rectangle must be [xmin, ymin, xmax, ymax], got {value!r}")
@@ -215,7 +221,7 @@ def _domain_from_toml(table: Any) -> Domain:
     if kind == "mesh":
         if holes:
             raise ExperimentError("domain.holes goes with a rectangle or a polygon; a mesh has its holes already")
-        return MeshDomain(value)
+        return MeshDomain(value, faces, boundary_faces)
     raise ExperimentError(f"model.domain kind {kind!r} is unknown; use rectangle, polygon, from_points or mesh")
 
 

@@ -10,7 +10,7 @@ gmsh entity tags; so does a face in none of the geometry's groups), which ``name
 name). The body is the physical group(s) of the top dimension (a ``.geo``'s physical volumes become
 the mesh's regions), else one group ``body``. The file is gmsh 2.2 ASCII ``.msh`` (names as
 ``field_data``, tags as ``gmsh:physical``; VTU would lose the names); :func:`jaxfem.read_mesh` and a bundle's ``domain = { mesh = "FILE" }`` read
-it (the facets are left out of the model; :func:`mesh_faces` reads them back).
+it (the named facet groups become the model mesh's ``Mesh.faces``; :func:`mesh_faces` gives their nodes).
 
 gmsh is the extra ``nonrigid[mesh]``; it is imported only here, when a geometry is meshed.
 """

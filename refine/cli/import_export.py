@@ -2,6 +2,7 @@
 
     nonrigid import --format dice --scale 0.05 dice-output/ --out BUNDLE
     nonrigid import --format csv displacements.csv --out BUNDLE            (x, y, ux, uy in mm)
+    nonrigid import --dvc points.csv --mesh body.msh --out BUNDLE          (x, y, z, ux, uy, uz in mm)
 
 Formats (read by :func:`tracking.read_dice` and :func:`tracking.read_displacement_csv`):
 
@@ -16,6 +17,12 @@ CSV already in mm) after subtracting ``--origin``. Roles and the domain are assi
 ``nonrigid track`` does: the outer ring of points is the boundary and the domain the outline
 through it; a hole left out of the DIC's region of interest is NOT cut from the domain (that is
 what ``nonrigid diagnose`` can find). The model sections are a starting point to check.
+
+``--dvc FILE.csv --mesh MESH``: a digital volume correlation's points (columns ``x,y,z,ux,uy,uz``,
+optional ``frame``, header in any case; :mod:`refine.cli.import_dvc`) in the mesh's axes and unit
+(times ``--scale``, default 1), inside the body: a solid bundle. The points on the mesh's named
+faces (or those of ``--boundary-faces NAME,...``: named faces or bounding-box sides) are the
+boundary; the rest guide or validate. A point outside the mesh is an error.
 """
 
 from __future__ import annotations
@@ -46,8 +53,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
     p = subparsers.add_parser("import", help="turn a DIC code's export (DICe, CSV) into a bundle",
                               description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("sources", nargs="+", help="export files or a folder (see the formats above)")
-    p.add_argument("--format", choices=FORMATS, required=True, help="the export's format")
+    p.add_argument("sources", nargs="*", help="export files or a folder (see the formats above)")
+    p.add_argument("--format", choices=FORMATS, help="the export's format (dice or csv; not with --dvc)")
+    p.add_argument("--dvc", metavar="FILE.csv", help="a DVC export (x,y,z,ux,uy,uz[,frame]) inside the --mesh body")
+    p.add_argument("--mesh", metavar="MESH", help="with --dvc: the body's 3D mesh (any meshio format; copied in)")
+    p.add_argument("--boundary-faces", metavar="NAME,...",
+                   help="with --dvc: the faces whose points drive the model (default: every face the mesh names)")
+    p.add_argument("--face-tolerance", type=float, default=None, metavar="MM",
+                   help="with --dvc: how far from a face (or outside the mesh) a point may lie; default 1/4 spacing")
     p.add_argument("--out", required=True, metavar="BUNDLE", help="bundle directory to write")
     p.add_argument("--scale", type=float, default=None,
                    help="mm per unit of the export (required for dice, whose unit is the pixel; default 1 for csv)")
@@ -63,12 +76,33 @@ def run(args: argparse.Namespace) -> int:
     from refine.cli.track import _numbers, model_from_arguments
 
     try:
+        if args.dvc is not None or args.format is None:
+            return _run_dvc(args, model_from_arguments(args))
+        if not args.sources:
+            raise ImportCommandError(f"--format {args.format} needs the export's files or folder")
         import_export(args.sources, args.out, format=args.format, scale=args.scale,
                       origin=_numbers(args.origin, 2, "--origin X,Y"), name=args.name,
                       model=model_from_arguments(args), validate_fraction=args.validate_fraction, seed=args.seed)
     except (tracking.TrackingError, RefineError, OSError) as e:
         print(f"nonrigid import: error: {e}", file=sys.stderr)
         return 2
+    return 0
+
+
+def _run_dvc(args: argparse.Namespace, model: ModelSkeleton) -> int:
+    from refine.cli.import_dvc import import_dvc
+
+    if args.dvc is None:
+        raise ImportCommandError("give --format dice|csv with the export's files, or --dvc FILE.csv --mesh MESH")
+    if args.format is not None or args.sources:
+        raise ImportCommandError("--dvc reads one CSV file; give no --format and no other files with it")
+    if args.mesh is None:
+        raise ImportCommandError("--dvc needs the body's mesh: --mesh FILE (any meshio format, in the points' axes)")
+    faces = None if args.boundary_faces is None else tuple(
+        f.strip() for f in args.boundary_faces.split(",") if f.strip())
+    import_dvc(args.dvc, args.mesh, args.out, scale=1.0 if args.scale is None else args.scale, faces=faces,
+               tolerance=args.face_tolerance, name=args.name, model=model,
+               validate_fraction=args.validate_fraction, seed=args.seed)
     return 0
 
 

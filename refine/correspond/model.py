@@ -66,8 +66,9 @@ class CloudModel:
 
     Args:
         experiment: the bundle's experiment: a rectangle domain (2D; kind, law, E, nu, thickness)
-            or a solid with a mesh domain (3D; sides are those of the mesh's bounding box: left,
-            right, bottom, top, back, front).
+            or a solid with a mesh domain (3D; sides are the mesh's named faces, the file's or
+            experiment.toml's ``domain.faces``, and its bounding box's: left, right, bottom, top,
+            back, front).
         grips: clamped and gripped sides.
         h: element size (length unit; 2D, where the domain is meshed).
         element: element type (2D).
@@ -212,10 +213,10 @@ class CloudModel:
 
 
 def _side(mesh, name: str) -> np.ndarray:
-    """The nodes of a named side of the mesh's bounding box, with a clear error for a wrong name."""
+    """The nodes of a named face of the mesh (``mesh.faces``: the mesh file's or experiment.toml's
+    ``domain.faces``) or of a side of its bounding box, with a clear error for a wrong name."""
     try:
         return mesh.side(name)
     except jf.MeshError:
-        names = ["left", "right", "bottom", "top", "back", "front"][: 2 * mesh.dim]
-        raise CorrespondenceError(f"unknown side {name!r} for a {mesh.dim}D model; name sides of its bounding box: "
-                                  f"{', '.join(names)}") from None
+        raise CorrespondenceError(f"unknown side {name!r} for a {mesh.dim}D model; name one of its faces or its "
+                                  f"bounding box's sides: {', '.join(mesh.side_names())}") from None

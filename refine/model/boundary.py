@@ -22,7 +22,7 @@ import numpy as np
 import jaxfem as jf
 
 from refine.bundle.experiment import MeshDomain, RectangleDomain
-from refine.bundle.sides import undefined_side
+from refine.bundle.sides import undefined_side, unknown_face, with_domain_faces
 from refine.exceptions import ObservationError
 
 SPACING_FRACTION = 0.25  # of the point spacing: how far a boundary point may lie off the outline
@@ -80,15 +80,21 @@ def place_points(mesh: jf.Mesh, reference, boundary, ids, tolerance: float) -> P
     return Placement(positions, np.where(boundary, pr.distance, 0.0), tolerance)
 
 
-def place_surface_points(mesh: jf.Mesh, reference, boundary, ids, tolerance: float) -> Placement:
+def place_surface_points(mesh: jf.Mesh, reference, boundary, ids, tolerance: float, domain=None) -> Placement:
     """Place 3D points on a solid ``mesh``: the 3D counterpart of :func:`place_points`. Measured
     surface points (range images, stereo) lie off the faceted model surface by their noise and by
     the facets' chords: a boundary point is compared and drives the model at its projection onto
-    the surface; another point inside the mesh stays where it is, one outside is projected.
+    the surface; another point inside the mesh (e.g. a digital volume correlation's) stays where it
+    is and is compared there, one outside is projected.
+
+    Args:
+        domain: the experiment's domain; where it is a :class:`MeshDomain` with ``boundary_faces``,
+            every boundary point must lie within ``tolerance`` of one of those faces.
 
     Raises:
-        ObservationError: a boundary point farther than ``tolerance`` from the surface, or another
-            point farther than that outside it (the worst point named, with its distance).
+        ObservationError: a boundary point farther than ``tolerance`` from the surface (or from the
+            domain's boundary faces), or another point farther than that outside it (the worst
+            point named, with its distance).
     """
     from jaxfem.probe import find_cells
     from jaxfem.surface import project_to_surface
@@ -105,6 +111,21 @@ def place_surface_points(mesh: jf.Mesh, reference, boundary, ids, tolerance: flo
                 f"{tolerance:.3g}, the larger of {NOISE_MULTIPLE:g} noise_std and {SPACING_FRACTION:g} x the point "
                 "spacing). Check that the mesh and the points share their axes and units (the camera's pose), "
                 "or give such points another role")
+    names = getattr(domain, "boundary_faces", ())
+    if names and boundary.any():
+        per_face = face_distance(mesh, domain, names, pts[boundary])
+        empty = [n for n, d in zip(names, per_face) if not (d <= tolerance).any()]
+        if empty:
+            raise ObservationError(f"no boundary point lies on the face(s) {empty} of domain.boundary_faces (within "
+                                   f"{tolerance:.3g}), whose every node the points would drive; name only the faces "
+                                   "the boundary points lie on")
+        off = per_face.min(axis=0)
+        if (off > tolerance).any():
+            worst = np.argmax(off)
+            raise ObservationError(
+                f"{int((off > tolerance).sum())} boundary points are not on the faces {list(names)} "
+                f"(domain.boundary_faces): the farthest, point {ids[boundary][worst]}, is {off[worst]:.3g} away "
+                f"(allowed: {tolerance:.3g}). Name the faces they lie on, or give such points another role")
     move = boundary | outside
     return Placement(np.where(move[:, None], foot, pts), np.where(boundary, dist, 0.0), tolerance)
 
@@ -112,15 +133,19 @@ def place_surface_points(mesh: jf.Mesh, reference, boundary, ids, tolerance: flo
 def side_nodes(mesh: jf.Mesh, domain, name: str) -> np.ndarray:
     """The nodes of the side ``name`` of ``domain`` on ``mesh`` (whose reactions sum to the force
     across it), ``(k,)``: a rectangle's ``left``/``right``/``bottom``/``top``, a mesh domain's
-    bounding-box sides, or a side the domain names (:mod:`refine.bundle.sides`): the outer
-    boundary nodes from the first end's projection counter-clockwise to the second's.
+    named faces (:func:`face_facets`) and bounding-box sides, or a side the domain names
+    (:mod:`refine.bundle.sides`): the outer boundary nodes from the first end's projection
+    counter-clockwise to the second's.
 
     Raises:
         ObservationError: the domain does not define the side (no guess is made).
     """
+    if isinstance(domain, MeshDomain):
+        faces = _faces(mesh, domain)
+        return np.unique(faces[name]) if name in faces else _box_side(mesh.with_faces(faces), name)
     named = {n: (a, b) for n, a, b in getattr(domain, "sides", ())}
     if name not in named:
-        if isinstance(domain, MeshDomain) or (isinstance(domain, RectangleDomain) and name in domain.side_names):
+        if isinstance(domain, RectangleDomain) and name in domain.side_names:
             return mesh.side(name)
         raise ObservationError(undefined_side(name, domain.side_names))
     ends = [domain.vertices[e] if isinstance(e, int) else e for e in named[name]]  # a vertex index: a polygon's
@@ -134,3 +159,53 @@ def side_nodes(mesh: jf.Mesh, domain, name: str) -> np.ndarray:
         raise ObservationError(f"the side {name!r} spans fewer than two nodes of the model's outline; give ends "
                                "farther apart")
     return nodes
+
+
+def _faces(mesh: jf.Mesh, domain) -> dict:
+    """The named faces of ``mesh`` and of the domain's experiment.toml (those win), ``{name: facets}``."""
+    return with_domain_faces(mesh, getattr(domain, "faces", ())).faces
+
+
+def _box_side(mesh: jf.Mesh, name: str) -> np.ndarray:
+    try:
+        return mesh.side(name)
+    except jf.MeshError:
+        raise ObservationError(unknown_face(name, mesh)) from None
+
+
+def face_facets(mesh: jf.Mesh, domain, name: str) -> np.ndarray:
+    """The boundary facets of a mesh domain's face or side ``name``, ``(k, nodes_per_facet)``: a face
+    named in experiment.toml (``domain.faces``), else one the mesh file names (``mesh.faces``), else
+    a side of the mesh's bounding box.
+
+    Raises:
+        ObservationError: no such face (the faces there are listed); ExperimentError: a face of
+            ``domain.faces`` selects nothing.
+    """
+    faces = _faces(mesh, domain)
+    if name in faces:
+        return faces[name]
+    facets = mesh.side_facets(name) if name in mesh.side_names() else None
+    if facets is None or not len(facets):
+        raise ObservationError(unknown_face(name, mesh.with_faces(faces)) if facets is None else
+                               f"the bounding-box side {name!r} holds no boundary facet of the mesh (a curved or "
+                               "tilted body?); name the face in the mesh file or in experiment.toml's domain.faces")
+    return facets
+
+
+def face_distance(mesh: jf.Mesh, domain, names, points) -> np.ndarray:
+    """Each 3D point's distance to each of the faces ``names`` (:func:`face_facets`), ``(len(names), n)``."""
+    from jaxfem.surface import project_to_surface
+
+    pts = np.asarray(points, np.float64)
+    return np.array([project_to_surface(mesh, pts, facets=face_facets(mesh, domain, n))[1] for n in names])
+
+
+def boundary_face_nodes(mesh: jf.Mesh, domain) -> np.ndarray | None:
+    """The nodes a 3D model's boundary points drive where the domain ties them to faces: every node
+    of its ``boundary_faces`` (each interpolated from its nearest boundary points), sorted; None
+    without such faces (or in 2D): the surface nodes near the points."""
+    names = getattr(domain, "boundary_faces", ())
+    if mesh.dim != 3 or not names:
+        return None
+    return np.unique(np.concatenate([face_facets(mesh, domain, n) for n in names]))

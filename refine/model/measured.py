@@ -10,7 +10,7 @@ so any misfit between predicted and measured points can be minimised by gradient
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, partial
 
 import jax
 import jax.numpy as jnp
@@ -22,8 +22,10 @@ from jaxfem.padding import BATCH, pad_batch
 from refine.exceptions import ObservationError
 from refine.bundle.experiment import Experiment, FromPointsDomain, MeshDomain, RectangleDomain
 from refine.bundle.outline import resolve_domain
+from refine.bundle.sides import with_domain_faces
 from refine.model.interpolation import PaddedProbe, padded_probe, points, points_and_derivatives
-from refine.model.boundary import outline_tolerance, place_points, place_surface_points, side_nodes
+from refine.model.boundary import (boundary_face_nodes, outline_tolerance, place_points, place_surface_points,
+                                   side_nodes)
 from refine.bundle.roles import point_spacing
 from refine.bundle.observations import Observations
 from refine.model.known import cell_parameters, hole_geometry, known_inclusions, model_material
@@ -50,7 +52,7 @@ def domain_mesh(experiment: Experiment, h: float, element: str = "tri3", inclusi
                                "(refine.bundle.outline.resolve_domain(experiment, observations))")
     if isinstance(dom, MeshDomain):
         path = dom.path if root is None else f"{root}/{dom.path}"
-        return jf.read_mesh(path)
+        return with_domain_faces(jf.read_mesh(path), dom.faces)  # experiment.toml's named faces added
     holes = [*(hole_geometry(v) for v in dom.holes), *holes]
     if experiment.regions:
         named = dict(inclusions) if isinstance(inclusions, dict) else {
@@ -124,10 +126,11 @@ class MeasuredModel:
         if len(self.boundary) < 3:
             raise ObservationError(f"only {len(self.boundary)} boundary points: at least 3 are needed to "
                                    "drive the model")
-        place = place_points if self.mesh.dim == 2 else place_surface_points
+        place = place_points if self.mesh.dim == 2 else partial(place_surface_points, domain=experiment.domain)
         self.placement = place(self.mesh, observations.reference, observations.roles == "boundary", observations.ids,
                                outline_tolerance(self.spacing, experiment.noise_std))
         self.positions = self.placement.positions  # where each point is compared with the model
+        self._face_nodes = boundary_face_nodes(self.mesh, experiment.domain)  # 3D: every node of boundary_faces
         loop, _ = self._interpolation(self._driving_points(), names=observations.ids[self.boundary])
         self.loop = loop
         dim = self.mesh.dim
@@ -154,6 +157,7 @@ class MeasuredModel:
             return jf.boundary_interpolation(self.mesh, points, tol=np.inf, names=names)
         from jaxfem.surface import surface_interpolation
 
+        nodes = self._face_nodes if nodes is None else nodes
         return surface_interpolation(self.mesh, points, 0.75 * self.spacing, nodes=nodes, names=names)
 
     def _driving_points(self) -> np.ndarray:
