@@ -170,7 +170,8 @@ class Diagnosis:
         """
         out = Path(out)
         if self.route == "engine":
-            self.written = Path(self.result.write(out))
+            self.result.write(out)  # report.json, summary.txt, report.html
+            self.written = out / "report.json"
         elif self.route == "thin-wall":
             from refine.solid.write import write_cup
 

@@ -88,11 +88,17 @@ def test_read_report_reads_a_file_or_a_folder_and_names_what_it_cannot_read(tmp_
 
 
 # ------------------------------------------------------------------- bundles with no solve at all
-def _plane_bundle(name: str, table: dict | None = None):
-    from refine.demo_data import Truth, synthetic_bundle
+def _sheet_at_rest(name: str, table: dict | None = None):
+    """A 2D sheet's bundle at rest (no solve): its route and its settings are read off it."""
+    from refine.bundle import Bundle, Experiment, Observations, RectangleDomain
 
-    b = synthetic_bundle(Truth(), seed=31, spacing=10.0, noise=0.02, fractions=(1.0,), name=name)
-    return replace(b, experiment=replace(b.experiment, extra={"diagnose": table} if table else {}))
+    x, y = np.meshgrid(np.linspace(0, 40, 5), np.linspace(0, 20, 3))
+    pts = np.c_[x.ravel(), y.ravel()]
+    roles = np.where((pts[:, 0] == 0) | (pts[:, 0] == 40), "boundary", np.where(np.arange(len(pts)) % 2, "guide",
+                                                                                  "validate"))
+    exp = Experiment(name=name, kind="plane-stress", domain=RectangleDomain(0.0, 0.0, 40.0, 20.0), law="neo-hookean",
+                     E=1.0, nu=0.3, thickness=1.0, extra={"diagnose": table} if table else {})
+    return Bundle(exp, Observations(np.arange(1, len(pts) + 1), pts, roles, np.zeros((1, len(pts), 2))))
 
 
 def _box_bundle(tmp_path: Path, name: str):
@@ -120,11 +126,12 @@ def test_the_route_is_read_off_the_bundle_never_its_name(tmp_path):
     from refine.api import route
 
     (tmp_path / "c").mkdir()
-    for name in ("cup", "block", "sheet"):
-        assert route(_plane_bundle(name)) == ("plane", None)
-        assert route(_cup_bundle(tmp_path / "c", name)) == ("thin-wall", None)
-        way, reason = route(_box_bundle(tmp_path, name))
-        assert way == "engine" and reason
+    bundles = {"plane": _sheet_at_rest("p"), "thin-wall": _cup_bundle(tmp_path / "c", "c"),
+               "engine": _box_bundle(tmp_path, "b")}
+    for name in ("cup", "block", "sheet"):  # each body under each name
+        for way, b in bundles.items():
+            got, reason = route(replace(b, experiment=replace(b.experiment, name=name)))
+            assert got == way and (reason is None) == (way != "engine"), (name, way, reason)
 
 
 def test_settings_given_by_name_map_onto_the_body_s_diagnosis_and_the_others_are_named(tmp_path):
@@ -141,7 +148,7 @@ def test_settings_given_by_name_map_onto_the_body_s_diagnosis_and_the_others_are
     assert cfg == EngineConfig(alpha=alpha, max_candidates=n) and ignored == ("max_cells", "seed")
     cfg, ignored = settings_for(box, "thin-wall", {"h": h, "max_regions": n, "try_rectangles": True})
     assert cfg == SolidConfig(h=h, max_candidates=n) and ignored == ("try_rectangles",)
-    sheet = _plane_bundle("s", {"seed": seed})  # a 2D bundle's settings go over its [diagnose] table
+    sheet = _sheet_at_rest("s", {"seed": seed})  # a 2D bundle's settings go over its [diagnose] table
     cfg, ignored = settings_for(sheet, "plane", {"alpha": alpha, "focus": None, "max_regions": n})
     assert (cfg.alpha, cfg.seed, cfg.max_regions, ignored) == (alpha, seed, n, ("focus",))
     for way, bundle in (("plane", sheet), ("engine", box)):
@@ -160,7 +167,10 @@ def test_settings_given_by_name_map_onto_the_body_s_diagnosis_and_the_others_are
 def sheet(tmp_path_factory):
     from refine.bundle import write_bundle
 
-    return write_bundle(tmp_path_factory.mktemp("api") / "bundle", _plane_bundle("plain"))
+    from refine.demo_data import Truth, synthetic_bundle
+
+    b = synthetic_bundle(Truth(), seed=31, spacing=10.0, noise=0.02, fractions=(1.0,), name="plain")
+    return write_bundle(tmp_path_factory.mktemp("api") / "bundle", b)
 
 
 def _timeless(r: dict) -> dict:
@@ -171,7 +181,7 @@ def _timeless(r: dict) -> dict:
 def test_a_2d_bundle_is_diagnosed_and_written_by_the_entry_point(sheet, tmp_path):
     import refine
 
-    d = refine.diagnose(sheet, {"discretisation_error": False}, log=None)
+    d = refine.diagnose(sheet, {"discretisation_error": False, "try_laws": False, "max_cells": 400}, log=None)
     assert isinstance(d, refine.Diagnosis) and d.route == "plane" and d.dim == 2 and d.error is None
     path = d.write(tmp_path / "out", figures=False)
     written = read_report(path)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from refine.bundle.io import Bundle
+from refine.bundle.io import Bundle, read_bundle
 from refine.diagnosis import atomic
 from refine.solid.diagnose import SolidConfig, SolidDiagnosis, report, squeeze_force
 from refine.solid.global_model import global_check, global_mesh, write_global
@@ -91,6 +91,8 @@ def diagnose_and_write(bundle: Bundle | str | Path, out: str | Path, cfg: SolidC
     :class:`~refine.solid.engine.BodyDiagnosis`) and the report (schema 2)."""
     from refine.api import diagnose, route
 
+    if isinstance(bundle, (str, Path)):
+        bundle = read_bundle(bundle)
     thin_wall = route(bundle)[0] == "thin-wall"
     d = diagnose(bundle, cfg if thin_wall else engine_config, out=out, log=None if quiet else print)
     if not quiet:
