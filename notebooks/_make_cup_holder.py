@@ -63,16 +63,18 @@ ax2.set_aspect("equal"); ax2.legend(fontsize=7, loc="lower right"); ax2.set_titl
 plt.tight_layout()"""),
     ("md", """## The diagnosis: local model, then global model
 
-`refine.solid.write.diagnose_and_write` (what `nonrigid diagnose` runs on a solid bundle): the
+`refine.diagnose` (what `nonrigid diagnose` runs, here on a solid bundle with an observed thin wall): the
 local model of the bottom slab, driven by the points under the wall and loaded by the measured
 force, fails the null test; a hole is cut at the gap in the points and fitted by exact implicit
 gradients through an extruded morph; the found hole is refitted in the global model of the whole
 cup holder (with a uniform modulus beside it, which absorbs the coarse model's discretisation
 stiffness), held by the rim's points, and both global models (without and with the hole) predict
 the held-out points."""),
-    ("code", """from refine.solid.write import diagnose_and_write, write_paraview
+    ("code", """import refine
+from refine.solid.write import write_paraview
 
-d, rep = diagnose_and_write(root, work / "out")
+diagnosis = refine.diagnose(root, out=work / "out")
+d, rep = diagnosis.result, diagnosis.report()  # the cup holder's diagnosis and its report.json
 f = rep["findings"][0]
 off = np.hypot(f["centroid"][0] - truth.cx, f["centroid"][1] - truth.cy)
 print(f"centre error {100 * off / geometry.diameter:.2f} % of the bottom's diameter, area error "

@@ -24,9 +24,9 @@ discretisation. To diagnose your own measurements, read them with `refine.bundle
     ("code", """import numpy as np
 from IPython.display import Image, display
 import jaxfem as jf
+import refine
 from refine.demo_data import Truth, Inclusion, random_truth, synthetic_bundle
-from refine.diagnosis import diagnose
-from refine.diagnosis import figures, html, report
+from refine.diagnosis import figures, html
 
 cause, seed = "stiffer-region", 4
 truth = random_truth(np.random.default_rng(seed), cause)
@@ -36,9 +36,10 @@ obs = bundle.observations
 print(truth)
 print({r: int((obs.roles == r).sum()) for r in ("boundary", "guide", "validate")}, "points,", obs.n_frames, "frames")"""),
     ("md", "## Show, decide, name, extend, measure"),
-    ("code", """d = diagnose(bundle)
+    ("code", """diagnosis = refine.diagnose(bundle)  # the entry point for 2D and 3D bundles alike
+d = diagnosis.result  # the 2D diagnosis itself: its fits, its figures
 print()
-print(report.summary(d))"""),
+print(diagnosis.summary())"""),
     ("md", """The strain the tracked points themselves show (left: per triangle of their Delaunay
 triangulation, no model) beside the uniform model's and the refined model's: the uniform model
 already hints at the cause (the paper reads abnormality from it: a stiffer inclusion is a pocket
@@ -51,17 +52,17 @@ are matplotlib Figures (`figures.all_figures(d)`); here they are shown as PNG.""
 figs = figures.all_figures(d, U)
 for key in ("strain_before_after", "residuals", "regions"):
     display(Image(html.figure_png(figs[key], dpi=80)))"""),
-    ("md", """`report.write` writes everything a person or ParaView reads: `report.html` (one page with
+    ("md", """`diagnosis.write` writes everything a person or ParaView reads: `report.html` (one page with
 the figures embedded), `report.json` (with the settings and provenance), the figures as PNG, and
 ParaView series (`paraview/*.pvd`: the initial and refined model frame by frame, the points with
-their residuals, the measured strain)."""),
+their residuals, the measured strain), and `refined/` (a bundle whose initial model is the one found)."""),
     ("code", """import json
-out = report.write(d, "diagnose-out")
+out = diagnosis.write("diagnose-out")
 print(sorted(p.relative_to(out.parent).as_posix() for p in out.parent.rglob("*") if p.suffix != ".vtu"))
 print(json.loads(out.read_text())["provenance"]["settings"])"""),
     ("md", "## Compare with the truth"),
-    ("code", """for f in d.findings:
-    print(f["cause"], f["region"]["centroid"] if f["region"] else "", "relative elasticity", f["relative_elasticity"])
+    ("code", """for f in diagnosis.findings:  # report.json's findings (schema 2: the same fields in 2D and 3D)
+    print(f["cause"], f["centroid"] or "", "relative elasticity", f["relative_elasticity"])
 for inc in truth.inclusions:
     print("truth:", inc.cause, (round(inc.shape.cx, 2), round(inc.shape.cy, 2)), "ratio", round(inc.ratio, 3))
 for h in truth.holes:

@@ -26,10 +26,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 from IPython.display import Image, display
 
-from refine.diagnosis import report
+import refine
 from refine.bundle import ModelSkeleton
 from refine.cli import track
-from refine.diagnosis import diagnose
 from examples.synthetic.render import render_sheet_images
 from refine.demo_data import Inclusion, Truth
 import jaxfem as jf
@@ -86,9 +85,8 @@ print("\\n".join((bundle_dir / "points.csv").read_text().splitlines()[:6]), "\\n
 The uniform model is driven by the boundary points; its misfit at the guide points is compared with
 what noise explains, then a modulus field localises the problem and hypotheses (a stiffer or softer
 region, a hole, another law) compete on held-out points."""),
-    ("code", """d = diagnose(bundle)
-report.write(d, work / "diagnosis")
-print(report.summary(d))"""),
+    ("code", """d = refine.diagnose(bundle, out=work / "diagnosis")  # diagnosed, then written
+print(d.summary())"""),
     ("code", """for name in ("regions.png", "residuals.png"):
     display(Image(filename=work / "diagnosis" / name, width=800))"""),
     ("code", """content = d.report()  # report.json; the outlines are shortened here

@@ -13,4 +13,21 @@ this package, which imports nothing so that ``import refine`` stays light):
 - :mod:`refine.cli`: the ``nonrigid`` command line, one module per command.
 
 :mod:`refine.exceptions` is the error hierarchy and :mod:`refine.measures` the error measures.
+
+The entry point, for every body: ``refine.diagnose(bundle, config) -> refine.Diagnosis``, then
+``Diagnosis.write(out)`` (:mod:`refine.api`); ``refine.read_report(path)`` reads any report.json
+as schema 2 (:mod:`refine.reports`). They load on first use, so ``import refine`` stays light
+(and the package has no ``__all__``: the reference documents them in their modules).
 """
+
+_ENTRY = {"diagnose": "refine.api", "Diagnosis": "refine.api", "read_report": "refine.reports",
+          "upgrade": "refine.reports"}
+
+
+def __getattr__(name: str):
+    """The entry point's names (:data:`_ENTRY`), imported on first use (PEP 562)."""
+    if name in _ENTRY:
+        import importlib
+
+        return getattr(importlib.import_module(_ENTRY[name]), name)
+    raise AttributeError(f"module 'refine' has no attribute {name!r}")

@@ -18,6 +18,8 @@ REFINE_LAYERS = {
     "refine.model": 2,
     "refine.optimize": 3,
     "refine.diagnosis": 4, "refine.causes": 4, "refine.demo_data": 4, "refine.correspond": 4, "refine.solid": 4,
+    "refine.reports": 0,
+    "refine.api": 4,  # the entry point: refine.diagnose, over refine.diagnosis and refine.solid
     "refine.batch": 5,
     "refine.cli": 6,
 }

@@ -104,6 +104,7 @@ def test_batch_matches_one_by_one_records_the_broken_bundle_and_resumes(bundles,
     from refine.batch import diagnose_many
     from refine.bundle import read_bundle
     from refine.diagnosis import DiagnoseConfig, diagnose
+    from refine.reports import upgrade
 
     a, broken, b = bundles
     out = tmp_path / "out"
@@ -132,7 +133,7 @@ def test_batch_matches_one_by_one_records_the_broken_bundle_and_resumes(bundles,
     # the same reports as one-by-one runs in this process (same seeds)
     for p in (a, b):
         d = diagnose(read_bundle(p), config, log=lambda m: None)
-        alone = json.loads(json.dumps(d.report(), default=lambda v: v.tolist()))  # numpy values
+        alone = json.loads(json.dumps(upgrade(d.report()), default=lambda v: v.tolist()))  # numpy values; schema 2
         batch = json.loads((out / p.name / "report.json").read_text())
         assert read_bundle(out / p.name / "refined").experiment == read_bundle(p).experiment  # nothing found
         assert batch["findings"] == alone["findings"] == []

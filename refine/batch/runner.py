@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import glob
 import hashlib
-import json
 import socket
 import time
 import traceback
@@ -57,8 +56,10 @@ def report_names(paths: Iterable[Path]) -> dict[Path, str]:
 
 
 def diagnose_one(bundle: str, out_dir: str, config=None, figures: bool = True) -> dict:
-    """Read, diagnose and report one bundle (the task a worker runs); never raises: a failure is
-    returned as the row's ``error`` and its traceback written to ``out_dir/error.txt``.
+    """Read, diagnose and report one bundle, 2D or solid (:func:`refine.diagnose`; the task a
+    worker runs); never raises: a failure is returned as the row's ``error`` and its traceback
+    written to ``out_dir/error.txt`` (a run stopped after the initial model also leaves its
+    report.json saying where).
 
     Returns the bundle's row of the results table (see :mod:`refine.batch.table`)."""
     t0 = time.perf_counter()
@@ -66,18 +67,14 @@ def diagnose_one(bundle: str, out_dir: str, config=None, figures: bool = True) -
     row = {"bundle": bundle, "name": out.name, **_where(), "error": None}
     log: list[str] = []
     try:
-        from refine.bundle import read_bundle
-        from refine.diagnosis import DiagnoseConfig, diagnose, refined, report
-        from refine.diagnosis.config import settings_of
+        from refine.api import diagnose
+        from refine.reports import read_report
 
         out.mkdir(parents=True, exist_ok=True)
         (out / "error.txt").unlink(missing_ok=True)
-        b = read_bundle(bundle)
-        cfg = config if isinstance(config, DiagnoseConfig) else settings_of(b, config)  # over its [diagnose]
-        d = diagnose(b, cfg, log=log.append)
-        path = report.write(d, out, with_figures=figures)
-        refined.write(d, out)  # OUT/NAME/refined/: the chosen model as a bundle, as `nonrigid diagnose` writes it
-        row.update(row_from_report(json.loads(Path(path).read_text())))
+        # 2D or solid, as `nonrigid diagnose` routes and writes it (a 2D bundle's settings over its [diagnose])
+        d = diagnose(bundle, config, out=out, log=log.append, figures=figures)
+        row.update(row_from_report(read_report(d.written)))
     except Exception as e:  # noqa: BLE001 - a failed bundle is a row of the table; the batch goes on
         row["error"] = {"type": type(e).__name__, "message": str(e)}
         try:
@@ -106,8 +103,9 @@ def diagnose_many(bundles: Iterable[str | Path], out: str | Path, config=None, s
                   figures: bool = True, retry_failed: bool = False, gpus=None) -> Table:
     """Diagnose every bundle of ``bundles`` on a Dask cluster; return the batch's :class:`Table`.
 
-    Each bundle is read, diagnosed (``refine.diagnosis.diagnose`` with ``config``) and reported in
-    ``out/<name>/`` (report.json, figures, summary.txt, log.txt) on a worker; its row is appended
+    Each bundle is read, diagnosed (:func:`refine.diagnose` with ``config``: a 2D bundle by the 2D
+    diagnosis, a solid one by its 3D diagnosis) and reported in ``out/<name>/`` (report.json,
+    figures, summary.txt, log.txt) on a worker; its row is appended
     to ``out/results.jsonl`` as soon as it finishes. A bundle that fails (unreadable, a solver that
     does not converge, a worker lost) gets a row with its error and the batch goes on. Bundles that
     already have a row without an error in ``out/results.jsonl`` are skipped, so running the same
@@ -121,8 +119,10 @@ def diagnose_many(bundles: Iterable[str | Path], out: str | Path, config=None, s
     Args:
         bundles: bundle directories or glob patterns (see :func:`bundle_paths`).
         out: output directory (created).
-        config: a ``DiagnoseConfig`` used as it is for every bundle, or a dict of settings applied
-            over each bundle's own ``[diagnose]`` table; default ``{"workers": threads_per_worker}``
+        config: a settings object used as it is for every bundle (of the bundles' diagnosis: a
+            ``DiagnoseConfig`` for 2D bundles), or a dict of settings applied over each 2D bundle's
+            own ``[diagnose]`` table (a solid's: over the defaults; a setting its diagnosis has not
+            is named in its log and left out); default ``{"workers": threads_per_worker}``
             (as many hypotheses fitted side by side as the worker has cores, the rest from the table).
         scheduler: address of a running Dask scheduler (``"tcp://host:8786"``), or a
             ``distributed.Client``; then ``workers``, ``threads_per_worker`` and ``gpus`` are those

@@ -29,9 +29,13 @@ RESULTS = "results.jsonl"
 
 
 def row_from_report(report: dict) -> dict:
-    """The table's columns taken from a diagnosis' report.json content."""
+    """The table's columns taken from a diagnosis' report.json content (any schema: read as
+    schema 2, :func:`refine.reports.upgrade`; a 3D finding's centroid has three coordinates)."""
+    from refine.reports import upgrade
+
+    report = upgrade(report)
     findings = [{"cause": f["cause"],
-                 "centroid": (f.get("region") or {}).get("centroid"),
+                 "centroid": f["centroid"],
                  "relative_elasticity": f.get("relative_elasticity"),
                  "law": f.get("law")} for f in report["findings"]]
     first = findings[0] if findings else {}

@@ -87,21 +87,24 @@ def run(args: argparse.Namespace) -> int:
 
 
 def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
-    """Diagnose a bundle (:func:`refine.diagnosis.diagnose`) and write its report.
+    """Diagnose a bundle, 2D or solid, and write its report (:func:`refine.diagnose` with ``out``).
 
     Args:
         bundle: a bundle directory (str or Path) or a :class:`refine.bundle.Bundle`.
-        out: output directory (created if missing): ``report.json`` (with the settings and
-            provenance), ``summary.txt``, ``report.html``, the figures and ``paraview/`` of
-            :func:`refine.diagnosis.report.write`, and ``refined/``, a bundle whose initial model
-            is the chosen one (:func:`refine.diagnosis.refined.write`).
-        config: the settings: None, the bundle's ``[diagnose]`` table over the defaults; a dict
-            of settings, applied over that table; a :class:`refine.diagnosis.DiagnoseConfig`,
-            used as it is (the table is not read).
+        out: output directory (created if missing): ``report.json`` (schema 2, with the settings
+            and provenance), ``summary.txt`` and, by body, ``report.html``, the figures and
+            ``paraview/`` of :func:`refine.diagnosis.report.write` and ``refined/``, a bundle whose
+            initial model is the chosen one (:func:`refine.diagnosis.refined.write`); a cup
+            holder's ``global/`` (see :meth:`refine.api.Diagnosis.write`).
+        config: the settings (:func:`refine.api.settings_for`): None, the bundle's
+            ``[diagnose]`` table over the defaults; a dict of settings, applied over that table
+            (a solid body's: over its diagnosis' defaults; a setting of another body's diagnosis
+            is named and left out); the body's settings object, used as it is.
         quiet: print neither the progress log nor the summary.
 
     Returns:
-        The :class:`refine.diagnosis.Diagnosis`.
+        The body's own diagnosis (:class:`refine.diagnosis.Diagnosis`, or a solid body's:
+        :attr:`refine.api.Diagnosis.result`).
 
     Raises:
         refine.exceptions.BundleError: the bundle directory is malformed.
@@ -110,71 +113,28 @@ def diagnose(bundle, out: str | Path, config=None, quiet: bool = False):
             (:mod:`refine.diagnosis.incomplete`); ``nonrigid diagnose`` then exits non-zero.
         refine.exceptions.SettingsError: a setting is unknown (the nearest is named) or invalid.
     """
-    from refine.bundle.io import read_bundle
-    from refine.diagnosis import DiagnoseConfig, diagnose as diagnosis_of, refined, report
+    from refine.api import diagnose as entry
 
-    if isinstance(bundle, (str, Path)):
-        bundle = read_bundle(bundle)
-    if bundle.observations is None:
-        from refine.exceptions import ObservationError
-
-        raise ObservationError("the bundle holds unlabelled clouds only (clouds.csv, no points.csv); diagnose needs "
-                               "tracked points: follow the clouds with `nonrigid follow BUNDLE --out DIR`")
-    if bundle.experiment.kind == "solid":  # 3D: an observed thin wall's local model, else the 3D engine
-        from refine.solid.write import diagnose_and_write
-
-        return diagnose_and_write(bundle, out, quiet=quiet, engine_config=engine_settings(config, quiet))[0]
-    if not isinstance(config, DiagnoseConfig):
-        config = settings_of(bundle, config)
     try:
-        d = diagnosis_of(bundle, config, log=(lambda m: None) if quiet else print)
-    except BaseException as e:  # after the initial model: what was done is written, then the error goes on
-        _write_incomplete(getattr(e, "incomplete", None), out, quiet)
-        raise
-    stage = "the report"
-    try:
-        path = report.write(d, out)
-        stage = "the refined bundle"
-        again = refined.write(d, out)  # OUT/refined/: a bundle whose initial model is the chosen one
+        d = entry(bundle, config, out=out, log=None if quiet else print)
     except BaseException as e:
-        from refine.diagnosis.incomplete import of_diagnosis
-
-        _write_incomplete(of_diagnosis(d, f"writing {stage}", e), out, quiet)
+        stopped = getattr(e, "diagnosis", None)
+        if stopped is not None and stopped.written is not None and not quiet:
+            print(stopped.summary())
+            print(f"wrote what was done to {stopped.written}, {Path(out) / 'summary.txt'} and "
+                  f"{Path(out) / 'report.html'}")
         raise
     if not quiet:
-        print(report.summary(d))
-        print(f"wrote {path}, {Path(out) / 'report.html'} and figures in {Path(out)}; "
-              f"ParaView: open {Path(out) / 'paraview'}/*.pvd" + (f"; the refined model as a bundle in {again}" if again else ""))
-    return d
-
-
-def engine_settings(given, quiet: bool = False):
-    """The 3D engine's settings (:class:`refine.solid.engine.EngineConfig`) from the settings
-    ``given`` (a dict, e.g. the command line's; None: the defaults): those the engine has are
-    taken, the others are named in one printed line as ignored for a solid bundle."""
-    import dataclasses
-
-    from refine.solid.engine import EngineConfig
-
-    given = dict(given or {}) if not dataclasses.is_dataclass(given) else {}
-    names = {f.name for f in dataclasses.fields(EngineConfig)}
-    ignored = sorted(k for k in given if k not in names)
-    if ignored and not quiet:
-        print(f"ignored for a solid bundle (no such setting of the 3D engine): {', '.join(ignored)}")
-    return EngineConfig(**{k: v for k, v in given.items() if k in names})
-
-
-def _write_incomplete(inc, out, quiet: bool) -> None:
-    """Write a stopped diagnosis's report (:mod:`refine.diagnosis.incomplete`; nothing where it
-    stopped before the initial model: ``inc`` None) and say where."""
-    if inc is None:
-        return
-    from refine.diagnosis.incomplete import write
-
-    path = write(inc, out)
-    if not quiet:
-        print(inc.summary())
-        print(f"wrote what was done to {path}, {Path(out) / 'summary.txt'} and {Path(out) / 'report.html'}")
+        print(d.summary())
+        if d.route == "plane":
+            print(f"wrote {d.written}, {Path(out) / 'report.html'} and figures in {Path(out)}; "
+                  f"ParaView: open {Path(out) / 'paraview'}/*.pvd"
+                  + (f"; the refined model as a bundle in {d.refined}" if d.refined else ""))
+        else:
+            print(f"wrote {d.written} and {Path(out) / 'summary.txt'}"
+                  + (f"; the global model with the finding as a bundle in {Path(out) / 'global'}"
+                     if d.route == "thin-wall" else f" and {Path(out) / 'report.html'}"))
+    return d.result
 
 
 def settings_of(bundle, given: dict | None = None):

@@ -118,9 +118,10 @@ def of_diagnosis(d, stage: str, error: BaseException) -> Incomplete:
 def write(inc: Incomplete, out: str | Path) -> Path:
     """Write OUT/report.json, summary.txt and report.html of ``inc`` (atomically); return report.json's path."""
     from refine.diagnosis.report import report_json
+    from refine.reports import upgrade
 
     out = Path(out)
-    path = atomic.write_text(out / "report.json", report_json(inc.report()))
+    path = atomic.write_text(out / "report.json", report_json(upgrade(inc.report())))  # schema 2
     atomic.write_text(out / "summary.txt", inc.summary() + "\n")
     atomic.write_text(out / "report.html", inc.page())
     return path

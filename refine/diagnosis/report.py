@@ -1,4 +1,4 @@
-"""Writing a diagnosis: report.json exactly as the bundle spec says, the figures a person looks
+"""Writing a diagnosis: report.json exactly as the bundle spec says (schema 2, :mod:`refine.reports`), the figures a person looks
 at (:mod:`refine.diagnosis.figures`), report.html (:mod:`refine.diagnosis.html`), the ParaView
 series (:mod:`refine.diagnosis.paraview`), and a short summary for the terminal."""
 
@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from refine.diagnosis import atomic
+from refine.reports import upgrade
 
 
 def summary(d) -> str:
@@ -81,7 +82,7 @@ def write(d, out, with_figures: bool = True) -> Path:
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    path = atomic.write_text(out / "report.json", report_json(d.report()))
+    path = atomic.write_text(out / "report.json", report_json(upgrade(d.report())))  # schema 2: refine.reports
     text = summary(d)
     atomic.write_text(out / "summary.txt", text + "\n")
     if not with_figures:

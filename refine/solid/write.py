@@ -1,57 +1,103 @@
-"""`nonrigid diagnose` on a solid bundle: the 3D diagnosis of the cup holder's bottom, its report,
-and the global model with the finding (written and checked against the held-out points)."""
+"""The cup holder's diagnosis as :func:`refine.diagnose` reports and writes it: report.json
+(schema 2, :mod:`refine.reports`, with ``global``: the global models' held-out errors, initial and
+refined), summary.txt and ``OUT/global/`` (the global model with the finding as a bundle)."""
 
 from __future__ import annotations
 
-import json
+import dataclasses
 from pathlib import Path
 
 from refine.bundle.io import Bundle, read_bundle
-from refine.diagnosis.atomic import write_text
-from refine.solid.diagnose import SolidConfig, SolidDiagnosis, thin_wall_reason, diagnose_solid, report, squeeze_force
+from refine.diagnosis import atomic
+from refine.solid.diagnose import SolidConfig, SolidDiagnosis, report, squeeze_force
 from refine.solid.global_model import global_check, global_mesh, write_global
 
 
+def cup_report(bundle: Bundle, d: SolidDiagnosis, cfg: SolidConfig) -> dict:
+    """report.json's content (schema 2) of a cup holder's diagnosis ``d``: the cup's report
+    (:func:`refine.solid.diagnose.report`) upgraded (:func:`refine.reports.cup`), with the
+    ``bundle``'s name, the local model's ``baseline`` and ``refined`` errors on the bottom's points
+    and their ``gain``, ``provenance``, and ``global``: the global models' held-out errors
+    without and with the found hole (their solves run here; ``global.bundle`` is null until
+    :func:`write_cup` writes it)."""
+    from refine.diagnosis.pipeline import _errors
+    from refine.diagnosis.provenance import machine, package_version
+    from refine.reports import cup
+
+    old = report(d)
+    meshes = {"initial": global_mesh(d.shape, None, d.local.h)}
+    if d.found:
+        meshes["refined"] = global_mesh(d.shape, _hole(d), d.local.h)
+    tol = 0.05 * d.base.model.spacing
+    old["global"] = {**global_check(bundle, d.shape, squeeze_force(bundle.observations), meshes, tol,
+                                    cfg.linear_solver), "bundle": None}
+    rep = cup(old)
+    obs = d.local.obs
+    eb, er = _errors(obs, d.base.predicted), _errors(obs, d.chosen.predicted)
+    settings = {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg)}
+    rep.update(bundle=bundle.experiment.name, baseline=eb, refined=er,
+               gain={"validation_error": eb["validation_error"] / er["validation_error"]
+                     if er.get("validation_error") else None},
+               provenance={"version": package_version(), "settings": settings, "machine": machine()})
+    return rep
+
+
+def _hole(d: SolidDiagnosis):
+    return (d.whole or d.chosen).shapes[0] if d.found else None
+
+
+def write_cup(bundle: Bundle, d: SolidDiagnosis, rep: dict, out: str | Path) -> Path:
+    """Write ``OUT/global/`` (the global model with the found hole as a bundle,
+    :func:`refine.solid.global_model.write_global`), then report.json (``rep`` from
+    :func:`cup_report`, its ``global.bundle`` set) and summary.txt, each atomically; returns
+    report.json's path."""
+    from refine.diagnosis.report import report_json
+
+    out = Path(out)
+    with atomic.folder(out / "global") as tmp:  # the bundle appears whole or not at all
+        write_global(bundle, d.shape, _hole(d), tmp, d.local.h)
+    rep["global"]["bundle"] = str(out / "global")
+    path = atomic.write_text(out / "report.json", report_json(rep))
+    atomic.write_text(out / "summary.txt", cup_summary(rep) + "\n")
+    return path
+
+
+def cup_summary(rep: dict) -> str:
+    """A few lines saying what the cup holder's diagnosis found (``rep``: its report.json)."""
+    n = rep["null_test"]
+    lines = [f"{rep['bundle']}: the {n.get('model', 'local')} model's misfit is {n['ratio']:.2f}x the null level "
+             f"(p = {n['p_value']:.2g}); {rep['point_gaps']} gap(s) in the bottom's points."]
+    if not rep["findings"]:
+        lines.append("No finding: no hole beat the initial model.")
+    for f in rep["findings"]:
+        c = ", ".join(f"{v:.2f}" for v in f["centroid"])
+        lines.append(f"Finding: a hole through the bottom centred at ({c}), area {f['area']:.2f}, "
+                     f"semi-axes {f['axes'][0]:.2f} x {f['axes'][1]:.2f}.")
+    if rep["findings"]:
+        lines.append(f"Held-out gain {rep['held_out_gain']:.2f} (validate rms {rep['validate_rms']['initial']:.4g} -> "
+                     f"{rep['validate_rms']['refined']:.4g}).")
+    g = {k: v for k, v in rep["global"].items() if isinstance(v, dict)}
+    lines.append("Global model, all validate points: " + ", ".join(f"{k} rms {v['validate_rms']:.4g}"
+                                                                  for k, v in g.items()) + ".")
+    lines.append(f"({rep['seconds']:.0f} s)")
+    return "\n".join(lines)
+
+
 def diagnose_and_write(bundle: Bundle | str | Path, out: str | Path, cfg: SolidConfig = SolidConfig(),
-                       quiet: bool = False, global_h: float | None = None, engine_config=None) -> tuple[SolidDiagnosis, dict]:
-    """Diagnose a cup holder's bundle (:func:`refine.solid.diagnose_solid`) and write ``OUT/report.json``
-    (with ``global``: the global models' held-out errors, initial and refined) and ``OUT/global/``
-    (the global model with the finding as a bundle, :func:`refine.solid.global_model.write_global`).
-    ``global_h``: the global model's element size (default: the local model's). Returns the
-    diagnosis and the report. A body without an observed thin wall
-    (:func:`refine.solid.diagnose.thin_wall_reason`) is diagnosed by the 3D engine instead
-    (:func:`refine.solid.engine.diagnose_body` with ``engine_config``) and written by it."""
+                       quiet: bool = False, engine_config=None):
+    """:func:`refine.diagnose` of a solid bundle, written to ``out``: ``cfg`` for an observed
+    thin wall (the cup holder), ``engine_config`` for any other body (the 3D engine). Returns
+    the body's own diagnosis (:class:`~refine.solid.diagnose.SolidDiagnosis` or
+    :class:`~refine.solid.engine.BodyDiagnosis`) and the report (schema 2)."""
+    from refine.api import diagnose, route
+
     if isinstance(bundle, (str, Path)):
         bundle = read_bundle(bundle)
-    log = (lambda m: None) if quiet else print
-    reason = thin_wall_reason(bundle)
-    if reason is not None:  # any other body: the one 3D engine, over the registry's 3D causes
-        from refine.solid.engine import diagnose_body
-
-        log(f"the body's diagnosis by the 3D engine ({reason}: no observed thin wall)")
-        d = diagnose_body(bundle, engine_config, log=log)
-        d.write(out)
-        if not quiet:
-            print(d.summary())
-        return d, d.report()
-    d = diagnose_solid(bundle, cfg, log=log)
-    rep = report(d)
-    h = global_h or d.local.h
-    hole = (d.whole or d.chosen).shapes[0] if d.found else None
-    root = write_global(bundle, d.shape, hole, Path(out) / "global", h)
-    meshes = {"initial": global_mesh(d.shape, None, h)}
-    if hole is not None:
-        meshes["refined"] = global_mesh(d.shape, hole, h)
-    tol = 0.05 * d.base.model.spacing
-    rep["global"] = global_check(bundle, d.shape, squeeze_force(bundle.observations), meshes, tol, cfg.linear_solver)
-    rep["global"]["bundle"] = str(root)
-    Path(out).mkdir(parents=True, exist_ok=True)
-    write_text(Path(out) / "report.json", json.dumps(rep, indent=1))  # atomically
+    thin_wall = route(bundle)[0] == "thin-wall"
+    d = diagnose(bundle, cfg if thin_wall else engine_config, out=out, log=None if quiet else print)
     if not quiet:
-        f = rep["findings"][0] if rep["findings"] else None
-        log(f"finding: {rep['cause']}" + (f" at {[round(v, 2) for v in f['centroid']]}, area {f['area']:.2f}"
-                                         if f else "") + f"; global model in {root}")
-    return d, rep
+        print(d.summary())
+    return d.result, d.report()
 
 
 def write_paraview(d: SolidDiagnosis, folder: str | Path) -> dict:
@@ -68,3 +114,4 @@ def write_paraview(d: SolidDiagnosis, folder: str | Path) -> dict:
             fits["global_refined"] = d.whole
     return {name: write_model_series(folder, name, f.model, f.theta, f.model.solve_frames(f.theta))
             for name, f in fits.items()}
+
