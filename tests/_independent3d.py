@@ -117,6 +117,7 @@ def gmsh_mesh(build, effect: Ellipsoid | None, h: float, h_near: float | None = 
             f.setNumber(thr, "DistMax", 3.0 * h)
             f.setAsBackgroundMesh(thr)
             gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+        gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)  # OCC points carry a size from the bbox
         gmsh.option.setNumber("Mesh.MeshSizeMax", h)
         gmsh.option.setNumber("Mesh.MeshSizeMin", 0.25 * h_near)
         gmsh.option.setNumber("Mesh.Algorithm", algorithm2d)
