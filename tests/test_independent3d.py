@@ -84,3 +84,26 @@ def test_gripped_bar_converges_under_refinement():
     d1, d2 = np.abs(values[1] - values[0]), np.abs(values[2] - values[1])
     assert d2[1] < 0.5 * d1[1], (values, d1, d2)  # the force: from above, each change under half the last
     assert np.all(np.abs(np.diff([v[0] for v in values])) < 2e-3 * abs(values[-1][0]))
+
+
+@pytest.mark.slow
+def test_a_body_bundle_reads_back_and_its_grips_move_as_prescribed(tmp_path):
+    """The sound bracket's bundle (tests/_bodies3d.py) reads back with refine.bundle.io; its model
+    mesh is the whole bracket; the clamped and the moved faces' points read the prescribed motion
+    within 5 noise std; the other points are guide or validate."""
+    import jaxfem as jf
+    from refine.bundle.io import read_bundle
+    from tests._bodies3d import BODIES, FRAMES, write_body_bundle
+
+    root = write_body_bundle(tmp_path / "sound", "sound", seed=5)
+    b = read_bundle(root)
+    obs, body = b.observations, BODIES["bracket"]
+    assert jf.read_mesh(root / "mesh.vtu").volumes().sum() == pytest.approx(60 * 20 * 15 + 40 * 20 * 15, rel=1e-9)
+    X, roles, sigma = obs.reference, obs.roles, b.experiment.noise_std
+    assert set(roles[roles != "boundary"]) == {"guide", "validate"}
+    moved = np.isclose(X[:, 0], 60.0)
+    clamped = np.isclose(X[:, 1], 60.0)
+    assert np.all(roles[moved | clamped] == "boundary") and np.all(moved | clamped | (roles != "boundary"))
+    for frame, s in enumerate(FRAMES):
+        assert np.abs(obs.displacements[frame, moved] - body.motion(s, X[moved])).max() < 5 * sigma
+        assert np.abs(obs.displacements[frame, clamped]).max() < 5 * sigma
