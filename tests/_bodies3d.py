@@ -39,7 +39,7 @@ class Body:
     """A body as data: its OpenCASCADE ``build``, bounding box ``(x0, y0, z0, x1, y1, z1)``, the
     clamped and moved sides, the moved side's displacement ``motion(s, X (n, 3)) -> (n, 3)`` at
     load parameter ``s`` (1: the last frame), ``material(X, margin)`` (points at least ``margin``
-    inside), the ``effect`` drawn for a seed, the tracked points ``points(rng) -> (X, boundary)``,
+    inside), the ``effect`` drawn for a seed, the tracked points ``points(rng, effect) -> (X, boundary)``,
     and the model's and data's element sizes (mm)."""
 
     name: str
@@ -137,7 +137,7 @@ def _bracket_effect(rng, sound=False):
     return draw(rng, _Fits(ok, centre), (3.5, 6.5), (3.0, 8.0))
 
 
-def _bracket_points(rng, spacing=3.0, drive_spacing=2.5):
+def _bracket_points(rng, effect=None, spacing=3.0):
     x0, y0, z0, x1, y1, z1 = BRACKET
     off = rng.uniform(0.2, 0.8, 2) * spacing
     seen = [face_points(2, z, _ticks(x0, x1, spacing, off[0]), _ticks(y0, y1, spacing, off[1])) for z in (z0, z1)]
@@ -185,7 +185,7 @@ def _tube_effect(rng, sound=False):
     return draw(rng, _Fits(ok, centre), (3.0, 6.0), (0.0, 0.0))
 
 
-def _tube_points(rng, spacing=4.0, effect=None):
+def _tube_points(rng, effect=None, spacing=4.0):
     off = rng.uniform(0, 1, 2) * spacing
     xy = _grid(_ticks(-RO, RO, spacing, off[0]), _ticks(-RO, RO, spacing, off[1]))
     z = _ticks(0.0, LENGTH, spacing)
@@ -234,7 +234,7 @@ def _block_effect(rng, sound=False):
                 (0.22 * small, 0.32 * small), (0.1, 0.4))
 
 
-def _block_points(rng, spacing=2.5):
+def _block_points(rng, effect=None, spacing=2.5):
     x0, y0, z0, x1, y1, z1 = BLOCK
     along = _ticks(x0, x1, spacing, (0.5 + rng.uniform(0, 0.5)) * spacing)
     along = along[(along > x0 + 0.5 * spacing) & (along < x1 - 0.5 * spacing)]
@@ -303,7 +303,7 @@ def body_bundle(name: str, seed: int, noise: float = 0.005, log=None):
     body = BODIES[body_name]
     rng = np.random.default_rng(seed)
     effect = body.effect(rng, sound)
-    X, boundary = body.points(rng, effect=effect) if body_name == "tube" else body.points(rng)
+    X, boundary = body.points(rng, effect)
     U, info = solve_body(body, effect, X, log=log)
     std = noise * float(np.linalg.norm(U, axis=-1).max())
     U = U + rng.normal(0.0, std, U.shape)
