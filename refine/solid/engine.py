@@ -4,7 +4,9 @@ here.
 
 1. The initial model (the bundle's mesh as it is, driven by its boundary points:
    :func:`refine.solid.inclusion_diagnosis.body_model`) fitted on the guide points, its null test
-   (:func:`refine.solid.initial.checked_baseline`).
+   (:func:`refine.solid.initial.checked_baseline`) against the noise, its propagation from the
+   drive and the model's own discretisation error (:func:`refine.solid.floor.discretisation_floor`),
+   whose sum (``sigma_eff``) every later fit is weighed at, as the 2D diagnosis's.
 2. Where it fails, candidate places (:func:`candidates`): the regions of the regularised modulus
    field (:mod:`refine.solid.field`) and, where points lie inside the volume, the gaps among them
    (softer candidates: cavities).
@@ -55,7 +57,8 @@ class EngineConfig:
     the field's ``field_weight`` and ``field_iterations``; ``gaps``: whether gaps in the points
     inside the volume are candidates, a gap where no point lies within ``gap_factor`` times their
     median spacing; ``try_laws``: whether the ``"global"`` causes are tried; ``linear_solver``;
-    ``focus`` (the graded refit of a box-shaped body, None: not), ``profile`` (the ratio's
+    ``model_error``: whether the null level holds the model's discretisation error (its mesh split
+    in eight: one more compile and solve); ``focus`` (the graded refit of a box-shaped body, None: not), ``profile`` (the ratio's
     profile: ``profile_threshold``, ``profile_steps``, ``restart_tol``, ``restart_profiles``,
     ``refit_steps``), ``discretisation`` (the graded fit's coarser refit factor, None: not): as
     :class:`refine.solid.inclusion_diagnosis.InclusionConfig`."""
@@ -68,6 +71,7 @@ class EngineConfig:
     gaps: bool = True
     gap_factor: float = 1.5
     try_laws: bool = True
+    model_error: bool = True
     linear_solver: str = "auto"
     focus: FocusedMesh | None = FocusedMesh()
     profile: bool = True
@@ -288,11 +292,13 @@ def diagnose_body(bundle: Bundle, config: EngineConfig | None = None, log=print)
     obs = model.obs
     guide, validate = obs.roles == "guide", obs.roles == "validate"
     sigma = bundle.experiment.noise_std or estimate_noise(obs)
-    base, null = checked_baseline(model, obs, sigma)
+    sigma_model = model_error(model, guide, log) if cfg.model_error else 0.0
+    sigma_eff = float(np.hypot(sigma, sigma_model))
+    base, null = checked_baseline(model, obs, sigma, sigma_model=sigma_model, fit_sigma=sigma_eff)
     d = BodyDiagnosis(bundle, cfg, base, null, search_base=base, seconds={"initial": time.perf_counter() - t0})
-    log(f"model: {model.mesh.n_cells} {model.mesh.element} cells, {len(obs.ids)} points; misfit {null.ratio:.2f} x "
-        f"the noise's (p = {null.p_value:.2g})")
-    search = Search(model, guide, validate, sigma, cfg, null, 3 * obs.n_frames * int(guide.sum()), log, base,
+    log(f"model: {model.mesh.n_cells} {model.mesh.element} cells, {len(obs.ids)} points; noise {sigma:.3g}, model "
+        f"discretisation error {sigma_model:.3g}; misfit {null.ratio:.2f} x its null level (p = {null.p_value:.2g})")
+    search = Search(model, guide, validate, sigma_eff, cfg, null, 3 * obs.n_frames * int(guide.sum()), log, base,
                     failed=d.failed)
     stage = "the candidates"
     try:
@@ -321,6 +327,19 @@ def diagnose_body(bundle: Bundle, config: EngineConfig | None = None, log=print)
         raise
     d.seconds["total"] = time.perf_counter() - t0
     return d
+
+
+def model_error(model: MeasuredModel, points, log=print) -> float:
+    """The initial model's discretisation error at ``points`` (length unit:
+    :func:`refine.solid.floor.discretisation_floor`); 0 with a log line where its split mesh
+    cannot be solved."""
+    from refine.solid.floor import discretisation_floor
+
+    e = discretisation_floor(model, points)
+    if not np.isfinite(e):
+        log("  the model's discretisation error is unknown (its mesh split in eight cannot be solved): left out")
+        return 0.0
+    return e
 
 
 def _refine(d: BodyDiagnosis, search: Search, log) -> None:
@@ -386,8 +405,10 @@ def rows(d: BodyDiagnosis) -> list[dict]:
     """The hypotheses table: the initial model the search compared with, each fit (its kind and
     score: BIC + held-out misfit), each failure (its reason)."""
     fits = [d.search_base or d.base] + d.tried
-    out = hypothesis_rows(fits, d.failed)
+    out = hypothesis_rows([dataclasses.replace(f, shapes=[]) for f in fits], d.failed)  # its shape rows are 2D
     for r, f in zip(out, fits):
+        r["shapes"] = [[float(v) for v in (*s.centre, *s.axes, s.ratio)] for s in f.shapes]  # [c (3), axes (3), ratio]
+        r["kinds"] = [s.kind for s in f.shapes]
         r["kind"] = f.shapes[0].kind if f.shapes else ("material-law" if f.cause == "material-law" else "none")
         r["score"] = float(_score(f))
     for r in out[len(fits):]:
