@@ -1,4 +1,4 @@
-"""Another homogeneous material law (2D; 3D to come): every law of jaxfem's registry that a diagnosis
+"""Another homogeneous material law (2D and 3D): every law of jaxfem's registry that a diagnosis
 tries instead of the initial model's (:data:`refine.diagnosis.laws.ALTERNATIVE_LAWS`, from
 :func:`jaxfem.materials.alternatives`), each with its Poisson's ratio and its fitted extra
 parameters (an anisotropic law's fibre angle from the best of a few starts) fitted
@@ -28,5 +28,5 @@ def jobs(search, start=None) -> dict:
             for law in ALTERNATIVE_LAWS.get(m.experiment.law, ())}
 
 
-CAUSE = register(Cause("law", {2}, "global", ("material-law",), jobs, applies,
+CAUSE = register(Cause("law", {2, 3}, "global", ("material-law",), jobs, applies,
                        doc="another homogeneous material law (each alternative of jaxfem's registry)", order=10))

@@ -4,7 +4,9 @@ here.
 
 1. The initial model (the bundle's mesh as it is, driven by its boundary points:
    :func:`refine.solid.inclusion_diagnosis.body_model`) fitted on the guide points, its null test
-   (:func:`refine.solid.initial.checked_baseline`).
+   (:func:`refine.solid.initial.checked_baseline`) against the noise, its propagation from the
+   drive and the model's own discretisation error (:func:`refine.solid.floor.discretisation_floor`),
+   whose sum (``sigma_eff``) every later fit is weighed at, as the 2D diagnosis's.
 2. Where it fails, candidate places (:func:`candidates`): the regions of the regularised modulus
    field (:mod:`refine.solid.field`) and, where points lie inside the volume, the gaps among them
    (softer candidates: cavities).
@@ -39,7 +41,8 @@ from refine.diagnosis.fitted import Failed, Fitted, NotApplicable, hypothesis_ro
 from refine.diagnosis.noise import NullTest, estimate_noise
 from refine.diagnosis.search import _choose, _score
 from refine.model.measured import MeasuredModel
-from refine.solid.field import Blob, modulus_field, moment_ellipsoid
+from refine.solid.field import modulus_field
+from refine.solid.gaps import gap_candidates, interior_points  # noqa: F401 - the engine's gap candidates
 from refine.solid.inclusion import MAX_LOG_RATIO, ellipsoid_errors
 from refine.solid.inclusion_diagnosis import body_model, profiled, with_errors
 from refine.solid.inclusion_mesh import FocusedMesh, focus_of, refit_focused
@@ -55,9 +58,11 @@ class EngineConfig:
     the field's ``field_weight`` and ``field_iterations``; ``gaps``: whether gaps in the points
     inside the volume are candidates, a gap where no point lies within ``gap_factor`` times their
     median spacing; ``try_laws``: whether the ``"global"`` causes are tried; ``linear_solver``;
-    ``focus`` (the graded refit of a box-shaped body, None: not), ``profile`` (the ratio's
-    profile: ``profile_threshold``, ``profile_steps``, ``restart_tol``, ``restart_profiles``,
-    ``refit_steps``), ``discretisation`` (the graded fit's coarser refit factor, None: not): as
+    ``model_error``: whether the null level holds the model's discretisation error (its mesh split
+    in eight: one more compile and solve); ``focus`` (the graded refit of a box-shaped body,
+    None: not; its spacings shrunk to at most ``focus_scale`` times the model's cell size:
+    :func:`focus_for`), ``profile`` (the ratio's profile: ``profile_threshold``,
+    ``profile_steps``, ``restart_tol``, ``restart_profiles``, ``refit_steps``), ``discretisation`` (the graded fit's coarser refit factor, None: not): as
     :class:`refine.solid.inclusion_diagnosis.InclusionConfig`."""
 
     alpha: float = 0.01
@@ -68,8 +73,10 @@ class EngineConfig:
     gaps: bool = True
     gap_factor: float = 1.5
     try_laws: bool = True
+    model_error: bool = True
     linear_solver: str = "auto"
     focus: FocusedMesh | None = FocusedMesh()
+    focus_scale: float = 0.625
     profile: bool = True
     profile_threshold: float = 4.0
     profile_steps: int = 4
@@ -139,64 +146,7 @@ class Search:
             return {}
 
 
-def interior_points(model: MeasuredModel, tol: float | None = None) -> np.ndarray:
-    """``(n_points,)`` bool: the points lying inside the volume, farther than ``tol`` (default a
-    tenth of a cell) from every boundary facet of the model's mesh (sampled densely)."""
-    from scipy.spatial import cKDTree
-
-    from refine.solid.inclusion import cell_size
-
-    mesh = model.mesh
-    f = mesh.boundary_facets()[:, :3]
-    n = 6
-    lam = np.array([(i, j, n - i - j) for i in range(n + 1) for j in range(n + 1 - i)], float) / n
-    samples = np.einsum("qc,fcd->fqd", lam, mesh.nodes[f]).reshape(-1, 3)
-    h = cell_size(mesh)
-    d, _ = cKDTree(samples).query(model.obs.reference)
-    return d > (tol if tol is not None else 0.25 * h)
-
-
-def gap_candidates(model: MeasuredModel, factor: float = 1.5, max_regions: int = 2) -> list[Blob]:
-    """Softer candidates where points lie inside the volume: the connected groups of cells (at
-    least four) whose centroid lies farther than ``factor`` times the interior points' median
-    spacing from every point and inside their bounding box, not on the surface; none with fewer
-    than 20 interior points."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
-    inside = interior_points(model)
-    X = model.obs.reference
-    if inside.sum() < 20:
-        return []
-    P = X[inside]
-    tree = cKDTree(P)
-    spacing = float(np.median(tree.query(P, k=2)[0][:, 1]))
-    mesh = model.mesh
-    cent, vol = mesh.centroids(), mesh.volumes()
-    d, _ = cKDTree(X).query(cent)
-    surface = np.zeros(mesh.n_nodes, bool)
-    surface[mesh.boundary_nodes()] = True
-    corners = mesh.cells[:, :4]
-    gap = (d > factor * spacing) & (cent >= P.min(0)).all(1) & (cent <= P.max(0)).all(1) & ~surface[corners].any(1)
-    idx = np.flatnonzero(gap)
-    if idx.size < 4:
-        return []
-    # cells sharing a corner node are neighbours
-    rows = np.repeat(np.arange(idx.size), 4)
-    A = coo_matrix((np.ones(rows.size), (rows, corners[idx].ravel())), shape=(idx.size, mesh.n_nodes)).tocsr()
-    _, labels = connected_components(A @ A.T, directed=False)
-    out = []
-    for k in np.unique(labels):
-        cells = idx[labels == k]
-        if cells.size < 4:
-            continue
-        c, axes, rot = moment_ellipsoid(cent[cells], vol[cells])
-        out.append(Blob(-1, cells, c, axes, rot, float(vol[cells].sum()), float(vol[cells].sum()), 1.6, "gap"))
-    return sorted(out, key=lambda b: -b.volume)[:max_regions]
-
-
-def candidates(search: Search) -> tuple[list[Blob], object]:
+def candidates(search: Search) -> tuple[list, object]:
     """The candidate places: the gaps among the points inside the volume first (where there are
     any), then the modulus field's regions; at most ``max_candidates`` of the field's. Returns
     them and the field."""
@@ -288,11 +238,13 @@ def diagnose_body(bundle: Bundle, config: EngineConfig | None = None, log=print)
     obs = model.obs
     guide, validate = obs.roles == "guide", obs.roles == "validate"
     sigma = bundle.experiment.noise_std or estimate_noise(obs)
-    base, null = checked_baseline(model, obs, sigma)
+    sigma_model = model_error(model, guide, log) if cfg.model_error else 0.0
+    sigma_eff = float(np.hypot(sigma, sigma_model))
+    base, null = checked_baseline(model, obs, sigma, sigma_model=sigma_model, fit_sigma=sigma_eff)
     d = BodyDiagnosis(bundle, cfg, base, null, search_base=base, seconds={"initial": time.perf_counter() - t0})
-    log(f"model: {model.mesh.n_cells} {model.mesh.element} cells, {len(obs.ids)} points; misfit {null.ratio:.2f} x "
-        f"the noise's (p = {null.p_value:.2g})")
-    search = Search(model, guide, validate, sigma, cfg, null, 3 * obs.n_frames * int(guide.sum()), log, base,
+    log(f"model: {model.mesh.n_cells} {model.mesh.element} cells, {len(obs.ids)} points; noise {sigma:.3g}, model "
+        f"discretisation error {sigma_model:.3g}; misfit {null.ratio:.2f} x its null level (p = {null.p_value:.2g})")
+    search = Search(model, guide, validate, sigma_eff, cfg, null, 3 * obs.n_frames * int(guide.sum()), log, base,
                     failed=d.failed)
     stage = "the candidates"
     try:
@@ -323,6 +275,32 @@ def diagnose_body(bundle: Bundle, config: EngineConfig | None = None, log=print)
     return d
 
 
+def model_error(model: MeasuredModel, points, log=print) -> float:
+    """The initial model's discretisation error at ``points`` (length unit:
+    :func:`refine.solid.floor.discretisation_floor`); 0 with a log line where its split mesh
+    cannot be solved."""
+    from refine.solid.floor import discretisation_floor
+
+    e = discretisation_floor(model, points)
+    if not np.isfinite(e):
+        log("  the model's discretisation error is unknown (its mesh split in eight cannot be solved): left out")
+        return 0.0
+    return e
+
+
+def focus_for(cfg: EngineConfig, mesh) -> FocusedMesh | None:
+    """The graded refit's mesh settings for a body whose model is ``mesh``: ``cfg.focus`` with
+    both spacings shrunk alike so that its fine one is at most ``focus_scale`` times the model's
+    cell size (:func:`refine.solid.inclusion.cell_size`): never coarser than the model it refines."""
+    from refine.solid.inclusion import cell_size
+    from refine.solid.inclusion_mesh import coarser
+
+    if cfg.focus is None:
+        return None
+    k = cfg.focus_scale * cell_size(mesh) / cfg.focus.fine
+    return coarser(cfg.focus, k) if k < 1.0 else cfg.focus
+
+
 def _refine(d: BodyDiagnosis, search: Search, log) -> None:
     """The chosen fit refitted (graded box, errors, profile, discretisation) where it has a region."""
     cfg, best = d.config, d.chosen
@@ -330,9 +308,10 @@ def _refine(d: BodyDiagnosis, search: Search, log) -> None:
     t1 = time.perf_counter()
     focused, region = False, None
     shaped = bool(best.shapes) and hasattr(best.hypothesis, "on")
-    if shaped and cfg.focus is not None:
+    focus = focus_for(cfg, best.model.mesh)
+    if shaped and focus is not None:
         region = focus_of(best.shapes[0])
-        fine_base, g = refit_focused(best, guide, validate, sigma, cfg.focus, region=region)
+        fine_base, g = refit_focused(best, guide, validate, sigma, focus, region=region)
         if g is not None and np.isfinite(g.chi2_fit):
             d.coarse, d.base, best, focused = best, fine_base, g, True
             log(f"  on a graded mesh ({g.model.mesh.n_cells} cells): {g.describe()}")
@@ -345,7 +324,7 @@ def _refine(d: BodyDiagnosis, search: Search, log) -> None:
     d.chosen = best
     if focused and cfg.discretisation and d.profile is not None:
         t1 = time.perf_counter()
-        d.discretisation = discretisation_refit(best, guide, validate, sigma, cfg.focus, region, cfg.discretisation)
+        d.discretisation = discretisation_refit(best, guide, validate, sigma, focus, region, cfg.discretisation)
         d.seconds["discretisation"] = time.perf_counter() - t1
 
 
@@ -386,8 +365,10 @@ def rows(d: BodyDiagnosis) -> list[dict]:
     """The hypotheses table: the initial model the search compared with, each fit (its kind and
     score: BIC + held-out misfit), each failure (its reason)."""
     fits = [d.search_base or d.base] + d.tried
-    out = hypothesis_rows(fits, d.failed)
+    out = hypothesis_rows([dataclasses.replace(f, shapes=[]) for f in fits], d.failed)  # its shape rows are 2D
     for r, f in zip(out, fits):
+        r["shapes"] = [[float(v) for v in (*s.centre, *s.axes, s.ratio)] for s in f.shapes]  # [c (3), axes (3), ratio]
+        r["kinds"] = [s.kind for s in f.shapes]
         r["kind"] = f.shapes[0].kind if f.shapes else ("material-law" if f.cause == "material-law" else "none")
         r["score"] = float(_score(f))
     for r in out[len(fits):]:
