@@ -16,8 +16,11 @@ def jobs(search, start) -> dict:
     :class:`refine.diagnosis.search.AtCandidate`). The first region starts x3 or /3 at its
     candidate's outline; a later one starts where the last fit left the others, the new one at
     x1.5 or /1.5, so that the extended model starts close to the last one (a start at /3 could
-    send a spurious second region's fit astray)."""
+    send a spurious second region's fit astray). No region is added to a hole (nothing where
+    the model so far is one)."""
     used = search.used
+    if used and search.best.cause == "hole":
+        return {}
     shapes = [*(search.best.shapes if used else ()), search.shape((1.5 if used else 3.0) ** start.sign)]
     signs = [k.sign for k in (*used, start)]
     return {"ellipse": lambda: fit_regions(search.model, shapes, signs, search.fit, search.hold, search.sigma,

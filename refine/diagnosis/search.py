@@ -114,10 +114,10 @@ def _try_hypotheses(trials: Trials, candidates: list[Candidate]) -> list[Fitted]
     (they start from the candidate alone), then each ``"reshape"`` cause's in turn from each of
     those fits (a reshape cause may read the fits before it, :attr:`AtCandidate.fits`); the
     candidate's best fit (:func:`_score`) is the model so far unless it does not lower the last
-    one's BIC by ``bic_margin`` (the search stops); it stops too once the model explains the data
-    or is a hole (no region is added to a hole). Then, only where no model so far explains the
-    data, each ``"global"`` cause in turn (another material law, then a hole in the law that
-    fitted best), its jobs side by side. A hypothesis whose building, start, fit or remesh raises
+    one's BIC by ``bic_margin`` (the search stops); it stops too once the model explains the
+    data; a candidate where no cause fits (e.g. none adds to a hole) is passed over. Then, only
+    where no model so far explains the data, each ``"global"`` cause in turn (another material
+    law, then a hole in the law that fitted best), its jobs side by side. A hypothesis whose building, start, fit or remesh raises
     is a row of ``trials.failed`` (its reason; its cause its registry cause's first name) and the
     search goes on without it; one the data rule out
     (:class:`~refine.diagnosis.fitted.NotApplicable`) is logged only."""
@@ -180,7 +180,7 @@ def _try_hypotheses(trials: Trials, candidates: list[Candidate]) -> list[Fitted]
         if best is not None and top.bic > best.bic - cfg.bic_margin:
             break  # the extra region does not pay for its parameters
         best, used = top, (*used, c)
-        if trials.explains(best) or best.cause == "hole":
+        if trials.explains(best):
             break
     if best is None or not trials.explains(best):
         for cause in causes(2, "global"):
