@@ -8,7 +8,8 @@ Any point layout: a gap is judged against the layout's own density where the poi
 full lattice (an export thinned for size leaves wide empty discs by chance), and a narrower gap
 inside a softer candidate proposes a hole too; a candidate at the outline where the points are
 noisier than elsewhere (correlation lost near a free edge) is judged against that edge's own
-noise.
+noise. Each way of proposing places is a registered source (:mod:`refine.causes.sources`) calling
+these functions; :func:`data_candidates` lists every 2D source's candidates.
 """
 
 from __future__ import annotations
