@@ -123,7 +123,7 @@ def test_rectangles_are_tried_only_where_the_points_resolve_corners():
     from types import SimpleNamespace
 
     from refine.diagnosis.config import DiagnoseConfig
-    from refine.diagnosis.search import _rectangles_wanted
+    from refine.causes.rectangle import rectangles_wanted as _rectangles_wanted
     from refine.diagnosis.shapes import RegionShape
 
     model = SimpleNamespace(spacing=5.0)

@@ -121,6 +121,7 @@ KINDS = ("regions", "hole", "rectangle", "ellipse remeshed", "law", "hole with l
 
 @pytest.mark.parametrize("failing", KINDS)
 def test_each_hypothesis_kind_that_fails_is_a_row_and_the_others_still_run(monkeypatch, failing):
+    import refine.causes as causes
     from refine.diagnosis import search
     from refine.diagnosis.laws import ALTERNATIVE_LAWS
 
@@ -139,12 +140,13 @@ def test_each_hypothesis_kind_that_fails_is_a_row_and_the_others_still_run(monke
 
     soft = RegionShape((5.0, 5.0), (3.0, 2.0), 0.1, "ellipse", 0.5)
     region = _Fake("softer-region", 300.0, (soft,))
-    monkeypatch.setattr(search, "fit_regions", job("regions", region))
-    monkeypatch.setattr(search, "fit_hole", job("hole", _Fake("hole", 400.0, (soft,))))
-    monkeypatch.setattr(search, "fit_rectangle", job("rectangle", _Fake("softer-region", 350.0, (soft,))))
-    monkeypatch.setattr(search, "refit_ellipse", job("ellipse remeshed", _Fake("softer-region", 290.0, (soft,))))
-    monkeypatch.setattr(search, "fit_law", job("law", _Fake("material-law", 320.0)))
-    monkeypatch.setattr(search, "hole_law_jobs",
+    monkeypatch.setattr(causes.region, "fit_regions", job("regions", region))
+    monkeypatch.setattr(causes.hole, "fit_hole", job("hole", _Fake("hole", 400.0, (soft,))))
+    monkeypatch.setattr(causes.rectangle, "fit_rectangle", job("rectangle", _Fake("softer-region", 350.0, (soft,))))
+    monkeypatch.setattr(causes.rectangle, "refit_ellipse",
+                        job("ellipse remeshed", _Fake("softer-region", 290.0, (soft,))))
+    monkeypatch.setattr(causes.law, "fit_law", job("law", _Fake("material-law", 320.0)))
+    monkeypatch.setattr(causes.hole_in_law, "hole_law_jobs",
                         lambda model, out, *a: {"hole with law": job("hole with law", _Fake("hole", 310.0, (soft,)))})
     cfg = DiagnoseConfig(try_rectangles=True, try_laws=True)
     model = SimpleNamespace(experiment=SimpleNamespace(law=law), spacing=1.0)
@@ -266,8 +268,9 @@ def inclusion(tmp_path_factory):
 def test_a_failure_in_the_final_fit_writes_the_rows_so_far_and_exits_non_zero(inclusion, tmp_path, monkeypatch):
     """The search's rows (a fitted region, a failed rectangle with its reason) survive a failure in
     the chosen model's refit."""
+    from refine.causes import rectangle
     from refine.cli.main import main
-    from refine.diagnosis import pipeline, search
+    from refine.diagnosis import pipeline
 
     def no_rectangle(*a, **k):
         raise ValueError("forced: no rectangle")
@@ -275,7 +278,7 @@ def test_a_failure_in_the_final_fit_writes_the_rows_so_far_and_exits_non_zero(in
     def no_refit(*a, **k):
         raise jf.exceptions.MeshError("forced: an ellipse needs positive semi-axes")
 
-    monkeypatch.setattr(search, "fit_rectangle", no_rectangle)
+    monkeypatch.setattr(rectangle, "fit_rectangle", no_rectangle)
     monkeypatch.setattr(pipeline, "_refit_on_every_frame", no_refit)
     out = tmp_path / "out"
     status = main(["diagnose", str(inclusion), "--out", str(out), "--max-regions", "1", "--no-laws",

@@ -8,7 +8,8 @@ Any point layout: a gap is judged against the layout's own density where the poi
 full lattice (an export thinned for size leaves wide empty discs by chance), and a narrower gap
 inside a softer candidate proposes a hole too; a candidate at the outline where the points are
 noisier than elsewhere (correlation lost near a free edge) is judged against that edge's own
-noise.
+noise. Each way of proposing places is a registered source (:mod:`refine.causes.sources`) calling
+these functions; :func:`data_candidates` lists every 2D source's candidates.
 """
 
 from __future__ import annotations
@@ -288,32 +289,16 @@ def joined(cands: list[Candidate], mesh, gap: float) -> list[Candidate]:
 
 
 def data_candidates(model, z, predicted, fit, sigma: float, cfg) -> list[Candidate]:
-    """Where to look, strongest evidence first: gaps in the tracked points inside the domain
-    (no material was seen there: a hole, or material that could not be tracked), then narrower
-    gaps inside a softer candidate (:func:`soft_gaps`: a hole tried where a gap and a soft patch
-    coincide), the fitted modulus field's regions (those of one sign a point spacing apart
-    joined: :func:`joined`), then the measured strain map's departures
-    from the initial model's in the frame of most motion; one place seen twice is kept once; a
-    field or strain candidate at a noisy edge that the edge's own noise explains is left out
-    (:func:`edge_artefact`).
+    """Where to look: every registered 2D candidate source's candidates
+    (:func:`refine.causes.sources.sources`), listed in the sources' order (today gaps in the
+    tracked points inside the domain, then narrower gaps inside a softer candidate, the fitted
+    modulus field's regions, the measured strain map's departures from the initial model's), one
+    place seen twice kept once (:func:`merged`).
 
     Args: model: the search's model; z: the fitted log-modulus field per cell; predicted: the
     initial model's displacements ``(frames, n_points, 2)``; fit: ``(n_points,)`` mask of the
     fitting points (no held-out point proposes a place); sigma: the noise (length unit); cfg: a
     :class:`~refine.diagnosis.config.DiagnoseConfig`."""
-    obs, domain = model.obs, model.experiment.domain
-    field = segment(model.mesh, z, min_area=0.5 * model.spacing**2, max_regions=cfg.max_regions)
-    field = [c for c in field if c.strength >= 0.2 * field[0].strength] if field else []
-    field = joined(field, model.mesh, model.spacing)
-    strain = []
-    if cfg.strain_candidates > 0:
-        k = int(np.nanargmax(np.nanmedian(np.linalg.norm(obs.displacements, axis=2), axis=1)))
-        seen = (fit | (obs.roles == "boundary")) & obs.valid[k]  # no held-out point proposes a place
-        strain = strain_regions(obs.reference[seen], obs.displacements[k, seen], predicted[k, seen], sigma,
-                                min_area=2.0 * model.spacing**2, max_regions=cfg.strain_candidates)
-    residuals = np.asarray(obs.displacements) - np.asarray(predicted)
-    field, strain = ([c for c in cs if not edge_artefact(c, obs, residuals, fit, domain, model.spacing, sigma)]
-                     for cs in (field, strain))
-    gaps = missing_point_regions(obs.reference, domain)[:cfg.max_regions]
-    gaps = merged(gaps, soft_gaps(obs.reference, domain, field + strain))
-    return merged(gaps, field, strain)
+    from refine.causes.sources import Look, find_all  # (the sources import this module)
+
+    return merged(*find_all(2, Look(model, z, predicted, fit, sigma, cfg)))

@@ -1,7 +1,9 @@
 """The diagnosis's search (:mod:`refine.diagnosis.pipeline`, step 3): what every hypothesis is
-fitted and judged with (:class:`Trials`), the hypotheses tried greedily from the candidate regions
-(:func:`_try_hypotheses`: regions, holes, rectangles, other material laws, fitted side by side in
-the diagnosis's pool) and the choice among them (:func:`_choose`, by :func:`_score`)."""
+fitted and judged with (:class:`Trials`), the hypotheses tried greedily from the candidate places
+(:func:`_try_hypotheses`, looping the registry's 2D causes, :func:`refine.causes.causes`, fitted
+side by side in the diagnosis's pool) and the choice among them (:func:`_choose`, by
+:func:`_score`). No cause is named here: a 2D cause is a file of :mod:`refine.causes` whose jobs
+see the search at a candidate (:class:`AtCandidate`)."""
 
 from __future__ import annotations
 
@@ -11,14 +13,11 @@ from typing import Callable
 
 import numpy as np
 
+from refine.causes.registry import causes
 from refine.diagnosis.config import DiagnoseConfig
 from refine.diagnosis.fitted import Failed, Fitted, NotApplicable
-from refine.diagnosis.holes import fit_hole
-from refine.diagnosis.hole_law import hole_law_jobs
-from refine.diagnosis.laws import ALTERNATIVE_LAWS, fit_law
 from refine.diagnosis.localize import Candidate
 from refine.diagnosis.noise import NullTest
-from refine.diagnosis.regions import fit_rectangle, fit_regions, refit_ellipse
 from refine.diagnosis.shapes import RegionShape
 from refine.model.measured import MeasuredModel
 
@@ -36,6 +35,8 @@ class Trials:
         appended by the search: rows of the report's hypotheses table with their reasons);
         fitted: the hypotheses fitted so far (what :func:`_try_hypotheses` returns, kept here too
         so that a search cut short still has them).
+
+    A ``"global"`` 2D cause's jobs see the search as this (``start`` None).
     """
 
     model: MeasuredModel
@@ -55,23 +56,74 @@ class Trials:
         return f.chi2_fit / max(self.n_fit, 1) < 1.5 * (1.0 + self.null.propagation)
 
 
-def _shape_of(c: Candidate, ratio: float) -> RegionShape:
-    """A candidate's ellipse, started at ``ratio``."""
-    return RegionShape((float(c.centroid[0]), float(c.centroid[1])), (float(c.axes[0]), float(c.axes[1])), c.angle,
-                       "ellipse", ratio)
+@dataclass(frozen=True)
+class AtCandidate:
+    """The search at one candidate place, as a ``"place"`` or ``"reshape"`` 2D cause's jobs see it
+    (every attribute of :class:`Trials` too: ``model``, ``fit``, ``hold``, ``sigma``, ``cfg``...).
+
+    Attributes:
+        trials: the search's :class:`Trials`; candidate: the place tried now;
+        used: the candidates of the model so far (empty: this is the first region);
+        best: the model so far (the fit that ``used`` gave; None before the first);
+        fits: this candidate's fits so far by job name, in the order tried (None: not fitted):
+            the place causes' jobs, then each reshape cause's in turn.
+    """
+
+    trials: Trials
+    candidate: Candidate
+    used: tuple
+    best: Fitted | None
+    fits: dict
+
+    def __getattr__(self, name):
+        if name == "trials":  # (not set yet: a copy being made)
+            raise AttributeError(name)
+        return getattr(self.trials, name)
+
+    def shape(self, ratio: float | None) -> RegionShape:
+        """The candidate's ellipse, started at modulus ratio ``ratio`` (None: a hole's)."""
+        c = self.candidate
+        return RegionShape((float(c.centroid[0]), float(c.centroid[1])), (float(c.axes[0]), float(c.axes[1])),
+                           c.angle, "ellipse", ratio)
+
+    def leads(self, f: Fitted) -> bool:
+        """Whether ``f`` has the lowest :func:`_score` of this candidate's fits so far."""
+        return min((g for g in self.fits.values() if g is not None), key=_score) is f
+
+
+@dataclass(frozen=True)
+class Superseding:
+    """A ``"reshape"`` job whose fit supersedes its ``start`` (e.g. a fitted region remeshed at its
+    fit): where it fits, it takes the start's place among the candidate's fits (under the start's
+    job name) and the start as first fitted leaves the list of fits; its own name adds no entry."""
+
+    job: Callable
+    start: Fitted
+
+    def __call__(self) -> Fitted:
+        return self.job()
+
+
+def _failed_cause(cause) -> str:
+    """What a failed job of ``cause`` names in the hypotheses table: its first name."""
+    return cause.names[0] if cause.names else cause.name
 
 
 def _try_hypotheses(trials: Trials, candidates: list[Candidate]) -> list[Fitted]:
-    """Greedy: the strongest candidate region first (as a stiffer/softer region, and as a hole
-    when softer, the two fitted side by side); add the next candidate only while the misfit is
-    still above the null level; other material laws (side by side) only if no region explains
-    the data, then the best hole in the law that fitted best (:func:`hole_law_jobs`). A hypothesis
-    whose building, start, fit or remesh raises is recorded in ``trials.failed`` (its reason) and
-    the search goes on without it."""
-    out = trials.fitted
-    model, fit, hold, sigma, cfg, log = trials.model, trials.fit, trials.hold, trials.sigma, trials.cfg, trials.log
+    """Greedy, from the strongest candidate: every ``"place"`` cause's jobs at it, side by side
+    (they start from the candidate alone), then each ``"reshape"`` cause's in turn from each of
+    those fits (a reshape cause may read the fits before it, :attr:`AtCandidate.fits`); the
+    candidate's best fit (:func:`_score`) is the model so far unless it does not lower the last
+    one's BIC by ``bic_margin`` (the search stops); it stops too once the model explains the
+    data; a candidate where no cause fits (e.g. none adds to a hole) is passed over. Then, only
+    where no model so far explains the data, each ``"global"`` cause in turn (another material
+    law, then a hole in the law that fitted best), its jobs side by side. A hypothesis whose building, start, fit or remesh raises
+    is a row of ``trials.failed`` (its reason; its cause its registry cause's first name) and the
+    search goes on without it; one the data rule out
+    (:class:`~refine.diagnosis.fitted.NotApplicable`) is logged only."""
+    out, cfg, log = trials.fitted, trials.cfg, trials.log
 
-    def attempt(name, job):
+    def attempt(cause, name, job):
         try:
             f = job()
             log(f"  tried {f.describe()}")
@@ -80,87 +132,60 @@ def _try_hypotheses(trials: Trials, candidates: list[Candidate]) -> list[Fitted]
             log(f"  not tried: {e}")
             return None
         except Exception as e:  # noqa: BLE001 - a hypothesis that cannot be fitted is a row with its reason
-            trials.failed.append(Failed.of(name, _cause_of_job(name), e))
+            trials.failed.append(Failed.of(name, _failed_cause(cause), e))
             log(f"  could not fit {name}: {type(e).__name__}: {e}")
             return None
 
-    def side_by_side(**jobs):
-        """Fit the jobs (name: a function of nothing) in the pool; their fits by name (None: not fitted)."""
-        futures = {name: trials.pool.submit(attempt, name, job) for name, job in jobs.items()}
+    def jobs_of(cause, search, starts) -> dict:
+        """``cause``'s jobs from each of ``starts`` (name: (cause, job)); none where its
+        ``applies`` says why not (logged); a cause whose jobs raise is a row with its reason."""
+        why = cause.applies(search)
+        if why:
+            log(f"  {cause.name} not tried: {why}")
+            return {}
+        jobs = {}
+        for start in starts:
+            try:
+                jobs.update({name: (cause, job) for name, job in (cause.jobs(search, start) or {}).items()})
+            except Exception as e:  # noqa: BLE001 - a cause that cannot say its jobs is a row too
+                trials.failed.append(Failed.of(cause.name, _failed_cause(cause), e))
+                log(f"  could not start {cause.name}: {type(e).__name__}: {e}")
+        return jobs
+
+    def side_by_side(jobs: dict) -> dict:
+        """Fit the jobs (name: (cause, a function of nothing)) in the pool; their fits by name (None: not fitted)."""
+        futures = {name: trials.pool.submit(attempt, cause, name, job) for name, (cause, job) in jobs.items()}
         fits = {name: f.result() for name, f in futures.items()}
         out.extend(f for f in fits.values() if f is not None)
         return fits
 
-    best = None
-    used: list[Candidate] = []
+    best, used = None, ()
     for c in candidates:
-        trial = used + [c]
-        # the first region starts x3 or /3 at its candidate's outline; later ones start where the
-        # last fit left the others, the new one at x1.5 or /1.5, so the extended model starts
-        # close to the last one (a start at /3 could send a spurious second region's fit astray)
-        shapes = [*(best.shapes if used else ()), _shape_of(c, (1.5 if used else 3.0) ** c.sign)]
-        signs = [k.sign for k in trial]
-        jobs = {"ellipse": lambda: fit_regions(model, shapes, signs, fit, hold, sigma, restarts=())}
-        if c.sign < 0 and not used:
-            jobs["hole"] = lambda: fit_hole(model, _shape_of(c, None), fit, hold, sigma)
-        fits = side_by_side(**jobs)
-        soft, hole = fits.get("ellipse"), fits.get("hole")
-        # A very soft region may be a hole whose fit from the candidate's rough outline settled
-        # badly: try the hole again from the soft region's fitted outline, unless the first
-        # hole fit was far off (over twice the soft region's misfit: the outline is not it).
-        if ("hole" in jobs and soft is not None and soft.cause == "softer-region"
-                and soft.shapes[0].ratio < cfg.hole_below
-                and (hole is None or (soft.bic < hole.bic and hole.chi2_fit < 2.0 * soft.chi2_fit))):
-            fits.update(side_by_side(**{"hole from region": lambda: fit_hole(model, soft.shapes[0], fit, hold, sigma)}))
-        region = fits.get("ellipse")
-        if (not used and region is not None  # one region: never "regions"
-                and _rectangles_wanted(region, model, cfg, trials.explains(region))
-                and min((f for f in fits.values() if f is not None), key=_score) is region):
-            # the region as a rectangle, from the fitted ellipse, turned 0 and pi/4 from it, beside
-            # the ellipse remeshed at its fit (each rectangle is remeshed at its fit too)
-            more = side_by_side(
-                **{"rectangle": lambda: fit_rectangle(model, region, 0.0, fit, hold, sigma),
-                   "rectangle turned": lambda: fit_rectangle(model, region, np.pi / 4, fit, hold, sigma),
-                   "ellipse remeshed": lambda: refit_ellipse(region, fit, hold)})
-            fits.update(rectangle=more["rectangle"], **{"rectangle turned": more["rectangle turned"]})
-            if more["ellipse remeshed"] is not None:  # the ellipse as first fitted is superseded by its remeshed fit
-                fits["ellipse"] = more["ellipse remeshed"]
-                out.remove(region)  # (listed once, also when the remesh kept it)
-        fits = [f for f in fits.values() if f is not None]
+        at = AtCandidate(trials, c, used, best, {})
+        at.fits.update(side_by_side({k: v for cause in causes(2, "place") for k, v in jobs_of(cause, at, [c]).items()}))
+        placed = [f for f in at.fits.values() if f is not None]
+        for cause in causes(2, "reshape"):
+            jobs = jobs_of(cause, at, placed)
+            for name, f in side_by_side(jobs).items():
+                job = jobs[name][1]
+                if not isinstance(job, Superseding):
+                    at.fits[name] = f
+                elif f is not None:  # the start as first fitted is superseded (listed once, also when kept)
+                    at.fits[next(k for k, g in at.fits.items() if g is job.start)] = f
+                    out.remove(job.start)
+        fits = [f for f in at.fits.values() if f is not None]
         if not fits:
             continue
         top = min(fits, key=_score)
         if best is not None and top.bic > best.bic - cfg.bic_margin:
             break  # the extra region does not pay for its parameters
-        best, used = top, trial
-        if trials.explains(best) or best.cause == "hole":
+        best, used = top, (*used, c)
+        if trials.explains(best):
             break
-    if cfg.try_laws and (best is None or not trials.explains(best)):
-        side_by_side(**{law: (lambda law=law: fit_law(model, law, fit, hold, sigma))
-                        for law in ALTERNATIVE_LAWS.get(model.experiment.law, ())})
-        side_by_side(**hole_law_jobs(model, out, fit, hold, sigma))  # a hole in the law that fitted best
+    if best is None or not trials.explains(best):
+        for cause in causes(2, "global"):
+            side_by_side(jobs_of(cause, trials, [None]))
     return out
-
-
-def _cause_of_job(name: str) -> str:
-    """What a search job (by its name in :func:`_try_hypotheses`) would have named: a hole, a
-    material law (a law's name), a hole in another law, or a region."""
-    if name.startswith("hole"):  # "hole", "hole from region", "hole with LAW"
-        return "hole"
-    if name in {law for laws in ALTERNATIVE_LAWS.values() for law in laws}:
-        return "material-law"
-    return "region"
-
-
-def _rectangles_wanted(region: Fitted, model, cfg: DiagnoseConfig, explained: bool = False) -> bool:
-    """Whether to fit ``region`` (one fitted ellipse) as a rectangle too: as
-    ``cfg.try_rectangles`` says, or, when it is None, where the ellipse leaves a misfit the noise
-    does not explain (``explained`` False) and its smaller semi-axis spans
-    ``cfg.rectangle_spacings`` grid spacings (fewer tracked points along a side cannot tell a
-    corner from a curve)."""
-    if cfg.try_rectangles is not None:
-        return bool(cfg.try_rectangles)
-    return not explained and min(region.shapes[0].axes) >= cfg.rectangle_spacings * model.spacing
 
 
 def _score(f: Fitted) -> float:
