@@ -121,6 +121,12 @@ _CACHE_HIT = "/jax/compilation_cache/cache_hits"
 def _on_event(event: str, **_) -> None:
     if event == _CACHE_HIT:
         _hit.flag = True
+        _hit.count = getattr(_hit, "count", 0) + 1
+
+
+def hits_here() -> int:
+    """Programs this thread has loaded from JAX's persistent cache so far."""
+    return getattr(_hit, "count", 0)
 
 
 def _on_duration(event: str, duration: float, fun_name: str = "?", **_) -> None:

@@ -9,7 +9,7 @@ executables (``jax.experimental.serialize_executable``), found by a key the call
 - the function's ``name``, the function itself and what else its code depends on besides the argument shapes (``depends``:
   strings, numbers, tuples, dataclasses, functions: a function by its module, qualified name,
   byte code and closure, recursively; a function defined outside :mod:`jaxfem` also by its
-  module's source text);
+  module's source text; an object whose class has ``__stable_key__(self)``, by what that returns);
 - the argument structure, shapes, dtypes and weak types;
 - the source text of every module of :mod:`jaxfem` (any edit of the library is another key),
   the JAX and jaxlib versions, the backend, its devices and ``XLA_FLAGS``.
@@ -19,7 +19,10 @@ compiles as ``jax.jit`` does (through the persistent cache) and writes it. Where
 ``depends`` has no stable key (an object without a plain ``repr``), or the cache is off
 (:func:`jaxfem.cache.cache_dir` None), the call is plain ``jax.jit``. The executables live in
 the subfolder :data:`FOLDER` of the cache folder (``nonrigid cache clear`` empties it too). A
-program that calls back into Python cannot be serialized: give such functions to ``jax.jit``.
+program that calls back into Python cannot be serialized. Not written either: an executable that
+JAX's persistent cache gave (not compiled in this process: it serializes without its object
+code), and one with a custom call (a LAPACK kernel, e.g. ``eigvalsh``: JAX registers those when
+it lowers a program that uses them, and an executable loaded before that crashes the process).
 """
 
 from __future__ import annotations
@@ -94,6 +97,9 @@ def stable_key(x, depth: int = 0):
         return "{" + ",".join(f"{k}:{v}" for k, v in sorted(parts)) + "}"
     if isinstance(x, np.ndarray):
         return f"array({x.dtype},{x.shape},{hashlib.sha256(np.ascontiguousarray(x).tobytes()).hexdigest()})"
+    own = getattr(type(x), "__stable_key__", None)  # an object that states its own key
+    if own is not None:
+        return stable_key((type(x), own(x)), depth + 1)
     if dataclasses.is_dataclass(x):
         fields = [(f.name, getattr(x, f.name)) for f in dataclasses.fields(x)]
         return stable_key((type(x), tuple(fields)), depth + 1)
@@ -136,6 +142,10 @@ class Kept:
         self._loaded: dict = {}
         self._lock = threading.Lock()
 
+    def _cache_size(self) -> int:
+        """The programs this function holds (as ``jax.jit``'s ``_cache_size``: compiled or loaded)."""
+        return self.jitted._cache_size() + len(self._loaded)
+
     def __call__(self, *args):
         folder = cache.cache_dir() if self._key is not None else None
         if folder is None:
@@ -163,10 +173,19 @@ class Kept:
                 try:
                     run = deserialize_and_load(*pickle.loads(path.read_bytes()))
                     cache.count_kept(time.perf_counter() - t0)
-                except Exception:  # noqa: BLE001 - a damaged or foreign file: compile again, over it
+                except Exception:  # noqa: BLE001 - a damaged or foreign file: dropped, compiled again
+                    path.unlink(missing_ok=True)
                     run = None
             if run is None:
-                run = self.jitted.lower(*args).compile()
+                lowered = self.jitted.lower(*args)
+                hits = cache.hits_here()
+                run = lowered.compile()
+                # not written: an executable JAX's persistent cache gave (it serializes without its
+                # object code: a later load fails, "Function ... not found"), or one with a custom
+                # call (a LAPACK kernel that a process registers when lowering: loaded unlowered, it crashes)
+                if cache.hits_here() > hits or "custom_call" in lowered.as_text():
+                    self._loaded[sig] = run
+                    return run
                 try:
                     data = pickle.dumps(serialize(run))
                     folder.mkdir(parents=True, exist_ok=True)

@@ -98,6 +98,10 @@ class Program:
         self.linear = jax.jit(lin)  # for a solver that runs in XLA (a host solver's is never called so)
         self.linear_many = jax.jit(jax.vmap(lin, in_axes=(None, 1, None), out_axes=1))
 
+    def __stable_key__(self):
+        """What :mod:`jaxfem.executables` keys a function that closes over this program by."""
+        return self.depends
+
     def sizes_for(self, own: padding.Sizes, reuse: float = REUSE) -> padding.Sizes:
         """The padded sizes a new solver of real sizes ``own`` (padded to its own bucket) is given:
         the smallest padded sizes this program already gave that hold it (:func:`padding.fits`)
