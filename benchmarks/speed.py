@@ -70,11 +70,11 @@ def child(bundle: str, out: str, linear_solver: str, row_to: str) -> None:
         "printed": printed}))
 
 
-def run_case(key: str, bundle: str, folder: Path, linear_solver: str) -> dict:
+def run_case(key: str, bundle: str, folder: Path, linear_solver: str, modes=tuple(MODES)) -> dict:
     """``key``'s bundle diagnosed cold (empty cache folder) then warm, each in a fresh process, by
-    the code after and before the host loop (:data:`MODES`)."""
+    the code after and (where ``modes`` holds "before") before the host loop (:data:`MODES`)."""
     row = {"case": key, "load": [round(os.getloadavg()[0], 2)]}
-    for mode, newton in MODES.items():
+    for mode, newton in ((m, MODES[m]) for m in modes):
         cache = folder / mode / "cache"
         runs = {}
         for run in ("cold", "warm"):
@@ -90,13 +90,14 @@ def run_case(key: str, bundle: str, folder: Path, linear_solver: str) -> dict:
             row["load"].append(round(os.getloadavg()[0], 2))
             print(f"{key} {mode} {run}: {got['process_wall_s']} s wall, {got['process_cpu_s']} CPU s, compiled "
                   f"{got['compiles']['compiled']} ({got['compiles']['compile_seconds']} s), loaded "
-                  f"{got['compiles']['cached']} ({got['compiles']['cached_seconds']} s), floor "
+                  f"{got['compiles']['cached']} ({got['compiles']['cached_seconds']} s), kept whole "
+                  f"{got['compiles'].get('kept', 0)} ({got['compiles'].get('kept_seconds', 0)} s), floor "
                   f"{got['floor']['seconds']} s", flush=True)
         if mode == "after":
             row.update(runs)
         else:
             row[mode] = runs
-    runs = [row["cold"], row["warm"], row["before"]["cold"], row["before"]["warm"]]
+    runs = [row["cold"], row["warm"], *((row["before"]["cold"], row["before"]["warm"]) if "before" in row else ())]
     row["same_finding"] = all(r["printed"] == runs[0]["printed"] and r["findings"] == runs[0]["findings"] for r in runs)
     return row
 
@@ -127,8 +128,10 @@ def plot(rows: list[dict], path: Path) -> None:
     w = 0.8 / len(bars)
     for i, (label, run) in enumerate(bars):
         xi = x + (i - (len(bars) - 1) / 2) * w
-        ax.bar(xi, [run(r)["process_wall_s"] for r in rows], w, color=f"C{i}", label=f"{label}: wall s")
-        ax.bar(xi, [run(r)["compiles"]["compile_seconds"] for r in rows], w * 0.5, color="k", alpha=0.5,
+        shown = [r for r in rows if "before" in r or not label.startswith("before")]  # --after-only: no before
+        ax.bar(xi, [run(r)["process_wall_s"] if r in shown else 0 for r in rows], w, color=f"C{i}",
+               label=f"{label}: wall s")
+        ax.bar(xi, [run(r)["compiles"]["compile_seconds"] if r in shown else 0 for r in rows], w * 0.5, color="k", alpha=0.5,
                label="compiling s" if i == 0 else None)
     ax.scatter(x, [r["warm"]["floor"]["seconds"] for r in rows], color="r", marker="_", s=400, zorder=3,
                label="floor (factor + solve s)")
@@ -147,6 +150,7 @@ def main(argv=None) -> int:
     p.add_argument("--quick", action="store_true", help="the hole case alone")
     p.add_argument("--cases", nargs="*", default=None, help=f"SPACING/NOISE/CAUSE/K (default: {' '.join(CASES)})")
     p.add_argument("--linear-solver", default="auto")
+    p.add_argument("--after-only", action="store_true", help="the current code alone (no NONRIGID_NEWTON=jit runs)")
     p.add_argument("--out", type=Path, default=OUT / "speed.json")
     p.add_argument("--child", nargs=4, default=None, help=argparse.SUPPRESS)
     a = p.parse_args(argv)
@@ -163,9 +167,11 @@ def main(argv=None) -> int:
         for key in keys:
             folder = Path(tmp) / key.replace("/", "_")
             folder.mkdir()
-            rows.append(run_case(key, bundles[key], folder, a.linear_solver))
+            rows.append(run_case(key, bundles[key], folder, a.linear_solver,
+                                 ("after",) if a.after_only else tuple(MODES)))
     result = {"machine": {"cpu_count": os.cpu_count(), "load_at_end": round(os.getloadavg()[0], 2)},
-              "settings": {"cases": keys, "linear_solver": a.linear_solver, "quick": a.quick},
+              "settings": {"cases": keys, "linear_solver": a.linear_solver, "quick": a.quick,
+                           "after_only": a.after_only},
               "rows": rows, "targets": targets(rows)}
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text(json.dumps(result, indent=1))

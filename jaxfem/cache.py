@@ -37,6 +37,7 @@ CACHE_DIR_ENV = "NONRIGID_CACHE_DIR"
 MAX_CACHE_BYTES = 4 << 30
 _OFF = ("0", "no", "off", "false")
 _SUFFIXES = ("-cache", "-atime")  # the files JAX's cache writes (an entry and its access time)
+_KEPT = ("executables", ".xla")  # jaxfem.executables' subfolder and files (whole executables)
 
 
 def default_cache_dir() -> Path | None:
@@ -85,17 +86,17 @@ def cache_info(path=None) -> dict:
     files = _entries(folder) if folder is not None else []
     return {"dir": None if folder is None else str(folder),
             "enabled": folder is not None and cache_dir() is not None and folder.resolve() == cache_dir().resolve(),
-            "entries": sum(f.name.endswith("-cache") for f in files), "bytes": sum(f.stat().st_size for f in files)}
+            "entries": sum(f.name.endswith(("-cache", _KEPT[1])) for f in files), "bytes": sum(f.stat().st_size for f in files)}
 
 
 def clear_cache(path=None) -> int:
     """Delete the programs kept in the folder ``path`` (default as :func:`cache_info`); only the
-    files JAX's cache writes go, the folder and anything else in it stay. Returns the number of
+    files JAX's cache and :mod:`jaxfem.executables` write go, the folder and anything else in it stay. Returns the number of
     programs deleted."""
     folder = Path(path) if path is not None else (cache_dir() or default_cache_dir())
     n = 0
     for f in _entries(folder) if folder is not None else []:
-        n += f.name.endswith("-cache")
+        n += f.name.endswith(("-cache", _KEPT[1]))
         f.unlink(missing_ok=True)
     return n
 
@@ -103,13 +104,15 @@ def clear_cache(path=None) -> int:
 def _entries(folder: Path) -> list[Path]:
     if not folder.is_dir():
         return []
-    return [f for f in folder.iterdir() if f.is_file() and f.name.endswith(_SUFFIXES)]
+    kept = folder / _KEPT[0]
+    return ([f for f in folder.iterdir() if f.is_file() and f.name.endswith(_SUFFIXES)]
+            + ([f for f in kept.iterdir() if f.is_file() and f.name.endswith(_KEPT[1])] if kept.is_dir() else []))
 
 
 # ---------------------------------------------------------------------- compile counts
 _lock = threading.Lock()
 _hit = threading.local()  # a cache hit is announced, on the compiling thread, before its duration
-_counts = {"compiled": 0, "compile_seconds": 0.0, "cached": 0, "cached_seconds": 0.0}
+_counts = {"compiled": 0, "compile_seconds": 0.0, "cached": 0, "cached_seconds": 0.0, "kept": 0, "kept_seconds": 0.0}
 _by_name: dict[str, list] = {}  # program name -> [compiled, compile seconds, cached, cached seconds]
 _BACKEND_COMPILE = "/jax/core/compile/backend_compile_duration"
 _CACHE_HIT = "/jax/compilation_cache/cache_hits"
@@ -118,6 +121,12 @@ _CACHE_HIT = "/jax/compilation_cache/cache_hits"
 def _on_event(event: str, **_) -> None:
     if event == _CACHE_HIT:
         _hit.flag = True
+        _hit.count = getattr(_hit, "count", 0) + 1
+
+
+def hits_here() -> int:
+    """Programs this thread has loaded from JAX's persistent cache so far."""
+    return getattr(_hit, "count", 0)
 
 
 def _on_duration(event: str, duration: float, fun_name: str = "?", **_) -> None:
@@ -137,10 +146,18 @@ jax.monitoring.register_event_listener(_on_event)
 jax.monitoring.register_event_duration_secs_listener(_on_duration)
 
 
+def count_kept(seconds: float) -> None:
+    """Count one executable loaded whole (:mod:`jaxfem.executables`: no trace, no lowering)."""
+    with _lock:
+        _counts["kept"] += 1
+        _counts["kept_seconds"] += seconds
+
+
 def compile_counts() -> dict:
     """The process's programs so far: ``compiled`` (count) and ``compile_seconds`` (wall seconds
-    compiling them), ``cached`` and ``cached_seconds`` (loaded from the persistent cache instead),
-    and ``by_name`` (``{program name: [compiled, seconds, cached, seconds]}``)."""
+    compiling them), ``cached`` and ``cached_seconds`` (loaded from the persistent cache instead,
+    after a trace and a lowering), ``kept`` and ``kept_seconds`` (executables loaded whole from
+    the cache folder's ``executables/``: :mod:`jaxfem.executables`), and ``by_name`` (``{program name: [compiled, seconds, cached, seconds]}``)."""
     with _lock:
         return {**_counts, "by_name": {k: list(v) for k, v in _by_name.items()}}
 
@@ -151,7 +168,7 @@ def compiles_since(before: dict, top: int = 5) -> dict:
     the ``top`` programs by compile seconds (``[name, compiled, seconds]``)."""
     now = compile_counts()
     out = {k: now[k] - before[k] for k in _counts}
-    out.update({k: round(out[k], 2) for k in ("compile_seconds", "cached_seconds")})
+    out.update({k: round(out[k], 2) for k in ("compile_seconds", "cached_seconds", "kept_seconds")})
     grew = {}
     for name, row in now["by_name"].items():
         old = before["by_name"].get(name, [0, 0.0, 0, 0.0])

@@ -155,10 +155,10 @@ def padded_arrays(s: Sizes, cells: np.ndarray, pattern: Pattern, fixed: np.ndarr
     n, n_p, nnz, nnz_p = s.n_dofs, s.n_dofs_p, s.nnz, s.nnz_p
     pad_dofs = np.arange(n, n_p)
     extra = nnz_p - nnz - len(pad_dofs)
-    i, j = np.triu_indices(len(pad_dofs), 1)
     half = -(-extra // 2)
-    fill_r = np.stack([i[:half], j[:half]], 1).ravel()[:extra] + n  # (i, j) then (j, i): a pattern of its own
-    fill_c = np.stack([j[:half], i[:half]], 1).ravel()[:extra] + n
+    i, j = _first_pairs(len(pad_dofs), half)
+    fill_r = np.stack([i, j], 1).ravel()[:extra] + n  # (i, j) then (j, i): a pattern of its own
+    fill_c = np.stack([j, i], 1).ravel()[:extra] + n
     rows = np.concatenate([pattern.rows, pad_dofs, fill_r]).astype(np.int32)
     cols = np.concatenate([pattern.cols, pad_dofs, fill_c]).astype(np.int32)
     diag = np.concatenate([pattern.diag, nnz + np.arange(len(pad_dofs))]).astype(np.int32)
@@ -183,6 +183,16 @@ def padded_arrays(s: Sizes, cells: np.ndarray, pattern: Pattern, fixed: np.ndarr
     if facets is not None:
         out.update(padded_facets(s, facets))
     return out
+
+
+def _first_pairs(m: int, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The first ``k`` pairs of ``np.triu_indices(m, 1)`` (row by row), without the other
+    ``m (m - 1) / 2 - k`` (a padding of a few hundred dofs has tens of thousands)."""
+    per_row = np.arange(m - 1, 0, -1)  # row r holds m - 1 - r pairs
+    rows = int(np.searchsorted(np.cumsum(per_row), k)) + 1 if k > 0 else 0
+    i = np.repeat(np.arange(rows), per_row[:rows])
+    j = np.concatenate([np.arange(r + 1, m) for r in range(rows)]) if rows else np.zeros(0, int)
+    return i[:k], j[:k]
 
 
 def padded_facets(s: Sizes, facets: np.ndarray) -> dict:

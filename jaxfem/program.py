@@ -38,6 +38,7 @@ import jax.numpy as jnp
 
 from . import padding
 from .assembly import Assembler, matvec
+from .executables import Kept
 from .kinematics import reduce
 from .newton import NewtonOptions, external_force, loads_at, newton_solve
 
@@ -66,8 +67,11 @@ class Program:
     """The jitted pieces of the solve for one element, law, kinematics, linear solver kind and
     Newton options (see the module doc); made by :func:`program`, never directly."""
 
-    def __init__(self, asm: Assembler, lin, opts: NewtonOptions, facet_element: str, finite: bool):
+    def __init__(self, asm: Assembler, lin, opts: NewtonOptions, facet_element: str, finite: bool, depends=None):
         self.asm, self.lin, self.facet_element = asm, lin, facet_element
+        #: what the programs compute besides the shapes (:func:`program`'s key; None: unknown, so
+        #: the kernels are not kept on disk)
+        self.depends = depends if depends is not None else object()
         # one call of a shared executable at a time, waited for with the GIL released: a thread
         # that waits inside XLA for a busy executable holds the GIL, which the running one's host
         # solver callback needs (a diagnosis's two workers hung so, all threads waiting)
@@ -82,15 +86,21 @@ class Program:
         self.tangents = jax.jit(self._tangents)
         self.adjoint = jax.jit(self._adjoint)
         # the kernels of the loop on the host (jaxfem.newton_host): nothing in them calls back into
-        # Python, so the persistent compilation cache keeps them
+        # Python (and, kept whole on disk, neither traced nor lowered in a later process: the key
+        # is what the program was made for, :attr:`depends`)
         self.finite, self.n_qp = finite, asm.el.weights.shape[0]
-        self.evaluate = jax.jit(self._evaluate)
-        self.external = jax.jit(self._external)
-        self.min_det = jax.jit(self._min_det)
-        self.tangent_rhs = jax.jit(jax.vmap(self._tangent_rhs, in_axes=(None, None, 0, None)))
-        self.adjoint_rhs = jax.jit(self._adjoint_rhs)
+        keep = lambda f, name: Kept(f, f"program.{name}", self.depends)  # noqa: E731
+        self.evaluate = keep(self._evaluate, "evaluate")
+        self.external = keep(self._external, "external")
+        self.min_det = keep(self._min_det, "min_det")
+        self.tangent_rhs = keep(self._tangent_rhs_batch, "tangent_rhs")
+        self.adjoint_rhs = keep(self._adjoint_rhs, "adjoint_rhs")
         self.linear = jax.jit(lin)  # for a solver that runs in XLA (a host solver's is never called so)
         self.linear_many = jax.jit(jax.vmap(lin, in_axes=(None, 1, None), out_axes=1))
+
+    def __stable_key__(self):
+        """What :mod:`jaxfem.executables` keys a function that closes over this program by."""
+        return self.depends
 
     def sizes_for(self, own: padding.Sizes, reuse: float = REUSE) -> padding.Sizes:
         """The padded sizes a new solver of real sizes ``own`` (padded to its own bucket) is given:
@@ -177,6 +187,10 @@ class Program:
         _, dG = jax.jvp(free_residual, (theta,), (dtheta,))
         return -dG + jnp.zeros_like(u).at[fixed].set(dtheta["u_D"], unique_indices=True)
 
+    def _tangent_rhs_batch(self, theta, u, dthetas, arrays):
+        """:meth:`_tangent_rhs` for a batch of directions (a leading axis in ``dthetas``)."""
+        return jax.vmap(self._tangent_rhs, in_axes=(None, None, 0, None))(theta, u, dthetas, arrays)
+
     def _adjoint_rhs(self, theta, u, w, arrays):
         """The parameters' cotangent (a pytree like ``theta``) of the adjoint solution ``w``: the
         transpose of :meth:`_tangent_rhs` applied to ``w``."""
@@ -236,5 +250,5 @@ def program(element: str, material, kinematics: str, lin, opts: NewtonOptions, f
     key = (element, material, kinematics, lin.program_key(), opts, facet_element)
     if key not in _PROGRAMS:
         law = reduced_law(material, kinematics)
-        _PROGRAMS[key] = Program(Assembler(element, law), lin.shared(), opts, facet_element, material.finite)
+        _PROGRAMS[key] = Program(Assembler(element, law), lin.shared(), opts, facet_element, material.finite, key)
     return _PROGRAMS[key]

@@ -40,8 +40,8 @@ def figure_png(fig: Figure, dpi: int = 110) -> bytes:
     return buf.getvalue()
 
 
-def _img(fig: Figure, alt: str) -> str:
-    data = base64.b64encode(figure_png(fig)).decode("ascii")
+def _img(fig: Figure, alt: str, png: bytes | None = None) -> str:
+    data = base64.b64encode(figure_png(fig) if png is None else png).decode("ascii")
     return f'<img alt="{escape(alt)}" src="data:image/png;base64,{data}">'
 
 
@@ -119,7 +119,7 @@ def hypotheses_table(d) -> str:
                     "BIC + held-out", "verdict"], rows, classes) + f"<p class='note'>{escape(rule)}</p>" + note)
 
 
-def render(d, figures: dict[str, Figure], summary: str, files: list[str] = ()) -> str:
+def render(d, figures: dict[str, Figure], summary: str, files: list[str] = (), pngs: dict | None = None) -> str:
     """The page as a string.
 
     Args:
@@ -128,7 +128,10 @@ def render(d, figures: dict[str, Figure], summary: str, files: list[str] = ()) -
             ``_SECTIONS`` get their own section, any other figure goes under "More figures".
         summary: the summary in words (:func:`refine.diagnosis.report.summary`).
         files: the other files written beside the page, listed at its end.
+        pngs: figure key -> that figure's PNG bytes, already rendered as :func:`figure_png` does
+            (embedded as they are instead of drawing the figure again); None: every figure drawn.
     """
+    pngs = pngs or {}
     r = d.report()
     name = escape(str(r["bundle"]))
     parts = [f"<!doctype html><html lang='en'><head><meta charset='utf-8'><title>Diagnosis of {name}</title>"
@@ -145,10 +148,10 @@ def render(d, figures: dict[str, Figure], summary: str, files: list[str] = ()) -
          ["model discretisation error std", _num(null["model_error_std"])]]))
     for key, (title, text) in _SECTIONS.items():
         if key in figures:
-            parts.append(f"<h2>{escape(title)}</h2><p class='note'>{escape(text)}</p>{_img(figures[key], title)}")
+            parts.append(f"<h2>{escape(title)}</h2><p class='note'>{escape(text)}</p>{_img(figures[key], title, pngs.get(key))}")
     more = [k for k in figures if k not in _SECTIONS and k != "errors"]
     if more:
-        parts.append("<h2>More figures</h2>" + "".join(_img(figures[k], k) for k in more))
+        parts.append("<h2>More figures</h2>" + "".join(_img(figures[k], k, pngs.get(k)) for k in more))
     parts.append("<h2>Hypotheses tried, and why the chosen one won</h2>" + hypotheses_table(d))
     rows = [[k.replace("_", " "), _num(r["baseline"][k]), _num(r["refined"][k])]
             for k in ("guide_error", "validation_error", "tracking_error")]
@@ -173,7 +176,13 @@ def render(d, figures: dict[str, Figure], summary: str, files: list[str] = ()) -
 
 
 def write(d, path: str | Path, figures: dict[str, Figure], summary: str, files: list[str] = ()) -> Path:
-    """Write :func:`render`'s page to ``path`` (atomically: :mod:`refine.diagnosis.atomic`); return it."""
+    """Write :func:`render`'s page to ``path`` (atomically: :mod:`refine.diagnosis.atomic`); return it.
+    A figure whose ``<key>.png`` is among ``files`` is embedded from that file beside the page
+    (written from the same figure at :func:`figure_png`'s settings, as
+    :func:`refine.diagnosis.report.figures` does), not drawn a second time."""
     from refine.diagnosis.atomic import write_text
 
-    return write_text(path, render(d, figures, summary, files))
+    beside = Path(path).parent
+    pngs = {k: (beside / f"{k}.png").read_bytes() for k in figures
+            if f"{k}.png" in files and (beside / f"{k}.png").is_file()}
+    return write_text(path, render(d, figures, summary, files, pngs))

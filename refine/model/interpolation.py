@@ -29,6 +29,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxfem.executables import Kept
 from jaxfem.padding import BATCH, bucket, pad_batch
 from jaxfem.probe import Probe
 
@@ -74,8 +75,7 @@ def frames_padded(n: int) -> int:
     return max(MIN_FRAMES, 1 << int(np.ceil(np.log2(max(n, 1)))))
 
 
-@jax.jit
-def _jvp(U, dU, X, dX, nodes, neighbours, mesh_cells, positions):
+def _jvp_of(U, dU, X, dX, nodes, neighbours, mesh_cells, positions):
     """The points' displacements ``(frames, points, dim)`` and their derivatives along the
     directions ``dU (b, frames, nodes, dim)``, ``dX (b, nodes, dim)``: compiled once per shape."""
     probe = Probe(neighbours[:, 0], nodes, jnp.zeros(nodes.shape), neighbours, mesh_cells)
@@ -86,11 +86,16 @@ def _jvp(U, dU, X, dX, nodes, neighbours, mesh_cells, positions):
     return at(U, X), jax.vmap(lambda a, b: jax.jvp(at, (U, X), (a, b))[1])(dU, dX)
 
 
-@jax.jit
-def _at(U, X, nodes, neighbours, mesh_cells, positions):
+def _at_of(U, X, nodes, neighbours, mesh_cells, positions):
     """The points' displacements ``(frames, points, dim)`` alone: compiled once per shape."""
     probe = Probe(neighbours[:, 0], nodes, jnp.zeros(nodes.shape), neighbours, mesh_cells)
     return jax.vmap(probe.moved(X, positions))(U)
+
+
+# jitted, their executables kept on disk whole (jaxfem.executables: a later process neither traces
+# nor lowers them)
+_jvp = Kept(_jvp_of, "interpolation.jvp")
+_at = Kept(_at_of, "interpolation.at")
 
 
 def _pad_axis(a, n: int, axis: int) -> np.ndarray:

@@ -12,14 +12,16 @@ ParaView and use "Warp By Vector" on ``displacement`` to see the deformed shape.
 
 from __future__ import annotations
 
-import weakref
 from pathlib import Path
+from types import SimpleNamespace
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 import jaxfem as jf
+from jaxfem.executables import Kept
+from jaxfem.program import split
 
 from refine.bundle.observations import Observations
 from refine.bundle.roles import ROLES
@@ -54,19 +56,29 @@ def model_fields(model: MeasuredModel, theta: dict, U) -> tuple[jf.Mesh, dict, d
     return mesh, {"displacement": np.asarray(U)}, cells
 
 
-#: one compiled strain function per solver (a figure and a series of the same frames share it)
-_COMPILED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: one compiled strain function per solver program and dimension (the mesh's cells are an
+#: argument; a figure and a series of the same frames share it), its executables kept on disk
+#: (jaxfem.executables: a later process neither traces nor lowers it)
+_COMPILED: dict = {}
 
 
 def _strains(solver: jf.Solver):
     """``(U (frames, n_nodes, dim), theta) -> (E, principal, equivalent)`` per frame and cell, compiled."""
-    if solver not in _COMPILED:
-        def strains(u, th):
-            return (jf.green_lagrange_strain(solver, u, th), jf.principal_strains(solver, u, th),
-                    jf.equivalent_strain(solver, u, th))
+    prog, dim = solver.program, solver.problem.mesh.dim
+    if (prog, dim) not in _COMPILED:
+        def strains(U, th, cells):
+            like = SimpleNamespace(_split=split, arrays={"cells": cells}, assembler=prog.asm, law=prog.asm.law,
+                                   problem=SimpleNamespace(mesh=SimpleNamespace(dim=dim)))  # what jaxfem.postprocess reads
 
-        _COMPILED[solver] = jax.jit(jax.vmap(strains, in_axes=(0, None)))
-    return _COMPILED[solver]
+            def one(u):
+                return (jf.green_lagrange_strain(like, u, th), jf.principal_strains(like, u, th),
+                        jf.equivalent_strain(like, u, th))
+
+            return jax.vmap(one)(U)
+
+        _COMPILED[prog, dim] = Kept(strains, "paraview.strains")
+    run = _COMPILED[prog, dim]
+    return lambda U, theta: run(U, theta, solver.arrays["cells"])
 
 
 def write_model_series(folder: str | Path, name: str, model: MeasuredModel, theta: dict, U) -> Path:
