@@ -34,9 +34,11 @@ def crossing_candidates(ink: np.ndarray, pitch: float, mask: np.ndarray | None =
 
     A maximum is kept when it reaches 0.35 of the 90th percentile of the maxima in ``inner``
     (default: all), e.g. the material away from its edges, where the ink's local normalisation
-    sees half a neighbourhood and can peak far above any crossing.
+    sees half a neighbourhood and can peak far above any crossing, and where the template's
+    samples all lie on the ``mask`` in the image.
     """
     smooth = ndimage.gaussian_filter(ink, 0.25 * pitch, mode="nearest")
+    judged = np.ones(ink.shape, bool) if inner is None else np.asarray(inner, bool)
     if steps is not None:
         a, b = 0.5 * np.asarray(steps[0], float), 0.5 * np.asarray(steps[1], float)
 
@@ -46,6 +48,11 @@ def crossing_candidates(ink: np.ndarray, pitch: float, mask: np.ndarray | None =
         arms = 0.25 * (at(a) + at(-a) + at(b) + at(-b))
         cells = 0.25 * (at(a + b) + at(a - b) + at(-a + b) + at(-a - b))
         smooth = smooth + arms - cells
+        # the template is judged only where all its samples lie on the material in the image (at
+        # the image's border or the mask's, the shifted samples repeat the edge's values)
+        material = np.ones(ink.shape, bool) if mask is None else np.asarray(mask, bool)
+        for d in (a, -a, b, -b, a + b, a - b, -a + b, -a - b):
+            judged &= ndimage.shift(material.astype(np.float64), (-d[1], -d[0]), order=0, cval=0.0) > 0.5
     size = max(3, int(0.6 * pitch) | 1)
     peaks = (smooth == ndimage.maximum_filter(smooth, size=size, mode="nearest"))
     if mask is not None:
@@ -54,7 +61,7 @@ def crossing_candidates(ink: np.ndarray, pitch: float, mask: np.ndarray | None =
     if rows.size == 0:
         return np.zeros((0, 2))
     values = smooth[rows, cols]
-    typical = values if inner is None else values[inner[rows, cols]]
+    typical = values[judged[rows, cols]]
     strong = values > 0.35 * np.percentile(typical if typical.size else values, 90)
     return np.stack([cols[strong], rows[strong]], axis=1).astype(np.float64)
 
