@@ -67,8 +67,18 @@ def _spectral_peaks(image: np.ndarray, mask: np.ndarray, pitch_range) -> tuple[n
     angle = np.abs(fx * k1[1] - fy * k1[0]) / (radius * np.linalg.norm(k1) + 1e-300)
     score2 = np.where(usable & (angle > np.sin(np.radians(30))), whitened, 0.0)
     second = np.unravel_index(np.argmax(score2), score2.shape)
-    first, second = _fundamental(clipped, first, fx, fy, usable), _fundamental(clipped, second, fx, fy, usable)
     background = np.median(clipped[usable])
+
+    def fundamental(peak):
+        # clipping gives a thin line's harmonics more power still: the plain spectrum's
+        # fundamental is taken too where the clipped spectrum shows a clear peak there
+        found = _fundamental(clipped, peak, fx, fy, usable)
+        if found == peak:
+            plain = _fundamental(power, peak, fx, fy, usable)
+            found = plain if clipped[plain] >= 20.0 * background else found
+        return found
+
+    first, second = fundamental(first), fundamental(second)
     for peak in (first, second):
         if clipped[peak] < 20.0 * background:
             raise GridNotFoundError(
