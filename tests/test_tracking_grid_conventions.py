@@ -58,7 +58,6 @@ def test_reported_thin_line_grid_is_tracked(case, rms):
 # draws that fail today are marked: strict, so that a fix shows (see the benchmark's rows)
 DRAWN_SEED, DRAWN = 4401, 6
 KNOWN_FAILURES = {
-    0: "20-grey-level lines blurred by 1.2 px, noise 2, sheet ending in view: the lattice takes a 34 px pitch for 27.5",
     1: "58 px pitch, a 5 x 4 crossing sheet ending in view: 94.7 % of the visible crossings",
     4: "20-grey-level 2 px lines at a 10 px pitch, blur 1.2, JPEG 70: 0.35 px RMS",
 }

@@ -176,17 +176,25 @@ def _fixed_directions(scores: np.ndarray, at, reach: int) -> np.ndarray:
     return vectors[:, (drops >= 0.01) & (drops >= 0.2 * drops.max())]
 
 
-def frame_lattice(image: np.ndarray, geometry: GridGeometry, previous: np.ndarray) -> np.ndarray | None:
+def frame_lattice(image: np.ndarray, geometry: GridGeometry, previous: np.ndarray,
+                  material: np.ndarray | None = None) -> np.ndarray | None:
     """Linear part L (2, 2) of the frame's mean motion from its grid lattice, or None if unseen.
 
     The frame's two line-family wave vectors are matched to the reference's (as predicted by the
     ``previous`` L); L = K'^-1 K with K, K' the reference and frame wave vectors as rows.
+    ``material``: (rows, cols) bool, where the frame's grid is expected (the reference's pattern
+    mask carried by the prior map): the spectrum is taken there, as the reference's lattice was
+    (a sheet's edge or the background in the spectrum pulls the peaks by a few per cent, which
+    would read as strain); None or under four cells: the whole frame.
     """
     reference = np.linalg.inv(np.stack([geometry.col_step, geometry.row_step], axis=1))
     pitch = geometry.pitch
     flat = image - ndimage.gaussian_filter(image, 4.0 * pitch)
+    mask = np.ones(image.shape, bool)
+    if material is not None and np.count_nonzero(material) >= 4 * pitch ** 2:
+        mask = material
     try:
-        found = np.stack(_spectral_peaks(flat, np.ones(image.shape, bool), (0.5 * pitch, 2.0 * pitch)))
+        found = np.stack(_spectral_peaks(flat, mask, (0.5 * pitch, 2.0 * pitch)))
     except GridNotFoundError:
         return None
     predicted = reference @ np.linalg.inv(previous)
@@ -219,7 +227,8 @@ def carry(prior: CoarseMotion, linear: np.ndarray, shape) -> CoarseMotion:
 
 
 def grid_motion(reference_features: np.ndarray, image: np.ndarray, geometry: GridGeometry,
-                prior: CoarseMotion, min_contrast: float, ignore: np.ndarray | None = None) -> CoarseMotion:
+                prior: CoarseMotion, min_contrast: float, ignore: np.ndarray | None = None,
+                material: np.ndarray | None = None) -> CoarseMotion:
     """A grid frame's affine motion (see the module's notes); ``prior``: the temporal guess.
 
     ``reference_features`` is the reference's :func:`silhouette` at a pitch. The linear part is
@@ -230,10 +239,11 @@ def grid_motion(reference_features: np.ndarray, image: np.ndarray, geometry: Gri
     view, e.g. the sheet's end with its sides out of view; the silhouette :data:`PARTIAL_EDGE`
     times above the threshold) the translation across it is the data's and along it the
     prior's, and the map is not marked supported; with no feature the
-    prior's displacement at the image centre is kept under the frame's lattice.
+    prior's displacement at the image centre is kept under the frame's lattice. ``material``:
+    where the frame's grid is expected (see :func:`frame_lattice`).
     """
     pitch = geometry.pitch
-    linear = frame_lattice(image, geometry, prior.linear)
+    linear = frame_lattice(image, geometry, prior.linear, material)
     if linear is None:
         return prior
     carried = carry(prior, linear, image.shape)

@@ -34,9 +34,11 @@ def crossing_candidates(ink: np.ndarray, pitch: float, mask: np.ndarray | None =
 
     A maximum is kept when it reaches 0.35 of the 90th percentile of the maxima in ``inner``
     (default: all), e.g. the material away from its edges, where the ink's local normalisation
-    sees half a neighbourhood and can peak far above any crossing.
+    sees half a neighbourhood and can peak far above any crossing, and where the template's
+    samples all lie in the image.
     """
     smooth = ndimage.gaussian_filter(ink, 0.25 * pitch, mode="nearest")
+    judged = np.ones(ink.shape, bool) if inner is None else np.asarray(inner, bool)
     if steps is not None:
         a, b = 0.5 * np.asarray(steps[0], float), 0.5 * np.asarray(steps[1], float)
 
@@ -46,6 +48,13 @@ def crossing_candidates(ink: np.ndarray, pitch: float, mask: np.ndarray | None =
         arms = 0.25 * (at(a) + at(-a) + at(b) + at(-b))
         cells = 0.25 * (at(a + b) + at(a - b) + at(-a + b) + at(-a - b))
         smooth = smooth + arms - cells
+        # the template is judged only where all its samples lie in the image (beyond its border
+        # the shifted samples repeat the border's values), or, the laxer of the two, on the mask
+        # too (at its edge a sample off the material reads an ink of 0)
+        offsets = (a, -a, b, -b, a + b, a - b, -a + b, -a - b)
+        judged = judged & _all_shifted(np.ones(ink.shape, bool), offsets)
+        if mask is not None:
+            on_material = judged & _all_shifted(np.asarray(mask, bool), offsets)
     size = max(3, int(0.6 * pitch) | 1)
     peaks = (smooth == ndimage.maximum_filter(smooth, size=size, mode="nearest"))
     if mask is not None:
@@ -54,9 +63,24 @@ def crossing_candidates(ink: np.ndarray, pitch: float, mask: np.ndarray | None =
     if rows.size == 0:
         return np.zeros((0, 2))
     values = smooth[rows, cols]
-    typical = values if inner is None else values[inner[rows, cols]]
-    strong = values > 0.35 * np.percentile(typical if typical.size else values, 90)
+
+    def level(where):
+        typical = values[where[rows, cols]]
+        return np.percentile(typical if typical.size else values, 90)
+
+    floor = level(judged)
+    if steps is not None and mask is not None and np.any(on_material[rows, cols]):
+        floor = min(floor, level(on_material))
+    strong = values > 0.35 * floor
     return np.stack([cols[strong], rows[strong]], axis=1).astype(np.float64)
+
+
+def _all_shifted(mask: np.ndarray, offsets) -> np.ndarray:
+    """(rows, cols) bool: pixels p with p + d in ``mask`` for every offset d (x, y) of ``offsets``."""
+    out = np.ones(mask.shape, bool)
+    for d in offsets:
+        out &= ndimage.shift(mask.astype(np.float64), (-d[1], -d[0]), order=0, cval=0.0) > 0.5
+    return out
 
 
 def label_grid(candidates: np.ndarray, geometry: GridGeometry, seed_xy) -> np.ndarray:

@@ -110,19 +110,16 @@ class GridTracker:
         geometry = grid_geometry(stack[0], roi, self.pitch_range, self.dark_lines)
         material = roi
         if self.find_pattern:
-            waves = np.linalg.inv(np.stack([geometry.col_step, geometry.row_step], axis=1))
-            try:
-                material = pattern_mask(stack[0], geometry.pitch, roi, waves)
-            except TrackingError as e:
-                raise GridNotFoundError(f"grid not found at the mask stage: {e}", "mask") from e
-            if np.count_nonzero(material) < 4 * geometry.pitch ** 2:
-                raise GridNotFoundError(
-                    f"grid not found at the mask stage: the grid's texture (pitch {geometry.pitch:.1f} px) covers "
-                    f"{np.count_nonzero(material)} px of the region of interest, under 4 cells; try a region of "
-                    "interest on the grid (--roi), the grid's pitch range if that pitch is wrong "
-                    "(GridTracker.pitch_range; --option 'pitch_range=(LO,HI)'), or find_pattern=False "
-                    "(--option find_pattern=False) to measure every crossing of the ROI", "mask")
-            geometry = grid_geometry(stack[0], material, self.pitch_range, geometry.dark_lines)
+            material = self._material(stack[0], roi, geometry)
+            # the lattice again on the grid alone (an edge or the background beside the sheet
+            # pulls the whole view's peaks by a few per cent); its mask again if that moved it
+            for _ in range(2):
+                found = grid_geometry(stack[0], material, self.pitch_range, self.dark_lines)
+                moved = abs(found.pitch / geometry.pitch - 1.0) > 0.01
+                geometry = found
+                if not moved:
+                    break
+                material = self._material(stack[0], roi, geometry)
         nodes, quality, excluded = self._reference(stack[0], material, roi, geometry, refiner)
         active = np.isfinite(nodes[..., 0])
         history, qualities = [nodes], [quality]
@@ -135,7 +132,10 @@ class GridTracker:
         for image in stack[1:]:
             fitted = [affine_fit(nodes, h, active) for h in history]
             prior = fitted[-1].extrapolated(fitted[-2]) if len(fitted) >= 2 else fitted[-1]
-            motion = grid_motion(features, image, geometry, prior, min_contrast, saturated(image)) \
+            # the frame's lattice is read where the material is expected: the reference's mask
+            # carried by the prior, less half a pitch (the prior is not exact)
+            expected = ndimage.binary_erosion(_moved(material, prior), iterations=max(1, int(0.5 * geometry.pitch)))
+            motion = grid_motion(features, image, geometry, prior, min_contrast, saturated(image), expected) \
                 if self.coarse else prior
             measure = lambda m: self._frame(image, history, fitted, m, active, geometry, refiner,  # noqa: E731
                                             material, roi)
@@ -151,6 +151,22 @@ class GridTracker:
                 "coarse_motion": [{"affine": np.hstack([m.linear, m.offset[:, None]]), "supported": m.supported}
                                   for m in motions]}
         return self._tracks(history, qualities, reasons, active, geometry, meta)
+
+    def _material(self, image, roi, geometry: GridGeometry) -> np.ndarray:
+        """The grid's pattern mask in ``roi`` under the lattice ``geometry`` (the mask stage)."""
+        waves = np.linalg.inv(np.stack([geometry.col_step, geometry.row_step], axis=1))
+        try:
+            material = pattern_mask(image, geometry.pitch, roi, waves)
+        except TrackingError as e:
+            raise GridNotFoundError(f"grid not found at the mask stage: {e}", "mask") from e
+        if np.count_nonzero(material) < 4 * geometry.pitch ** 2:
+            raise GridNotFoundError(
+                f"grid not found at the mask stage: the grid's texture (pitch {geometry.pitch:.1f} px) covers "
+                f"{np.count_nonzero(material)} px of the region of interest, under 4 cells; try a region of "
+                "interest on the grid (--roi), the grid's pitch range if that pitch is wrong "
+                "(GridTracker.pitch_range; --option 'pitch_range=(LO,HI)'), or find_pattern=False "
+                "(--option find_pattern=False) to measure every crossing of the ROI", "mask")
+        return material
 
     def _reference(self, image, material, roi, geometry: GridGeometry, refiner):
         ink = ink_image(image, geometry, _ink_mask(material, roi))

@@ -46,37 +46,68 @@ def _spectral_peaks(image: np.ndarray, mask: np.ndarray, pitch_range) -> tuple[n
                                 f"to hold two pitches of {pitch_range[0]:g} px; enlarge the ROI (--roi)", "lattice")
     patch = image[r0:r1, c0:c1]
     inside = mask[r0:r1, c0:c1]
-    patch = np.where(inside, patch - patch[inside].mean(), 0.0)
-    window = np.outer(np.hanning(patch.shape[0]), np.hanning(patch.shape[1]))
-    power = np.abs(np.fft.fft2(patch * window)) ** 2
     fy = np.fft.fftfreq(patch.shape[0])[:, None] * np.ones(patch.shape)
     fx = np.fft.fftfreq(patch.shape[1])[None, :] * np.ones(patch.shape)
     radius = np.hypot(fx, fy)
+    centred = np.where(inside, patch - patch[inside].mean(), 0.0)
+    window = np.outer(np.hanning(patch.shape[0]), np.hanning(patch.shape[1]))
+    power = np.abs(np.fft.fft2(centred * window)) ** 2
+    # the peaks' bins are picked on a whitened spectrum with the edges' weight clipped
+    whitened = _clipped_gradient_power(patch, inside)
+    clipped = whitened / np.maximum((2.0 * np.pi * radius) ** 2, 1e-300)
     usable = (radius >= 1.0 / pitch_range[1]) & (radius <= 1.0 / pitch_range[0])
     usable &= (fx > 0) | ((fx == 0) & (fy > 0))
     if not usable.any():
         raise GridNotFoundError(f"grid not found at the lattice stage: no frequencies of the image fit the pitch "
                                 f"range {pitch_range[0]:g}-{pitch_range[1]:g} px; widen it (GridTracker.pitch_range)",
                                 "lattice")
-    # peaks are picked on the whitened spectrum: an edge in view (the specimen's, a hole's) has a
-    # power falling as 1/f^2 that can beat a grid's peak at low frequencies; a grid's peak stays
-    whitened = power * radius ** 2
     score = np.where(usable, whitened, 0.0)
     first = np.unravel_index(np.argmax(score), score.shape)
     k1 = np.array([fx[first], fy[first]])
     angle = np.abs(fx * k1[1] - fy * k1[0]) / (radius * np.linalg.norm(k1) + 1e-300)
     score2 = np.where(usable & (angle > np.sin(np.radians(30))), whitened, 0.0)
     second = np.unravel_index(np.argmax(score2), score2.shape)
-    first, second = _fundamental(power, first, fx, fy, usable), _fundamental(power, second, fx, fy, usable)
-    background = np.median(power[usable])
+    background = np.median(clipped[usable])
+
+    def fundamental(peak):
+        # clipping gives a thin line's harmonics more power still: the plain spectrum's
+        # fundamental is taken too where the clipped spectrum shows a clear peak there
+        found = _fundamental(clipped, peak, fx, fy, usable)
+        if found == peak:
+            plain = _fundamental(power, peak, fx, fy, usable)
+            found = plain if clipped[plain] >= 20.0 * background else found
+        return found
+
+    first, second = fundamental(first), fundamental(second)
     for peak in (first, second):
-        if power[peak] < 20.0 * background:
+        if clipped[peak] < 20.0 * background:
             raise GridNotFoundError(
                 f"grid not found at the lattice stage: the image spectrum shows no two clear line "
                 f"families with a pitch of {pitch_range[0]:g}-{pitch_range[1]:g} px; try the grid's pitch "
                 "range (GridTracker.pitch_range; nonrigid track --option 'pitch_range=(LO,HI)' in px), a "
                 "region of interest on the grid alone (--roi), and check that the grid is in focus", "lattice")
     return _refined_frequency(power, first, fx, fy), _refined_frequency(power, second, fx, fy)
+
+
+def _clipped_gradient_power(patch: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """The whitened power spectrum of ``patch`` (its gradient's power, |2 pi f|^2 times the
+    image's) with the gradient's magnitude clipped at its 90th percentile inside the mask.
+
+    Whitening keeps a grid's peaks against the 1/f^2 fall of an edge's power (an edge in view,
+    the specimen's or a hole's), but a step edge's whitened spectrum is a flat ridge along its
+    normal, and a step of the full sheet-to-background contrast at low frequency can still beat
+    or displace a faint grid's peak lying within a bin of that ridge (a grid turned by a few
+    degrees from the edge). Clipped, the step's gradient weighs as much as one grid line, a
+    family's lines add coherently, so the grid's peaks stand out again; clipping is pointwise,
+    so a family's peak stays where it is (its harmonics gain power, handled by
+    :func:`_fundamental`).
+    """
+    gy, gx = np.gradient(patch)
+    magnitude = np.hypot(gx, gy)
+    top = np.percentile(magnitude[inside], 90) if inside.any() else 0.0
+    shrink = np.where(inside, np.minimum(1.0, top / np.maximum(magnitude, 1e-300)), 0.0)
+    window = np.outer(np.hanning(patch.shape[0]), np.hanning(patch.shape[1])) * shrink
+    return np.abs(np.fft.fft2(gx * window)) ** 2 + np.abs(np.fft.fft2(gy * window)) ** 2
 
 
 def _fundamental(power, peak, fx, fy, usable):

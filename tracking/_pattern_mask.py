@@ -120,6 +120,15 @@ def pattern_mask(image: np.ndarray, scale: float, roi: np.ndarray | None = None,
     # lights the band-passed image too, and a wide window would carry that far into a hole
     smoothing = 0.5 * scale if waves is not None else _speckle_smoothing(scale)
     amplitude = texture_amplitude(image, smoothing, waves)
+    light = 1.0
+    if waves is not None:
+        # painted lines reflect a share of the light: under a lighting gradient or vignetting
+        # (a third less light in a corner) their amplitude follows the local level, which
+        # the grid's relative amplitude does not (the level: the median over a pitch, smoothed;
+        # floored at a tenth of the brightest, so a dark background's noise is not magnified)
+        level = ndimage.gaussian_filter(_median(np.asarray(image, np.float64), int(round(scale)) | 1), smoothing)
+        light = np.maximum(level, 0.1 * float(np.percentile(level, 99)) + 1e-12)
+        amplitude = amplitude / light
     glare = ndimage.binary_dilation(saturated(image), iterations=max(1, int(round(0.5 * scale))))
     usable = roi & ~glare
     if not usable.any() or not np.any(amplitude[usable] > 0):
@@ -128,7 +137,7 @@ def pattern_mask(image: np.ndarray, scale: float, roi: np.ndarray | None = None,
     typical = np.median(amplitude[provisional])
     mask = usable & (amplitude > 0.5 * typical)
     if waves is not None:   # and the texture is the grid's, not a corner's leftovers or noise
-        mask &= amplitude > 2.0 * control_amplitude(image, smoothing, waves)
+        mask &= amplitude > 2.0 * control_amplitude(image, smoothing, waves) / light
     # specks of texture in the background and pinholes in the material are not features
     size = max(3, int(round(0.5 * scale)) | 1)
     mask = ndimage.binary_opening(mask, np.ones((size, size), bool))
