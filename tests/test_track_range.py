@@ -86,13 +86,23 @@ def test_rendered_cup_holder_tracked_in_3d_within_the_depth_noise(scene_files, t
     dist, match = cKDTree(truth[0]).query(obs.reference)
     assert dist.max() < 0.3 * scene.paint.pitch                 # every point is a painted crossing
     ref_err = obs.reference - truth[0][match]
-    # in-plane: the grid tracker's ~0.05 px (0.005 mm); depth: the bilinear mean of 4 noisy pixels
-    assert np.abs(ref_err[:, :2]).max() < 0.015, np.abs(ref_err[:, :2]).max()
+    # in-plane: the grid tracker's ~0.05 px (0.005 mm); depth: the bilinear mean of 4 noisy pixels.
+    # A crossing whose arms reach the cup's silhouette (within a pixel of half the 12.5 px pitch)
+    # sees a cut line in a frame the bulge moved unlike the reference's affine map: 0.3 px there
+    from scipy import ndimage
+
+    body = ndimage.distance_transform_edt(ndimage.binary_fill_holes(np.isfinite(views[0].range)))
+    uv, _ = scene.camera.project(obs.reference)
+    rim = body[np.rint(uv[:, 1]).astype(int), np.rint(uv[:, 0]).astype(int)] < 0.5 * 12.5 + 1.5
+    bound = np.where(rim, 0.03, 0.015)
+    assert np.count_nonzero(rim) <= 0.05 * obs.n_points
+    assert (np.abs(ref_err[:, :2]).max(axis=1) < bound).all(), np.abs(ref_err[:, :2]).max()
     assert np.sqrt(np.mean(ref_err[:, 2] ** 2)) < 0.8 * NOISE and np.abs(ref_err[:, 2]).max() < 4 * NOISE
     for f in range(2):
         ok = np.isfinite(obs.displacements[f]).all(axis=1)
         err = obs.reference[ok] + obs.displacements[f][ok] - truth[f + 1][match[ok]]
-        assert np.sqrt(np.mean(err[:, 2] ** 2)) < 0.8 * NOISE and np.abs(err[:, :2]).max() < 0.015
+        assert np.sqrt(np.mean(err[:, 2] ** 2)) < 0.8 * NOISE
+        assert (np.abs(err[:, :2]).max(axis=1) < bound[ok]).all(), np.abs(err[:, :2]).max()
         moved = np.abs(truth[f + 1][match[ok], 2] - truth[0][match[ok], 2]).max()
         assert moved > 5 * NOISE                                 # the motion is well above the noise
 

@@ -124,9 +124,15 @@ def pattern_mask(image: np.ndarray, scale: float, roi: np.ndarray | None = None,
     if waves is not None:
         # painted lines reflect a share of the light: under a lighting gradient or vignetting
         # (a third less light in a corner) their amplitude follows the local level, which
-        # the grid's relative amplitude does not (the level: the median over a pitch, smoothed;
-        # floored at a tenth of the brightest, so a dark background's noise is not magnified)
-        level = ndimage.gaussian_filter(_median(np.asarray(image, np.float64), int(round(scale)) | 1), smoothing)
+        # the grid's relative amplitude does not. The level is the textured material's: the
+        # median over a pitch, averaged over a pitch weighted by the texture's amplitude, so
+        # that a background beside the sheet (dark or light, without the grid's texture) takes
+        # the sheet's level and the edge's falling amplitude is judged as without the light;
+        # floored at a tenth of the brightest, so a dark background's noise is not magnified
+        level = _median(np.asarray(image, np.float64), int(round(scale)) | 1)
+        weight = ndimage.gaussian_filter(amplitude, scale)
+        seen = weight > 1e-3 * weight.max()
+        level = np.where(seen, ndimage.gaussian_filter(level * amplitude, scale) / np.where(seen, weight, 1.0), level)
         light = np.maximum(level, 0.1 * float(np.percentile(level, 99)) + 1e-12)
         amplitude = amplitude / light
     glare = ndimage.binary_dilation(saturated(image), iterations=max(1, int(round(0.5 * scale))))
