@@ -198,6 +198,11 @@ class Compiled:
             self._evaluate = Shared(jax.jacfwd(f, has_aux=True))
         self._last = None
 
+    def theta_at(self, z) -> dict:
+        """The solver's parameters at ``z`` (``param.apply(theta, z)``), from the program the
+        solves take them from (compiled: a fused program's last bits, not eager operations')."""
+        return self._apply(np.asarray(z, float))[0]
+
     def _solve(self, z) -> dict:
         """The equilibrium at ``z``, frame after frame from the one before: ``{"z", "U": nodal
         displacements (frames, n_nodes, dim), "states": each frame's converged state, "dirs":
