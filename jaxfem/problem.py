@@ -68,6 +68,14 @@ def _check_nu(nu, problem) -> None:
                            "jaxfem.to_quadratic(mesh) of a tet4 mesh, or box(..., element='tet10')")
 
 
+
+def _full(v, shape) -> jax.Array:
+    """``v`` as a float64 device array broadcast to ``shape``: traced, by ``jnp``; else on the host
+    and put on the device (an eager ``jnp`` operation compiles a small program per shape)."""
+    if isinstance(v, jax.core.Tracer):
+        return jnp.broadcast_to(jnp.asarray(v, jnp.float64), shape)
+    return jax.device_put(np.array(np.broadcast_to(np.asarray(v, np.float64), shape)))
+
 @dataclass(frozen=True, eq=False)
 class Problem:
     """A static description of a solid-mechanics problem.
@@ -148,11 +156,12 @@ class Problem:
             cellwise[q.name] = extra.pop(q.name, q.default)
         if extra:
             raise ProblemError(f"unknown parameters {sorted(extra)} for the {self.material.name} law")
-        p = {k: jnp.broadcast_to(jnp.asarray(v, jnp.float64), (nc,)) for k, v in cellwise.items()}
-        p["X"] = jnp.asarray(self.mesh.nodes if X is None else X, jnp.float64)
-        p["u_D"] = jnp.broadcast_to(jnp.asarray(u_D, jnp.float64), (len(self.fixed),))
-        p["f"] = jnp.broadcast_to(jnp.asarray(f, jnp.float64), (self.n_dofs,))
-        p["traction"] = jnp.broadcast_to(jnp.asarray(traction, jnp.float64), (len(self.traction_facets), dim))
+        p = {k: _full(v, (nc,)) for k, v in cellwise.items()}
+        X = self.mesh.nodes if X is None else X
+        p["X"] = _full(X, np.shape(X))
+        p["u_D"] = _full(u_D, (len(self.fixed),))
+        p["f"] = _full(f, (self.n_dofs,))
+        p["traction"] = _full(traction, (len(self.traction_facets), dim))
         return p
 
     def prescribe(self, displacement) -> np.ndarray:

@@ -179,7 +179,7 @@ def fit_compiled(hypothesis: Hypothesis, compiled: Compiled, fit_mask: Mask, hol
     fit, hold = (Residuals.at(compiled.model.obs.displacements, m, sigma) for m in (fit_mask, hold_mask))
     chi2, k = fit.chi2(pred), compiled.param.size
     return Fitted(hypothesis, k, chi2, hold.chi2(pred), chi2 + k * np.log(max(fit.n, 2)), pred, compiled.model,
-                  compiled.param.apply(compiled.theta, z), sigma, shapes=hypothesis.shapes_at(compiled, z),
+                  compiled.theta_at(z), sigma, shapes=hypothesis.shapes_at(compiled, z),
                   compiled=compiled, z=z, result=res)
 
 

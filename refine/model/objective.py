@@ -19,6 +19,7 @@ from jaxtyping import Float
 
 from refine.measures import Residuals, displacement_error
 from refine.model.measured import MeasuredModel, frame_traction
+from refine.model.shared import Shared
 
 
 class Objective:
@@ -32,8 +33,10 @@ class Objective:
         points: optional boolean mask over all points overriding ``role``.
         noise_std: weight of the residuals (default: the bundle's noise, or 1).
 
-    Its compiled pieces (:attr:`residuals_and_jacobian`, :attr:`value_and_grad`) are compiled on
-    first use and kept, so later fits of the same objective are warm.
+    Its compiled pieces (:attr:`residuals_and_jacobian`, :attr:`value_and_grad`) are traced on
+    first use and run on programs shared with every objective that traces to the same program
+    (:class:`~refine.model.shared.Shared`: the arrays they close over are arguments), so later
+    fits of this objective, and of another one of the same shapes, compile nothing.
     """
 
     def __init__(self, model: MeasuredModel, param, theta=None, role: str = "guide", points=None,
@@ -97,30 +100,32 @@ class Objective:
         """``z -> (J, r)``, compiled: the Jacobian ``(n_residuals, k)`` of the residuals (forward
         mode, one tangent solve per unknown and frame at the converged state) and the residuals
         ``(n_residuals,)``, from one solve."""
-        return jax.jit(jax.jacfwd(lambda z: (self.residuals(z),) * 2, has_aux=True))
+        return Shared(jax.jacfwd(lambda z: (self.residuals(z),) * 2, has_aux=True))
 
     @cached_property
     def value_and_grad(self):
         """``z -> (value, gradient)`` (the gradient by one adjoint solve per frame): on the
         solver's shared programs (:mod:`jaxfem.program`) where the model solves its frames as
         :class:`~refine.model.MeasuredModel` does and the misfit is this class's, else one program
-        compiled per objective."""
+        (:class:`~refine.model.shared.Shared`)."""
         if self.model.shares_programs and type(self).value is Objective.value \
                 and type(self).residuals is Objective.residuals and self.model.frame_tractions(self.theta["X"]) is None:
             return self._shared_value_and_grad
-        return jax.jit(jax.value_and_grad(self.value))
+        return Shared(jax.value_and_grad(self.value))
 
     @cached_property
     def _pieces(self):
         """The compiled pieces of :meth:`_shared_value_and_grad` that belong to this objective
-        (small: no solve in them): the parametrisation with its pullback, and the misfit of the
-        nodal displacements with its gradient in them and in the reference nodes."""
+        (small: no solve in them): the parametrisation with its pullback (compiled per objective;
+        the pullback runs eagerly), and the misfit of the
+        nodal displacements with its gradient in them, in the reference nodes and in ``z``
+        (:class:`~refine.model.shared.Shared`)."""
         def misfit(U, X, z):
             r = self.residuals_of(self.model.at_points(U, {"X": X}))
             return 0.5 * jnp.sum(r * r) + self.param.regularization(z)
 
         apply = jax.jit(lambda z: jax.vjp(lambda zz: self.param.apply(self.theta, zz), z))
-        return apply, jax.jit(jax.value_and_grad(misfit, argnums=(0, 1, 2)))
+        return apply, Shared(jax.value_and_grad(misfit, argnums=(0, 1, 2)))
 
     def _shared_value_and_grad(self, z):
         apply, misfit = self._pieces
@@ -135,11 +140,12 @@ class Objective:
             U.append(u)
             states.append(state)
         value, (gU, gX, gz) = misfit(np.stack(U), theta["X"], z)
+        gU = np.asarray(gU)  # (host numpy from here: an eager operation compiles a program per shape)
         g_theta = {k: np.zeros(np.shape(v)) for k, v in theta.items()}
         g_theta["X"] = np.asarray(gX, float).copy()
         for f, state in enumerate(states):
             for k, v in model.solver.adjoint(state, gU[f]).items():
-                g_theta[k] = g_theta[k] + v
+                g_theta[k] = g_theta[k] + np.asarray(v)
         g_theta["u_D"] = np.zeros(np.shape(theta["u_D"]))  # the drive does not depend on z
         return value, pullback(jax.tree.map(jnp.asarray, g_theta))[0] + gz
 
@@ -163,9 +169,11 @@ class Compiled:
     The solves run on the solver's shared programs (:mod:`jaxfem.program`: Newton, then the
     tangents along the k parameter directions), which every model of about the same mesh size,
     element and law reuses: a hypothesis remeshed at its fitted shapes compiles no solve again.
-    What is compiled per instance is small: the parametrisation and its Jacobian
-    (``theta(z)``, ``dtheta/dz``); the points' interpolation and its derivative run on a program
-    shared by models of about the same size (:mod:`refine.model.interpolation`)."""
+    The parametrisation and its Jacobian (``theta(z)``, ``dtheta/dz``) run on a program shared by
+    every instance that traces to the same one (:class:`~refine.model.shared.Shared`: the same
+    shapes, whatever the masks, morph or base parameters); the points' interpolation and its
+    derivative on a program shared by models of about the same size
+    (:mod:`refine.model.interpolation`)."""
 
     def __init__(self, model: MeasuredModel, param, theta=None):
         self.model, self.param = model, param
@@ -175,20 +183,25 @@ class Compiled:
             th = param.apply(self.theta, z)
             return th, jax.jacfwd(param.apply, argnums=1)(self.theta, z)
 
-        self._apply = jax.jit(apply)
+        self._apply = Shared(apply)
         self._tractions = None
         if model.frame_tractions(self.theta["X"]) is not None:  # each frame's load follows the geometry
             def tractions(z):
                 return model.frame_tractions(param.apply(self.theta, z)["X"])
 
-            self._tractions = jax.jit(lambda z: (tractions(z), jax.jacfwd(tractions)(z)))
+            self._tractions = Shared(lambda z: (tractions(z), jax.jacfwd(tractions)(z)))
         if not model.shares_programs:  # a model that solves its frames its own way: one program per model
             def f(z):
                 y = model.predict(param.apply(self.theta, z))
                 return y, y
 
-            self._evaluate = jax.jit(jax.jacfwd(f, has_aux=True))
+            self._evaluate = Shared(jax.jacfwd(f, has_aux=True))
         self._last = None
+
+    def theta_at(self, z) -> dict:
+        """The solver's parameters at ``z`` (``param.apply(theta, z)``), from the program the
+        solves take them from (compiled: a fused program's last bits, not eager operations')."""
+        return self._apply(np.asarray(z, float))[0]
 
     def _solve(self, z) -> dict:
         """The equilibrium at ``z``, frame after frame from the one before: ``{"z", "U": nodal

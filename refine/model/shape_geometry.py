@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -19,6 +20,12 @@ def _inverse_2x2(M, xp):
     parametrisation: see :func:`jaxfem.probe.solve_small`)."""
     adj = xp.stack([xp.stack([M[:, 1, 1], -M[:, 0, 1]], -1), xp.stack([-M[:, 1, 0], M[:, 0, 0]], -1)], -2)
     return adj / (M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0])[:, None, None]
+
+
+# the morphed nodes of infeasibility's check on one program per shape of its arguments (the morph
+# is a pytree: its arrays are arguments; run eagerly, each operation compiled a program per shape)
+_affine_nodes = jax.jit(lambda morph, centres, maps: morph.affine(centres, maps))
+_morphed_nodes = jax.jit(lambda morph, params: morph(params))
 
 
 def make_shape(kind: str, params):
@@ -167,12 +174,12 @@ class ShapeGeometry:
             axes = np.concatenate([np.linalg.eigvalsh(M[~rect]).ravel(), rect_abt[rect, :2].ravel()])
             if axes.min() <= max(self.min_axis, 1e-3 * self.scale):
                 return f"a semi-axis would fall to {axes.min():.3g}"
-            X = np.asarray(self.morph.affine(c, maps))
+            X = np.asarray(_affine_nodes(self.morph, c, maps))
         else:
             p = self._axis_aligned(z, np)
             if p[:, 2:4].min() <= max(self.min_axis, 1e-3 * self.scale):
                 return f"a semi-axis would fall to {p[:, 2:4].min():.3g}"
-            X = np.asarray(self.morph(p))
+            X = np.asarray(_morphed_nodes(self.morph, p))
         if self.mesh is not None:
             quality = (self.mesh.jacobian_dets(X) / self.mesh.jacobian_dets()).min()
             if quality < self.min_quality:
