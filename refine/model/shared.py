@@ -19,7 +19,7 @@ from functools import partial
 
 import jax
 import numpy as np
-from jax._src.core import eval_jaxpr
+from jax.core import eval_jaxpr
 
 #: closed-over arrays of at most this many elements stay constants of the program (in its key)
 SMALL = 64
