@@ -28,6 +28,13 @@ _affine_nodes = jax.jit(lambda morph, centres, maps: morph.affine(centres, maps)
 _morphed_nodes = jax.jit(lambda morph, params: morph(params))
 
 
+def _is_pytree(morph) -> bool:
+    """True when ``morph`` is a registered pytree (its arrays can be a program's arguments); a
+    morph that is not (e.g. ``refine.solid.morph.ExtrudedMorph``) runs eagerly."""
+    leaves = jax.tree.leaves(morph)
+    return not (len(leaves) == 1 and leaves[0] is morph)
+
+
 def make_shape(kind: str, params):
     """A ``jaxfem.Ellipse`` (``kind="ellipse"``) or ``jaxfem.Rect`` (``"rectangle"``) from
     ``(cx, cy, a, b, angle)``: centre, semi-axes or half sides, angle (radians)."""
@@ -174,12 +181,12 @@ class ShapeGeometry:
             axes = np.concatenate([np.linalg.eigvalsh(M[~rect]).ravel(), rect_abt[rect, :2].ravel()])
             if axes.min() <= max(self.min_axis, 1e-3 * self.scale):
                 return f"a semi-axis would fall to {axes.min():.3g}"
-            X = np.asarray(_affine_nodes(self.morph, c, maps))
+            X = np.asarray(_affine_nodes(self.morph, c, maps) if _is_pytree(self.morph) else self.morph.affine(c, maps))
         else:
             p = self._axis_aligned(z, np)
             if p[:, 2:4].min() <= max(self.min_axis, 1e-3 * self.scale):
                 return f"a semi-axis would fall to {p[:, 2:4].min():.3g}"
-            X = np.asarray(_morphed_nodes(self.morph, p))
+            X = np.asarray(_morphed_nodes(self.morph, p) if _is_pytree(self.morph) else self.morph(p))
         if self.mesh is not None:
             quality = (self.mesh.jacobian_dets(X) / self.mesh.jacobian_dets()).min()
             if quality < self.min_quality:
