@@ -68,13 +68,13 @@ def _check_nu(nu, problem) -> None:
                            "jaxfem.to_quadratic(mesh) of a tet4 mesh, or box(..., element='tet10')")
 
 
-
 def _full(v, shape) -> jax.Array:
     """``v`` as a float64 device array broadcast to ``shape``: traced, by ``jnp``; else on the host
     and put on the device (an eager ``jnp`` operation compiles a small program per shape)."""
     if isinstance(v, jax.core.Tracer):
         return jnp.broadcast_to(jnp.asarray(v, jnp.float64), shape)
     return jax.device_put(np.array(np.broadcast_to(np.asarray(v, np.float64), shape)))
+
 
 @dataclass(frozen=True, eq=False)
 class Problem:

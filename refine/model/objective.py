@@ -200,8 +200,13 @@ class Compiled:
 
     def theta_at(self, z) -> dict:
         """The solver's parameters at ``z`` (``param.apply(theta, z)``), from the program the
-        solves take them from (compiled: a fused program's last bits, not eager operations')."""
-        return self._apply(np.asarray(z, float))[0]
+        solves take them from (compiled: a fused program's last bits, not eager operations'):
+        the last solve's where it was at ``z``."""
+        z = np.asarray(z, float)
+        last = self._last
+        if last is not None and "theta" in last and np.array_equal(last["z"], z):
+            return last["theta"]
+        return self._apply(z)[0]
 
     def _solve(self, z) -> dict:
         """The equilibrium at ``z``, frame after frame from the one before: ``{"z", "U": nodal

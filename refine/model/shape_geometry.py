@@ -22,17 +22,11 @@ def _inverse_2x2(M, xp):
     return adj / (M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0])[:, None, None]
 
 
-# the morphed nodes of infeasibility's check on one program per shape of its arguments (the morph
-# is a pytree: its arrays are arguments; run eagerly, each operation compiled a program per shape)
+# the morphed nodes of infeasibility's check on one program per shape of its arguments (a morph,
+# jaxfem's Morph or refine.solid's ExtrudedMorph, is an equinox module: its arrays are arguments;
+# run eagerly, each operation compiled a program per shape)
 _affine_nodes = jax.jit(lambda morph, centres, maps: morph.affine(centres, maps))
 _morphed_nodes = jax.jit(lambda morph, params: morph(params))
-
-
-def _is_pytree(morph) -> bool:
-    """True when ``morph`` is a registered pytree (its arrays can be a program's arguments); a
-    morph that is not (e.g. ``refine.solid.morph.ExtrudedMorph``) runs eagerly."""
-    leaves = jax.tree.leaves(morph)
-    return not (len(leaves) == 1 and leaves[0] is morph)
 
 
 def make_shape(kind: str, params):
@@ -181,12 +175,12 @@ class ShapeGeometry:
             axes = np.concatenate([np.linalg.eigvalsh(M[~rect]).ravel(), rect_abt[rect, :2].ravel()])
             if axes.min() <= max(self.min_axis, 1e-3 * self.scale):
                 return f"a semi-axis would fall to {axes.min():.3g}"
-            X = np.asarray(_affine_nodes(self.morph, c, maps) if _is_pytree(self.morph) else self.morph.affine(c, maps))
+            X = np.asarray(_affine_nodes(self.morph, c, maps))
         else:
             p = self._axis_aligned(z, np)
             if p[:, 2:4].min() <= max(self.min_axis, 1e-3 * self.scale):
                 return f"a semi-axis would fall to {p[:, 2:4].min():.3g}"
-            X = np.asarray(_morphed_nodes(self.morph, p) if _is_pytree(self.morph) else self.morph(p))
+            X = np.asarray(_morphed_nodes(self.morph, p))
         if self.mesh is not None:
             quality = (self.mesh.jacobian_dets(X) / self.mesh.jacobian_dets()).min()
             if quality < self.min_quality:

@@ -8,8 +8,7 @@ middle, so cells keep straight edges and :func:`refine.solid.loaded.moved_probe`
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -33,8 +32,7 @@ def midpoint_pairs(mesh: jf.Mesh) -> np.ndarray:
     return out
 
 
-@dataclass(frozen=True, eq=False)
-class ExtrudedMorph:
+class ExtrudedMorph(eqx.Module):
     """The morph of an extruded mesh (see the module): ``morph(params)`` and ``morph.affine(centres,
     maps)`` as :class:`jaxfem.shapes.Morph`, returning the 3D nodes ``(n_nodes, 3)``."""
 
